@@ -1,0 +1,120 @@
+"""Camera and depth conventions, written once.
+
+Conventions used everywhere in photo3d:
+
+* Images are ``(H, W, 3) float32`` in [0, 1]; pixel ``(row, col) = (y, x)``; the
+  centre of pixel ``(y, x)`` is at image coordinates ``(x + 0.5, y + 0.5)``.
+* Camera axes follow OpenCV: x right, y down, z forward. Intrinsics ``K`` are in
+  pixels. The default camera of a ``W x H`` photo has ``fx = fy = max(H, W)`` and its
+  principal point at the image centre ``(W / 2, H / 2)`` (as the authors' code).
+* Poses are 4x4 camera-from-world matrices; the input view is the identity.
+* Internally the algorithm works on *normalised disparity* in [0, 1] (paper, Sec. 3.1).
+  Geometry depth follows the authors' code: ``z = 1 / max(scale * d + offset, floor)``
+  with ``scale = 3, offset = 0, floor = 0.05`` by default, i.e. z in [1/3, 20].
+  A metric input keeps metric units by choosing ``scale``/``offset`` so that the
+  mapping reproduces the input's own 1/z (see :func:`DepthMapping.from_inverse_depth`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Intrinsics:
+    """Pinhole intrinsics in pixels for an image of ``width x height``.
+
+    Example:
+        >>> k = Intrinsics.default(640, 480)
+        >>> k.fx, k.cx, k.cy
+        (640.0, 320.0, 240.0)
+    """
+
+    fx: float
+    fy: float
+    cx: float
+    cy: float
+    width: int
+    height: int
+
+    @classmethod
+    def default(cls, width: int, height: int) -> Intrinsics:
+        """The authors' camera: focal ``max(H, W)``, principal point at the centre."""
+        f = float(max(width, height))
+        return cls(f, f, width / 2.0, height / 2.0, int(width), int(height))
+
+    @property
+    def matrix(self) -> np.ndarray:
+        """``(3, 3) float64`` calibration matrix K."""
+        return np.array([[self.fx, 0, self.cx], [0, self.fy, self.cy], [0, 0, 1]], float)
+
+    @property
+    def fov(self) -> tuple[float, float]:
+        """``(horizontal, vertical)`` field of view in radians."""
+        return (
+            2.0 * math.atan(self.width / (2.0 * self.fx)),
+            2.0 * math.atan(self.height / (2.0 * self.fy)),
+        )
+
+    def scaled(self, width: int, height: int) -> Intrinsics:
+        """The same camera for the image resized to ``width x height``.
+
+        Example:
+            >>> Intrinsics.default(100, 50).scaled(200, 100).fx
+            200.0
+        """
+        sx, sy = width / self.width, height / self.height
+        return Intrinsics(self.fx * sx, self.fy * sy, self.cx * sx, self.cy * sy, width, height)
+
+
+@dataclass(frozen=True)
+class DepthMapping:
+    """Map normalised disparity ``d`` in [0, 1] to camera depth z.
+
+    ``z = 1 / max(scale * d + offset, floor)``.
+
+    Example:
+        >>> m = DepthMapping()
+        >>> float(m.depth(np.float32(1.0))), float(m.depth(np.float32(0.0)))
+        (0.3333333432674408, 20.0)
+    """
+
+    scale: float = 3.0
+    offset: float = 0.0
+    floor: float = 0.05
+
+    @classmethod
+    def from_inverse_depth(cls, inv_min: float, inv_max: float) -> DepthMapping:
+        """Mapping that restores a metric ``1/z`` range normalised to [0, 1]."""
+        return cls(scale=float(inv_max - inv_min), offset=float(inv_min), floor=1e-12)
+
+    def depth(self, disparity: np.ndarray) -> np.ndarray:
+        """``disparity``: normalised, any shape -> depth z, same shape, float32."""
+        inv = np.maximum(self.scale * np.asarray(disparity, np.float32) + self.offset, self.floor)
+        return (1.0 / inv).astype(np.float32)
+
+
+def unproject(x: np.ndarray, y: np.ndarray, z: np.ndarray, k: Intrinsics) -> np.ndarray:
+    """Lattice positions to 3D points in camera coordinates.
+
+    Args:
+        x, y: ``(N,)`` integer lattice columns / rows (may lie outside the image
+            for extrapolated border pixels); the point is the pixel centre.
+        z: ``(N,)`` depth along the optical axis.
+        k: intrinsics of the input view.
+
+    Returns:
+        ``(N, 3) float32`` points (OpenCV axes).
+
+    Example:
+        >>> k = Intrinsics.default(4, 4)
+        >>> unproject(np.array([1]), np.array([1]), np.array([2.0]), k).tolist()
+        [[-0.25, -0.25, 2.0]]
+    """
+    z = np.asarray(z, np.float32)
+    px = (np.asarray(x, np.float32) + 0.5 - k.cx) / k.fx
+    py = (np.asarray(y, np.float32) + 0.5 - k.cy) / k.fy
+    return np.stack([px * z, py * z, z], axis=1).astype(np.float32)

@@ -1,0 +1,176 @@
+"""Command line: ``photo3d make`` and ``photo3d demo``.
+
+Thin layer over the library: parses arguments, shows a progress bar and a timing
+summary, and turns :class:`~photo3d.errors.Photo3DError` into a one-line message
+with exit status 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+from photo3d.config import PRESETS, Config
+from photo3d.errors import Photo3DError
+
+STAGE_LABELS = {
+    "load": "load",
+    "preprocess": "preprocess",
+    "ldi": "LDI",
+    "inpaint": "inpaint",
+    "mesh": "mesh",
+    "save": "save",
+}
+
+
+def _add_make_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("-o", "--out", type=Path, help="output folder (must not exist or be empty)")
+    p.add_argument("--preset", choices=sorted(PRESETS), default="default",
+                   help="named configuration (default: %(default)s)")
+    p.add_argument("--size", type=int, help="longer side of the working image in pixels "
+                   "(default 1024; 0 keeps the input size)")
+    p.add_argument("--inpainter", help="inpainting backend (default: diffusion)")
+    p.add_argument("--ply", choices=["binary", "ascii", "none"], default="binary",
+                   help="PLY mesh encoding (default: %(default)s)")
+    p.add_argument("--no-glb", action="store_true", help="do not write mesh.glb")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="photo3d",
+        description="Turn a photo and its depth into a 3D photo (layered depth image, "
+                    "inpainted occlusions, meshes).",
+    )
+    from photo3d import __version__
+
+    parser.add_argument("--version", action="version", version=f"photo3d {__version__}")
+    sub = parser.add_subparsers(dest="command", required=True)
+    mk = sub.add_parser("make", help="make a 3D photo from an image and a depth map")
+    mk.add_argument("image", type=Path, help="JPEG, PNG, TIFF or WebP photo")
+    mk.add_argument("--depth", type=Path, required=True,
+                    help="depth map: PNG (8/16-bit), .npy, .pfm or float TIFF")
+    mk.add_argument("--depth-kind", choices=["disparity", "depth"], default="disparity",
+                    help="what the depth map holds: disparity (near = large, default) or "
+                         "depth (near = small)")
+    _add_make_options(mk)
+    demo = sub.add_parser("demo", help="make a 3D photo of the bundled Middlebury sample")
+    _add_make_options(demo)
+    demo.set_defaults(out=Path("out/demo"))
+    return parser
+
+
+def _config(args: argparse.Namespace, **changes) -> Config:
+    cfg = PRESETS[args.preset]
+    if args.size is not None:
+        changes["size"] = None if args.size == 0 else args.size
+    if args.inpainter:
+        changes["inpainter"] = args.inpainter
+    return cfg.with_(**changes)
+
+
+class _Bar:
+    """Stage-aware progress bar (tqdm on stderr)."""
+
+    def __init__(self, quiet: bool) -> None:
+        self.bar = None
+        if not quiet:
+            from tqdm import tqdm
+
+            self.bar = tqdm(total=100, bar_format="{desc:<12}{bar}| {percentage:3.0f}% "
+                            "[{elapsed}]", file=sys.stderr, leave=False,
+                            disable=None)  # no bar when stderr is not a terminal
+        self.weights = {"load": 2, "preprocess": 10, "ldi": 3, "inpaint": 70, "mesh": 5,
+                        "save": 10}
+        self.stage = None
+
+    def __call__(self, stage: str, fraction: float) -> None:
+        if self.bar is None:
+            return
+        order = list(self.weights)
+        base = sum(self.weights[s] for s in order[: order.index(stage)])
+        value = base + self.weights[stage] * fraction
+        if stage != self.stage:
+            self.stage = stage
+            self.bar.set_description_str(STAGE_LABELS.get(stage, stage), refresh=False)
+        self.bar.update(max(0.0, value - self.bar.n))
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.close()
+
+
+def _run_make(args: argparse.Namespace, image, depth, config: Config) -> int:
+    from photo3d.output import check_output
+    from photo3d.pipeline import make
+
+    if args.out is None:
+        raise Photo3DError("an output folder is required: -o OUT")
+    check_output(args.out, overwrite=args.overwrite)
+    bar = _Bar(args.quiet)
+    try:
+        photo = make(image, depth=depth, config=config, progress=bar)
+        bar("mesh", 0.0)
+        t = time.perf_counter()
+        photo.timings["save"] = 0.0
+        photo.save(args.out, overwrite=args.overwrite,
+                   ply=None if args.ply == "none" else args.ply, glb=not args.no_glb)
+        photo.timings["save"] = time.perf_counter() - t
+        bar("save", 1.0)
+    finally:
+        bar.close()
+    if not args.quiet:
+        _summary(photo, args.out)
+    return 0
+
+
+def _summary(photo, out: Path) -> None:
+    w, h = photo.stats["working_size"]
+    print(f"3D photo written to {out}/ ({w}x{h}, {photo.ldi.size:,} LDI pixels, "
+          f"{photo.stats['passes']} inpainting pass(es), edges per pass {photo.stats['edges']})")
+    total = sum(photo.timings.values())
+    parts = ", ".join(f"{STAGE_LABELS.get(k, k)} {v:.2f}s" for k, v in photo.timings.items())
+    print(f"time: {total:.2f}s ({parts})")
+    for name in sorted(p.name for p in out.iterdir()):
+        print(f"  {name:<14} {(out / name).stat().st_size / 1e6:8.2f} MB")
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of the ``photo3d`` command; returns the exit status."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+
+    def show(message, category, filename, lineno, file=None, line=None):
+        print(f"photo3d: warning: {message}", file=sys.stderr)
+
+    warnings.showwarning = show
+    try:
+        if args.command == "make":
+            cfg = _config(args, depth_kind=args.depth_kind)
+            return _run_make(args, args.image, args.depth, cfg)
+        if args.command == "demo":
+            from photo3d.data import motorcycle
+
+            sample = motorcycle()
+            if not args.quiet:
+                print("sample: Middlebury 2014 'Motorcycle' left view with its ground-truth "
+                      "disparity (unknown pixels filled with the farther row neighbour)")
+            return _run_make(args, sample.left, np.asarray(sample.disparity), _config(args))
+    except Photo3DError as err:
+        print(f"photo3d: error: {err}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("photo3d: interrupted", file=sys.stderr)
+        return 130
+    parser.error(f"unknown command {args.command}")
+    return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

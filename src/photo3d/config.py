@@ -1,0 +1,120 @@
+"""Configuration: frozen, nested dataclasses with one docstring per field.
+
+Change a value with :func:`dataclasses.replace` (or :meth:`Config.with_`), never in
+place. Spatial sizes are given for a 1024 px working size (the paper's tuning) and
+scaled by ``size / 1024`` at run time (:meth:`Config.spatial`).
+
+Example:
+    >>> cfg = Config().with_(size=512, inpainter="diffusion")
+    >>> cfg.size, cfg.spatial(40)
+    (512, 20)
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from dataclasses import dataclass, field
+from typing import Any
+
+from photo3d.errors import ConfigError
+
+REFERENCE_SIZE = 1024
+
+
+@dataclass(frozen=True)
+class PreprocessConfig:
+    """Depth sharpening and edge detection (paper, Sec. 3.1)."""
+
+    filter_windows: tuple[int, ...] = (7, 7, 5, 5, 5)
+    """Bilateral median filter passes, one window size each (authors' code)."""
+    sigma_spatial: float = 4.0
+    """Spatial sigma of the bilateral median filter, pixels."""
+    sigma_intensity: float = 0.5
+    """Range sigma of the bilateral median filter, in normalised disparity."""
+    discontinuity: float = 0.04
+    """Neighbour disparity difference (normalised) that marks a discontinuity."""
+    min_edge_length: int = 10
+    """Linked depth edges shorter than this (px at 1024) are dropped."""
+
+
+@dataclass(frozen=True)
+class RegionConfig:
+    """Context and synthesis regions (paper, Sec. 3.2)."""
+
+    synthesis_iterations: int = 40
+    """Flood-fill steps of the synthesis region (px at 1024)."""
+    context_iterations: int = 100
+    """Flood-fill steps of the context region (px at 1024)."""
+    edge_dilation: int = 5
+    """Synthesis region dilated into the context near the edge (px at 1024)."""
+    border: int = 60
+    """Width of the extrapolated frame around the image (px at 1024; 0 = none)."""
+    max_passes: int = 3
+    """Multi-layer inpainting: at most this many passes (stops when no new edge)."""
+
+
+@dataclass(frozen=True)
+class Config:
+    """Everything that changes what :func:`photo3d.make` computes."""
+
+    size: int | None = 1024
+    """Longer side of the working image in pixels (None: keep the input size)."""
+    depth_kind: str = "disparity"
+    """How to read the depth input: ``disparity`` (near = large) or ``depth``."""
+    inpainter: str = "diffusion"
+    """Inpainting backend name (see :func:`photo3d.inpaint.available`)."""
+    spatial_scale: float | None = None
+    """Factor applied to spatial sizes (None: working size / 1024, as the paper)."""
+    preprocess: PreprocessConfig = field(default_factory=PreprocessConfig)
+    regions: RegionConfig = field(default_factory=RegionConfig)
+
+    def __post_init__(self) -> None:
+        if self.size is not None and not 16 <= self.size <= 16384:
+            raise ConfigError(f"size must be between 16 and 16384 or None, got {self.size}")
+        if self.depth_kind not in ("disparity", "depth"):
+            raise ConfigError(f"depth_kind must be 'disparity' or 'depth', got {self.depth_kind!r}")
+
+    def with_(self, **changes: Any) -> Config:
+        """A copy with top-level fields replaced (nested: pass a new sub-config)."""
+        return dataclasses.replace(self, **changes)
+
+    def spatial(self, pixels: int, working_size: int | None = None) -> int:
+        """Scale a size tuned for 1024 px to the working size (at least 1).
+
+        ``working_size`` is the longer side actually used (defaults to ``size``).
+        """
+        if pixels <= 0:
+            return 0
+        scale = self.spatial_scale
+        if scale is None:
+            scale = (working_size or self.size or REFERENCE_SIZE) / REFERENCE_SIZE
+        return max(1, round(pixels * scale))
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain JSON-able dictionary (saved beside every output)."""
+        return dataclasses.asdict(self)
+
+    def to_json(self) -> str:
+        return json.dumps(self.to_dict(), indent=2)
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> Config:
+        """Inverse of :meth:`to_dict`; unknown keys raise :class:`ConfigError`."""
+        data = dict(data)
+        try:
+            pre = data.pop("preprocess", {})
+            if "filter_windows" in pre:
+                pre = {**pre, "filter_windows": tuple(pre["filter_windows"])}
+            reg = data.pop("regions", {})
+            return cls(preprocess=PreprocessConfig(**pre), regions=RegionConfig(**reg), **data)
+        except TypeError as err:
+            raise ConfigError(f"bad configuration: {err}") from None
+
+
+PRESETS: dict[str, Config] = {
+    "default": Config(),
+    "fast": Config(size=640),
+    "paper": Config(size=1024, regions=RegionConfig(border=60)),
+}
+"""Named configurations (``photo3d make --preset NAME``)."""

@@ -1,0 +1,140 @@
+"""Raw depth or disparity -> validated, filled, normalised disparity.
+
+Unknown values (NaN, +-inf, and depth <= 0 / disparity < 0) are filled along each
+image row with the *farther* of the nearest known values to the left and right.
+Unknown pixels in stereo ground truth and depth sensors are almost always
+occlusions or shadows next to a foreground object, i.e. background, so the farther
+neighbour is the plausible value; rows without any known value take the farthest
+known value of the whole map.
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+
+from photo3d.errors import InputError
+
+
+@dataclass(frozen=True)
+class DepthInput:
+    """Disparity ready for resizing and normalisation.
+
+    Attributes:
+        disparity: ``(H, W) float32`` inverse depth (any positive scale), filled.
+        unknown: ``(H, W) bool`` pixels that were unknown in the input and got filled.
+    """
+
+    disparity: np.ndarray
+    unknown: np.ndarray
+
+
+def prepare_depth(depth: np.ndarray, image_shape: tuple[int, int], *, kind: str) -> DepthInput:
+    """Validate a raw depth map against the image and turn it into filled disparity.
+
+    Args:
+        depth: ``(h, w)`` raw values as read from a file or given by the caller.
+        image_shape: ``(H, W)`` of the image the depth belongs to. A map of another
+            size with the same aspect ratio (within 1 %) is resampled (with a
+            ``UserWarning``); any other size raises :class:`InputError`.
+        kind: ``"disparity"`` (larger = nearer) or ``"depth"`` (camera z).
+
+    Returns:
+        :class:`DepthInput` at ``image_shape``.
+
+    Example:
+        >>> d = np.array([[1.0, np.inf], [2.0, 4.0]], np.float32)
+        >>> prepare_depth(d, (2, 2), kind="disparity").disparity.tolist()
+        [[1.0, 1.0], [2.0, 4.0]]
+    """
+    depth = np.asarray(depth)
+    if depth.ndim == 3 and depth.shape[2] == 1:
+        depth = depth[..., 0]
+    if depth.ndim != 2:
+        raise InputError(f"depth has shape {depth.shape}; expected a single-channel (H, W) map")
+    if not np.issubdtype(depth.dtype, np.number):
+        raise InputError(f"depth has dtype {depth.dtype}; expected numbers")
+    depth = depth.astype(np.float32)
+    h, w = image_shape
+    if depth.shape != (h, w):
+        ratio_d, ratio_i = depth.shape[1] / depth.shape[0], w / h
+        if abs(ratio_d / ratio_i - 1.0) > 0.01:
+            raise InputError(
+                f"depth has shape {depth.shape} but image is {(h, w)}: aspect ratios differ"
+            )
+        warnings.warn(
+            f"depth has shape {depth.shape} but image is {(h, w)}; resampling the depth",
+            UserWarning,
+            stacklevel=2,
+        )
+        depth = _resize_nearest(depth, (h, w))
+
+    if kind == "depth":
+        valid = np.isfinite(depth) & (depth > 0)
+        disparity = np.where(valid, 1.0 / np.where(valid, depth, 1.0), 0.0)
+    elif kind == "disparity":
+        valid = np.isfinite(depth) & (depth >= 0)
+        disparity = np.where(valid, depth, 0.0)
+    else:
+        raise InputError(f"depth kind must be 'disparity' or 'depth', got {kind!r}")
+    if not valid.any():
+        raise InputError("depth has no valid value (all NaN, inf or out of range)")
+    filled = fill_unknown(disparity.astype(np.float32), ~valid)
+    return DepthInput(disparity=filled, unknown=~valid)
+
+
+def fill_unknown(disparity: np.ndarray, unknown: np.ndarray) -> np.ndarray:
+    """Fill ``unknown`` pixels with the farther (smaller) nearest known row neighbour.
+
+    Args:
+        disparity: ``(H, W) float32``; values under ``unknown`` are ignored.
+        unknown: ``(H, W) bool``.
+
+    Returns:
+        ``(H, W) float32`` copy with every unknown pixel filled.
+
+    Example:
+        >>> d = np.array([[5.0, 0.0, 0.0, 2.0]], np.float32)
+        >>> fill_unknown(d, np.array([[False, True, True, False]])).tolist()
+        [[5.0, 2.0, 2.0, 2.0]]
+    """
+    if not unknown.any():
+        return disparity.copy()
+    h, w = disparity.shape
+    cols = np.broadcast_to(np.arange(w), (h, w))
+    known = ~unknown
+    # Index of the nearest known pixel to the left / right in each row (-1 / w: none).
+    left = np.maximum.accumulate(np.where(known, cols, -1), axis=1)
+    right = np.minimum.accumulate(np.where(known, cols, w)[:, ::-1], axis=1)[:, ::-1]
+    rows = np.arange(h)[:, None]
+    big = np.float32(np.inf)
+    lv = np.where(left >= 0, disparity[rows, np.clip(left, 0, w - 1)], big)
+    rv = np.where(right < w, disparity[rows, np.clip(right, 0, w - 1)], big)
+    fill = np.minimum(lv, rv)
+    fill = np.where(np.isfinite(fill), fill, disparity[known].min())
+    return np.where(unknown, fill, disparity).astype(np.float32)
+
+
+def normalize(disparity: np.ndarray) -> tuple[np.ndarray, float, float]:
+    """Map disparity to [0, 1] by its min and max (paper, Sec. 3.1).
+
+    Returns ``(normalised, min, max)``; a constant map gives all zeros.
+
+    Example:
+        >>> n, lo, hi = normalize(np.array([[2.0, 4.0]], np.float32))
+        >>> n.tolist(), lo, hi
+        ([[0.0, 1.0]], 2.0, 4.0)
+    """
+    lo, hi = float(disparity.min()), float(disparity.max())
+    if hi - lo <= 1e-12 * max(abs(hi), 1.0):
+        return np.zeros_like(disparity, dtype=np.float32), lo, hi
+    return ((disparity - lo) / (hi - lo)).astype(np.float32), lo, hi
+
+
+def _resize_nearest(array: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
+    h, w = shape
+    ys = ((np.arange(h) + 0.5) * array.shape[0] / h).astype(int)
+    xs = ((np.arange(w) + 0.5) * array.shape[1] / w).astype(int)
+    return array[np.clip(ys, 0, array.shape[0] - 1)][:, np.clip(xs, 0, array.shape[1] - 1)]

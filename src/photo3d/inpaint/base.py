@@ -1,0 +1,108 @@
+"""The inpainter interface: a patch in, colour, depth and edges out.
+
+A :class:`Patch` is a local image-like window of one LDI layer around one depth edge
+(paper, Sec. 3.2-3.3). Only pixels under ``context`` carry information; colour and
+disparity are zero under ``synthesis`` and everywhere else, so a backend cannot draw
+from the foreground or from anything outside the context even by mistake.
+Backends implement :class:`Inpainter` and are registered by name; the pipeline never
+needs to know which one runs.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Protocol
+
+import numpy as np
+
+from photo3d.errors import ConfigError
+
+
+@dataclass(frozen=True)
+class Patch:
+    """Inputs of one inpainting job.
+
+    Attributes:
+        color: ``(h, w, 3) float32`` sRGB in [0, 1], zero outside ``context``.
+        disparity: ``(h, w) float32`` normalised disparity, zero outside ``context``.
+        edges: ``(h, w) float32`` 1 on depth-edge pixels inside the context, else 0.
+        context: ``(h, w) bool`` known pixels (one connected LDI layer).
+        synthesis: ``(h, w) bool`` pixels to generate (disjoint from ``context``).
+        origin: ``(y0, x0)`` lattice position of the patch's top-left pixel.
+    """
+
+    color: np.ndarray
+    disparity: np.ndarray
+    edges: np.ndarray
+    context: np.ndarray
+    synthesis: np.ndarray
+    origin: tuple[int, int]
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return self.context.shape
+
+
+@dataclass(frozen=True)
+class InpaintResult:
+    """Outputs of one job; only values under the patch's ``synthesis`` are used.
+
+    Attributes:
+        color: ``(h, w, 3) float32`` in [0, 1].
+        disparity: ``(h, w) float32`` normalised disparity.
+        edges: ``(h, w) float32`` inpainted depth edges in [0, 1] (zeros if the
+            backend does not predict edges).
+    """
+
+    color: np.ndarray
+    disparity: np.ndarray
+    edges: np.ndarray
+
+
+Progress = Callable[[int, int], None]
+"""``progress(done, total)`` called by backends as jobs finish."""
+
+
+class Inpainter(Protocol):
+    """What a backend provides."""
+
+    name: str
+    margin: int
+    """Pixels of context-free margin the backend wants around each patch."""
+
+    def inpaint(
+        self, patches: Sequence[Patch], *, progress: Progress | None = None
+    ) -> list[InpaintResult]:
+        """Fill every patch's synthesis region; one result per patch, same order."""
+        ...
+
+
+_REGISTRY: dict[str, Callable[..., Inpainter]] = {}
+
+
+def register(name: str, factory: Callable[..., Inpainter]) -> None:
+    """Make a backend available under ``name`` (``factory(**options)`` builds it)."""
+    _REGISTRY[name] = factory
+
+
+def available() -> list[str]:
+    """Names of the registered backends."""
+    _load_builtin()
+    return sorted(_REGISTRY)
+
+
+def get_inpainter(name: str, **options) -> Inpainter:
+    """Build the backend ``name`` with backend-specific ``options``.
+
+    Raises :class:`ConfigError` for an unknown name.
+    """
+    _load_builtin()
+    if name not in _REGISTRY:
+        raise ConfigError(f"unknown inpainter {name!r}; available: {', '.join(available())}")
+    return _REGISTRY[name](**options)
+
+
+def _load_builtin() -> None:
+    if "diffusion" not in _REGISTRY:
+        from photo3d.inpaint import diffusion  # noqa: F401  (registers itself)

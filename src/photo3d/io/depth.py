@@ -1,0 +1,301 @@
+"""Read and write depth (or disparity) maps: PNG, NPY, PFM and float TIFF.
+
+:func:`read_depth` returns the values exactly as stored: no normalisation, no unit
+conversion, no guess whether the file holds depth or disparity (that is decided by
+the caller, see :mod:`photo3d.camera`). Non-finite values stay as they are (PFM and
+float files often mark unknown pixels with ``inf``).
+
+Example:
+    >>> import pathlib, tempfile
+    >>> import numpy as np
+    >>> path = pathlib.Path(tempfile.mkdtemp()) / "depth.pfm"
+    >>> write_pfm(path, np.array([[1.0, 2.0], [3.0, np.inf]]))
+    >>> read_depth(path)
+    array([[ 1.,  2.],
+           [ 3., inf]], dtype=float32)
+"""
+
+from __future__ import annotations
+
+import os
+import re
+from pathlib import Path
+
+import numpy as np
+from PIL import Image, UnidentifiedImageError
+
+from photo3d.errors import InputError, OutputError
+
+PathLike = str | os.PathLike[str]
+
+SUPPORTED = ".png (8/16-bit grey), .npy, .pfm, .tif/.tiff (float or 16-bit grey)"
+"""Human-readable list of the depth formats :func:`read_depth` reads."""
+
+_PFM_HEADER = re.compile(rb"\s*(P[Ff])\s+(\d+)\s+(\d+)\s+(\S+)\s")
+
+
+def read_depth(path: PathLike) -> np.ndarray:
+    """Read a depth or disparity map with its raw stored values.
+
+    The format follows the extension:
+
+    * ``.png``: 8- or 16-bit grey, values 0..255 or 0..65535. An RGB(A) PNG is
+      accepted only if its three colour channels are equal (the first is used).
+    * ``.npy``: a numeric ``(H, W)``, ``(1, H, W)`` or ``(H, W, 1)`` array, loaded
+      with ``allow_pickle=False``.
+    * ``.pfm``: ``Pf`` (grey) or ``PF`` (colour, first channel used), either byte
+      order; rows are stored bottom-to-top in the file and returned top-to-bottom.
+    * ``.tif``/``.tiff``: 32-bit float or 8/16-bit grey through Pillow, anything
+      else (float64, several channels) through ``tifffile`` (extra ``photo3d[tiff]``).
+
+    Args:
+        path: the depth file.
+
+    Returns:
+        ``(H, W) float32``, row 0 at the top of the picture, values as stored.
+
+    Raises:
+        InputError: the file is missing, has an unsupported extension, cannot be
+            decoded, or does not hold a single-channel 2-D map. The message names
+            the path and the supported formats.
+
+    Example:
+        >>> import pathlib, tempfile
+        >>> import numpy as np
+        >>> path = pathlib.Path(tempfile.mkdtemp()) / "depth.npy"
+        >>> np.save(path, np.arange(6, dtype=np.uint16).reshape(1, 2, 3))
+        >>> read_depth(path)
+        array([[0., 1., 2.],
+               [3., 4., 5.]], dtype=float32)
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"depth file not found: {path}; photo3d reads {SUPPORTED}")
+    reader = _READERS.get(path.suffix.lower())
+    if reader is None:
+        raise InputError(
+            f"cannot read depth {path}: unsupported extension {path.suffix!r}; "
+            f"photo3d reads {SUPPORTED}"
+        )
+    try:
+        depth = _as_depth_map(reader(path))
+    except InputError as err:
+        raise InputError(f"cannot read depth {path}: {err}; photo3d reads {SUPPORTED}") from err
+    return depth
+
+
+def write_pfm(path: PathLike, depth: np.ndarray) -> None:
+    """Write a grey little-endian PFM (``Pf``, scale ``-1.0``, rows bottom-to-top).
+
+    Args:
+        path: the file to write (overwritten if it exists; its folder must exist).
+        depth: ``(H, W)`` real array; stored as float32, ``inf``/``NaN`` kept.
+
+    Raises:
+        InputError: ``depth`` is not a 2-D real array.
+        OutputError: the file cannot be written.
+
+    Example:
+        >>> import pathlib, tempfile
+        >>> import numpy as np
+        >>> path = pathlib.Path(tempfile.mkdtemp()) / "d.pfm"
+        >>> write_pfm(path, np.zeros((2, 3)))
+        >>> path.read_bytes()[:11]
+        b'Pf\\n3 2\\n-1.0'
+    """
+    depth = _as_depth_map(np.asarray(depth))
+    height, width = depth.shape
+    header = f"Pf\n{width} {height}\n-1.0\n".encode("ascii")
+    body = np.ascontiguousarray(depth[::-1], dtype="<f4").tobytes()
+    _write_bytes(Path(path), header + body, "depth")
+
+
+def write_depth_png16(
+    path: PathLike,
+    depth: np.ndarray,
+    *,
+    vmin: float | None = None,
+    vmax: float | None = None,
+) -> tuple[float, float]:
+    """Save a depth map as a 16-bit grey PNG for looking at, mapped linearly.
+
+    ``vmin`` becomes 0 and ``vmax`` becomes 65535; values outside are clipped and
+    non-finite values (``inf``, ``NaN``) become 0. The mapping is lossy: use
+    :func:`write_pfm` to keep the values.
+
+    Args:
+        path: a ``.png`` file (overwritten if it exists; its folder must exist).
+        depth: ``(H, W)`` real array, any units.
+        vmin: value mapped to 0; default the smallest finite value.
+        vmax: value mapped to 65535; default the largest finite value.
+
+    Returns:
+        ``(vmin, vmax)`` actually used, so that ``value = vmin + png / 65535 *
+        (vmax - vmin)`` inverts the mapping. If ``vmax == vmin`` every finite pixel
+        is written as 0.
+
+    Raises:
+        InputError: ``depth`` is not 2-D and real, or ``vmax < vmin``.
+        OutputError: ``path`` is not a ``.png`` or cannot be written.
+
+    Example:
+        >>> import pathlib, tempfile
+        >>> import numpy as np
+        >>> path = pathlib.Path(tempfile.mkdtemp()) / "d.png"
+        >>> write_depth_png16(path, np.array([[1.0, 2.0], [3.0, 5.0]]))
+        (1.0, 5.0)
+        >>> read_depth(path)
+        array([[    0., 16384.],
+               [32768., 65535.]], dtype=float32)
+    """
+    path = Path(path)
+    if path.suffix.lower() != ".png":
+        raise OutputError(f"cannot write depth {path}: write_depth_png16 writes .png files")
+    depth = _as_depth_map(np.asarray(depth)).astype(np.float64)
+    finite = np.isfinite(depth)
+    if vmin is None:
+        vmin = float(depth[finite].min()) if finite.any() else 0.0
+    if vmax is None:
+        vmax = float(depth[finite].max()) if finite.any() else float(vmin)
+    vmin, vmax = float(vmin), float(vmax)
+    if not vmax >= vmin:
+        raise InputError(f"vmax={vmax:g} is smaller than vmin={vmin:g}")
+    scale = 65535.0 / (vmax - vmin) if vmax > vmin else 0.0
+    mapped = np.clip((np.where(finite, depth, vmin) - vmin) * scale, 0.0, 65535.0)
+    try:
+        Image.fromarray(np.round(mapped).astype(np.uint16)).save(path, format="PNG")
+    except OSError as err:
+        raise OutputError(f"cannot write depth {path}: {err.strerror or err}") from err
+    return vmin, vmax
+
+
+def _as_depth_map(array: np.ndarray) -> np.ndarray:
+    """Check a real ``(H, W)`` (or singleton-3-D) array and return it as float32."""
+    if array.ndim == 3 and 1 in array.shape:
+        array = np.squeeze(array, axis=array.shape.index(1))
+    if array.ndim != 2:
+        raise InputError(f"depth has shape {array.shape}; expected (H, W)")
+    if array.dtype.kind not in "biuf":
+        raise InputError(f"depth has dtype {array.dtype}; expected a real number type")
+    if array.size == 0:
+        raise InputError(f"depth has shape {array.shape}; it holds no pixels")
+    return np.array(array, dtype=np.float32, order="C")  # always a fresh, writable copy
+
+
+def _first_of_equal_channels(array: np.ndarray) -> np.ndarray:
+    """``(H, W)`` from ``(H, W)`` or ``(H, W, C)`` whose colour channels are equal."""
+    if array.ndim != 3:
+        return array
+    colour = array[:, :, :3] if array.shape[2] >= 3 else array[:, :, :1]  # drop alpha
+    if not (colour == colour[:, :, :1]).all():
+        raise InputError("a depth image must be grey, but its colour channels differ")
+    return colour[:, :, 0]
+
+
+def _read_png(path: Path) -> np.ndarray:
+    """Raw values of a grey (or grey-looking RGB) PNG, 8 or 16 bit."""
+    with path.open("rb") as file:
+        head = file.read(26)
+    if head[:8] == b"\x89PNG\r\n\x1a\n" and head[24] == 16 and head[25] != 0:
+        raise InputError("16-bit PNGs with colour or alpha are not supported; save 16-bit grey")
+    try:
+        with Image.open(path) as im:
+            im.load()
+            if im.mode in ("1", "LA", "La"):
+                im = im.convert("L")  # drops alpha; "1" becomes 0 / 255
+            elif im.mode in ("P", "PA"):
+                im = im.convert("RGBA")
+            return _first_of_equal_channels(np.asarray(im))
+    except UnidentifiedImageError as err:
+        raise InputError("not a recognised image format") from err
+    except (OSError, SyntaxError) as err:
+        raise InputError(str(err)) from err
+
+
+def _read_npy(path: Path) -> np.ndarray:
+    """Array of a ``.npy`` file; pickled (object) arrays are refused."""
+    try:
+        return np.load(path, allow_pickle=False)
+    except ValueError as err:
+        raise InputError(
+            "not a plain numeric .npy array (pickled and object data are refused)"
+        ) from err
+    except OSError as err:
+        raise InputError(str(err)) from err
+
+
+def _read_pfm(path: Path) -> np.ndarray:
+    """First channel of a PFM file, rows flipped to top-to-bottom."""
+    raw = path.read_bytes()
+    match = _PFM_HEADER.match(raw)
+    if match is None:
+        raise InputError("not a PFM file (expected a 'Pf' or 'PF' header)")
+    channels = 3 if match.group(1) == b"PF" else 1
+    width, height = int(match.group(2)), int(match.group(3))
+    try:
+        scale = float(match.group(4))
+    except ValueError as err:
+        raise InputError(f"PFM scale {match.group(4)!r} is not a number") from err
+    if scale == 0.0 or not np.isfinite(scale):
+        raise InputError(f"PFM scale is {scale}; expected a non-zero number")
+    start = match.end()
+    if raw[start - 1 : start + 1] == b"\r\n":
+        start += 1
+    count = width * height * channels
+    if len(raw) - start < 4 * count:
+        raise InputError(f"PFM data is truncated: {width}x{height}x{channels} floats expected")
+    dtype = "<f4" if scale < 0 else ">f4"
+    data = np.frombuffer(raw, dtype=dtype, count=count, offset=start)
+    return data.reshape(height, width, channels)[::-1, :, 0]
+
+
+def _read_tiff(path: Path) -> np.ndarray:
+    """Float or grey TIFF through Pillow, else through tifffile."""
+    pixels = _read_tiff_with_pillow(path)
+    return pixels if pixels is not None else _read_tiff_with_tifffile(path)
+
+
+def _read_tiff_with_pillow(path: Path) -> np.ndarray | None:
+    """Single-channel TIFF pixels, or None if Pillow cannot decode them exactly."""
+    try:
+        with Image.open(path) as im:
+            if im.mode not in ("F", "I", "L", "I;16", "I;16L", "I;16B", "I;16N"):
+                return None
+            im.load()
+            return np.asarray(im)
+    except UnidentifiedImageError:
+        return None  # e.g. float64 or multi-channel float: tifffile reads those
+    except (OSError, SyntaxError) as err:
+        raise InputError(str(err)) from err
+
+
+def _read_tiff_with_tifffile(path: Path) -> np.ndarray:
+    """First page of a TIFF through tifffile (extra ``photo3d[tiff]``)."""
+    try:
+        import tifffile
+    except ImportError as err:
+        raise InputError(
+            "this TIFF needs the tifffile package: pip install 'photo3d[tiff]'"
+        ) from err
+    try:
+        array = tifffile.imread(path, key=0)
+    except (OSError, ValueError, tifffile.TiffFileError) as err:
+        raise InputError(str(err) or "not a readable TIFF") from err
+    return _first_of_equal_channels(array)
+
+
+_READERS = {
+    ".png": _read_png,
+    ".npy": _read_npy,
+    ".pfm": _read_pfm,
+    ".tif": _read_tiff,
+    ".tiff": _read_tiff,
+}
+
+
+def _write_bytes(path: Path, data: bytes, what: str) -> None:
+    """Write ``data`` to ``path``, turning OS failures into :class:`OutputError`."""
+    try:
+        path.write_bytes(data)
+    except OSError as err:
+        raise OutputError(f"cannot write {what} {path}: {err.strerror or err}") from err

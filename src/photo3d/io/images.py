@@ -1,0 +1,278 @@
+"""Read and write photos: JPEG, PNG, TIFF and WebP through Pillow.
+
+Every image inside photo3d is ``(H, W, 3) float32`` in [0, 1]. The rules that turn a
+file or an in-memory array into that form live here, in :func:`to_float_image`:
+
+* 8-bit values are divided by 255, 16-bit values by 65535; float values must
+  already lie in [0, 1].
+* Grey images are replicated to 3 equal channels.
+* Transparent images (RGBA, LA, palette with transparency) are composited over
+  **white**: ``rgb * alpha + 1 * (1 - alpha)``.
+* Files are turned upright by their EXIF orientation before anything else.
+
+Example:
+    >>> import numpy as np
+    >>> to_float_image(np.full((8, 8), 255, np.uint8))[0, 0]
+    array([1., 1., 1.], dtype=float32)
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+from PIL import Image, ImageOps, UnidentifiedImageError
+
+from photo3d.errors import InputError, OutputError
+
+PathLike = str | os.PathLike[str]
+
+MIN_SIDE = 8
+"""Smallest width and height, in pixels, of a photo photo3d accepts."""
+
+WRITE_FORMATS = {".png": "PNG", ".jpg": "JPEG", ".jpeg": "JPEG"}
+"""Extensions :func:`write_image` writes, mapped to the Pillow format name."""
+
+_TIFF_EXTENSIONS = (".tif", ".tiff")
+_ALPHA_MODES = ("RGBA", "LA", "PA", "RGBa", "La")
+_UINT16_MODES = ("I;16", "I;16L", "I;16B", "I;16N")
+
+
+def to_float_image(array: np.ndarray) -> np.ndarray:
+    """Normalise an in-memory picture to photo3d's image form.
+
+    Args:
+        array: ``(H, W)`` grey, ``(H, W, 3)`` RGB or ``(H, W, 4)`` RGBA; dtype
+            ``uint8`` (0..255), ``uint16`` (0..65535) or float (values in [0, 1]).
+
+    Returns:
+        ``(H, W, 3) float32`` in [0, 1], a new C-contiguous array. Grey is replicated
+        to 3 channels; RGBA is composited over white.
+
+    Raises:
+        InputError: wrong shape, unsupported dtype, or float values that are not
+            finite or lie outside [0, 1].
+
+    Example:
+        >>> import numpy as np
+        >>> rgba = np.zeros((8, 8, 4), np.uint8)  # black, fully transparent
+        >>> to_float_image(rgba)[0, 0]
+        array([1., 1., 1.], dtype=float32)
+        >>> to_float_image(np.full((8, 8, 3), 32768, np.uint16))[0, 0, 0].round(3)
+        np.float32(0.5)
+    """
+    array = np.asarray(array)
+    shape_ok = array.ndim == 2 or (array.ndim == 3 and array.shape[2] in (3, 4))
+    if not shape_ok:
+        raise InputError(f"image has shape {array.shape}; expected (H, W), (H, W, 3) or (H, W, 4)")
+    if array.shape[0] == 0 or array.shape[1] == 0:
+        raise InputError(f"image has shape {array.shape}; it holds no pixels")
+    image = _scale_to_unit(array)
+    if image.ndim == 2:
+        image = np.repeat(image[:, :, None], 3, axis=2)
+    elif image.shape[2] == 4:
+        alpha = image[:, :, 3:]
+        image = image[:, :, :3] * alpha + (1.0 - alpha)
+    return np.ascontiguousarray(image, dtype=np.float32)
+
+
+def read_image(path: PathLike) -> np.ndarray:
+    """Read a photo and return it upright, as ``(H, W, 3) float32`` in [0, 1].
+
+    Reads JPEG, PNG, TIFF and WebP with Pillow (anything else Pillow opens works
+    too). The EXIF orientation is applied, so a phone photo taken in portrait comes
+    back portrait. Conversions follow :func:`to_float_image`: grey (``L``, ``I;16``,
+    ``I``, ``F``) is replicated to 3 channels, transparency (``RGBA``, ``LA``,
+    palette) is composited over white, 16-bit values are divided by 65535. 16-bit
+    RGB TIFFs are read with ``tifffile`` (extra ``photo3d[tiff]``); 16-bit colour
+    PNGs are reduced to 8 bits by Pillow. Only the first frame of a multi-frame file
+    is read.
+
+    Args:
+        path: the image file.
+
+    Returns:
+        ``(H, W, 3) float32`` in [0, 1], at least ``MIN_SIDE`` pixels on each side.
+
+    Raises:
+        InputError: the file is missing, is not a readable image, needs ``tifffile``
+            which is not installed, or is smaller than 8x8 pixels.
+
+    Example:
+        >>> import pathlib, tempfile
+        >>> import numpy as np
+        >>> path = pathlib.Path(tempfile.mkdtemp()) / "grey.png"
+        >>> write_image(path, np.full((8, 10, 3), 0.5, np.float32))
+        >>> image = read_image(path)
+        >>> image.shape, image.dtype, round(float(image[0, 0, 0]) * 255)
+        ((8, 10, 3), dtype('float32'), 128)
+    """
+    path = Path(path)
+    if not path.is_file():
+        if path.is_dir():
+            raise InputError(f"cannot read image {path}: it is a folder, not a file")
+        raise InputError(f"image file not found: {path}")
+    try:
+        array = _read_pixels(path)
+        image = to_float_image(array)
+    except InputError as err:
+        raise InputError(f"cannot read image {path}: {err}") from err
+    height, width = image.shape[:2]
+    if height < MIN_SIDE or width < MIN_SIDE:
+        raise InputError(
+            f"image {path} is {width}x{height} pixels; photo3d needs at least {MIN_SIDE}x{MIN_SIDE}"
+        )
+    return image
+
+
+def write_image(path: PathLike, image: np.ndarray, *, quality: int = 95) -> None:
+    """Write an 8-bit PNG or JPEG (chosen by the extension), overwriting ``path``.
+
+    Args:
+        path: ``.png``, ``.jpg`` or ``.jpeg`` file; its folder must exist.
+        image: ``(H, W, 3)`` or ``(H, W)`` array, either float in [0, 1] (clipped to
+            [0, 1], then ``round(255 * v)``) or ``uint8`` (written as is).
+        quality: JPEG quality 1..95 (ignored for PNG).
+
+    Raises:
+        InputError: ``image`` has the wrong shape or dtype, or holds NaN.
+        OutputError: unsupported extension, or the file cannot be written.
+
+    Example:
+        >>> import pathlib, tempfile
+        >>> import numpy as np
+        >>> path = pathlib.Path(tempfile.mkdtemp()) / "red.png"
+        >>> red = np.zeros((8, 8, 3), np.float32)
+        >>> red[..., 0] = 1.0
+        >>> write_image(path, red)
+        >>> read_image(path)[0, 0]
+        array([1., 0., 0.], dtype=float32)
+    """
+    path = Path(path)
+    fmt = WRITE_FORMATS.get(path.suffix.lower())
+    if fmt is None:
+        raise OutputError(
+            f"cannot write image {path}: unsupported extension {path.suffix!r}; "
+            "use .png, .jpg or .jpeg"
+        )
+    pixels = _to_uint8(image)
+    try:
+        options = {"quality": int(quality)} if fmt == "JPEG" else {}
+        Image.fromarray(pixels).save(path, format=fmt, **options)
+    except OSError as err:
+        raise OutputError(f"cannot write image {path}: {err.strerror or err}") from err
+
+
+def _scale_to_unit(array: np.ndarray) -> np.ndarray:
+    """Map uint8 / uint16 / float values to float32 in [0, 1] (shape unchanged)."""
+    if array.dtype == np.uint8:
+        return array.astype(np.float32) / np.float32(255.0)
+    if array.dtype == np.uint16:
+        return array.astype(np.float32) / np.float32(65535.0)
+    if not np.issubdtype(array.dtype, np.floating):
+        raise InputError(f"image has dtype {array.dtype}; expected uint8, uint16 or float")
+    image = array.astype(np.float32)
+    if not np.isfinite(image).all():
+        raise InputError("image holds NaN or infinite values")
+    low, high = float(image.min()), float(image.max())
+    if low < 0.0 or high > 1.0:
+        raise InputError(f"float image values span [{low:g}, {high:g}]; expected [0, 1]")
+    return image
+
+
+def _to_uint8(image: np.ndarray) -> np.ndarray:
+    """Validate a picture for writing and return ``(H, W[, 3]) uint8``."""
+    image = np.asarray(image)
+    if not (image.ndim == 2 or (image.ndim == 3 and image.shape[2] == 3)):
+        raise InputError(f"image has shape {image.shape}; expected (H, W, 3) or (H, W)")
+    if image.dtype == np.uint8:
+        return np.ascontiguousarray(image)
+    if not np.issubdtype(image.dtype, np.floating):
+        raise InputError(f"image has dtype {image.dtype}; expected float in [0, 1] or uint8")
+    if np.isnan(image).any():
+        raise InputError("image holds NaN values")
+    return np.round(np.clip(image, 0.0, 1.0) * 255.0).astype(np.uint8)
+
+
+def _read_pixels(path: Path) -> np.ndarray:
+    """Decode ``path`` to an upright array that :func:`to_float_image` accepts."""
+    try:
+        with Image.open(path) as im:
+            if _is_wide_colour_tiff(im):
+                return _read_tiff_with_tifffile(path)
+            im.load()
+            im = ImageOps.exif_transpose(im)
+            return _pixels_of(im)
+    except UnidentifiedImageError as err:
+        if path.suffix.lower() in _TIFF_EXTENSIONS:
+            return _read_tiff_with_tifffile(path)
+        raise InputError("not a recognised image format") from err
+    except (OSError, SyntaxError, Image.DecompressionBombError) as err:
+        raise InputError(str(err)) from err
+
+
+def _pixels_of(im: Image.Image) -> np.ndarray:
+    """Array of a loaded Pillow image in a dtype/shape :func:`to_float_image` takes."""
+    mode = im.mode
+    if mode in _UINT16_MODES:
+        return np.asarray(im).astype(np.uint16)
+    if mode == "I":
+        values = np.asarray(im)
+        if values.size and (values.min() < 0 or values.max() > 65535):
+            raise InputError("32-bit integer pixels outside 0..65535 are not supported")
+        return values.astype(np.uint16)
+    if mode == "F":
+        return np.asarray(im, dtype=np.float32)
+    if mode == "L":
+        return np.asarray(im)
+    transparent = mode in _ALPHA_MODES or "transparency" in im.info
+    return np.asarray(im.convert("RGBA" if transparent else "RGB"))
+
+
+def _is_wide_colour_tiff(im: Image.Image) -> bool:
+    """True for a TIFF with more than 8 bits per colour sample (Pillow truncates)."""
+    if im.format != "TIFF":
+        return False
+    bits = im.tag_v2.get(258, (8,))
+    bits = bits if isinstance(bits, tuple) else (bits,)
+    return len(bits) >= 3 and max(bits) > 8
+
+
+def _read_tiff_with_tifffile(path: Path) -> np.ndarray:
+    """Read the first page of a TIFF Pillow cannot decode, applying its orientation."""
+    try:
+        import tifffile
+    except ImportError as err:
+        raise InputError(
+            "this TIFF needs the tifffile package: pip install 'photo3d[tiff]'"
+        ) from err
+    try:
+        with tifffile.TiffFile(path) as tif:
+            page = tif.pages[0]
+            array = page.asarray()
+            if page.planarconfig == tifffile.PLANARCONFIG.SEPARATE and array.ndim == 3:
+                array = np.moveaxis(array, 0, -1)  # (C, H, W) planes -> (H, W, C)
+            tag = page.tags.get("Orientation")
+    except (OSError, ValueError, tifffile.TiffFileError) as err:
+        raise InputError(str(err) or "not a readable TIFF") from err
+    if array.ndim == 3 and array.shape[2] > 4:
+        raise InputError(f"TIFF has {array.shape[2]} channels; expected 1, 3 or 4")
+    if array.dtype.kind in "iu" and array.dtype.itemsize > 2:
+        raise InputError(f"TIFF samples of dtype {array.dtype} are not supported")
+    if array.ndim == 3 and array.shape[2] == 1:
+        array = array[:, :, 0]
+    return _apply_orientation(array, int(tag.value) if tag is not None else 1)
+
+
+def _apply_orientation(array: np.ndarray, orientation: int) -> np.ndarray:
+    """Turn ``(H, W, ...)`` upright for EXIF/TIFF orientation 1..8 (as Pillow does)."""
+    # t = transpose rows/columns, h = mirror columns, v = mirror rows; in this order.
+    steps = {2: "h", 3: "hv", 4: "v", 5: "t", 6: "th", 7: "thv", 8: "tv"}.get(orientation, "")
+    if "t" in steps:
+        array = np.swapaxes(array, 0, 1)
+    if "h" in steps:
+        array = array[:, ::-1]
+    if "v" in steps:
+        array = array[::-1]
+    return array

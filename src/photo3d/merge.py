@@ -1,0 +1,221 @@
+"""Merge inpainted pixels into the LDI and find the depth edges they create.
+
+New pixels (paper, Sec. 3.4) are appended with their colour and disparity. A
+candidate is dropped when a pixel of similar depth (within the discontinuity
+threshold) already exists at its position, either from an earlier pass or from
+another edge of the same pass, or when it would not be hidden behind every
+existing pixel there. Each new pixel links to the lattice neighbour of closest
+disparity within the threshold whose slot facing it is free, so links stay
+symmetric and new layers join the context they grew from. Dilation-band pixels
+get their re-synthesised values in place.
+
+Multi-layer inpainting (paper, Sec. 3.3) continues where new pixels meet other new
+pixels of this pass across a discontinuity: the farther ones form the background
+silhouettes of the next pass's depth edges.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numba
+import numpy as np
+
+from photo3d.inpaint.base import InpaintResult
+from photo3d.inpaint.patches import PatchJob
+from photo3d.ldi import LDI
+
+
+@dataclass(frozen=True)
+class Merged:
+    """Result of merging one pass.
+
+    Attributes:
+        ldi: the LDI with the new pixels.
+        added: number of new pixels.
+        edge_ptr: ``(E + 1,) int64`` CSR offsets of the next pass's edges.
+        edge_pixels: ``(K,) int64`` their background silhouette pixels.
+    """
+
+    ldi: LDI
+    added: int
+    edge_ptr: np.ndarray
+    edge_pixels: np.ndarray
+
+
+@numba.njit(cache=True)
+def _select(cand_pos, cand_disp, starts, order, disp, thr):  # pragma: no cover - jit
+    n = cand_pos.shape[0]
+    keep = np.zeros(n, np.bool_)
+    group = 0
+    for i in range(n):
+        if i == 0 or cand_pos[i] != cand_pos[i - 1]:
+            group = i
+        b = cand_pos[i]
+        ok = True
+        for k in range(starts[b], starts[b + 1]):
+            e = disp[order[k]]
+            if abs(e - cand_disp[i]) < thr or e <= cand_disp[i] + 0.5 * thr:
+                ok = False
+                break
+        if ok:
+            for j in range(group, i):
+                if keep[j] and abs(cand_disp[j] - cand_disp[i]) < thr:
+                    ok = False
+                    break
+        keep[i] = ok
+    return keep
+
+
+@numba.njit(cache=True)
+def _link_new(first, pos, disp, links, starts, order, rows, cols, thr):  # pragma: no cover
+    dpos = np.array([-1, 1, -cols, cols])
+    for n in range(first, pos.shape[0]):
+        r, c = pos[n] // cols, pos[n] % cols
+        for d in range(4):
+            if links[n, d] >= 0:
+                continue
+            if (d == 0 and c == 0) or (d == 1 and c == cols - 1):
+                continue
+            if (d == 2 and r == 0) or (d == 3 and r == rows - 1):
+                continue
+            b = pos[n] + dpos[d]
+            best = -1
+            best_diff = thr
+            for k in range(starts[b], starts[b + 1]):
+                m = order[k]
+                diff = abs(disp[m] - disp[n])
+                if links[m, d ^ 1] < 0 and diff < best_diff:
+                    best = m
+                    best_diff = diff
+            if best >= 0:
+                links[n, d] = best
+                links[best, d ^ 1] = n
+
+
+@numba.njit(cache=True)
+def _find(parent, i):  # pragma: no cover - jit
+    while parent[i] != i:
+        parent[i] = parent[parent[i]]
+        i = parent[i]
+    return i
+
+
+@numba.njit(cache=True)
+def _new_edges(first, pos, disp, links, starts, order, rows, cols, thr):  # pragma: no cover
+    """Union-find roots of new background silhouettes (-1 = not a silhouette)."""
+    n_all = pos.shape[0]
+    dpos = np.array([-1, 1, -cols, cols])
+    sil = np.zeros(n_all, np.bool_)
+    for n in range(first, n_all):
+        r, c = pos[n] // cols, pos[n] % cols
+        for d in range(4):
+            if links[n, d] >= 0:
+                continue
+            if (d == 0 and c == 0) or (d == 1 and c == cols - 1):
+                continue
+            if (d == 2 and r == 0) or (d == 3 and r == rows - 1):
+                continue
+            b = pos[n] + dpos[d]
+            for k in range(starts[b], starts[b + 1]):
+                m = order[k]
+                if m >= first and disp[m] > disp[n] + thr:
+                    sil[n] = True
+    parent = np.arange(n_all)
+    for n in range(first, n_all):
+        if not sil[n]:
+            continue
+        for d in range(4):
+            q = links[n, d]
+            if q < 0:
+                continue
+            if sil[q]:
+                ra, rb = _find(parent, n), _find(parent, q)
+                parent[max(ra, rb)] = min(ra, rb)
+            for d2 in range(4):
+                if d2 // 2 == d // 2:
+                    continue
+                m = links[q, d2]
+                if m >= 0 and sil[m]:
+                    ra, rb = _find(parent, n), _find(parent, m)
+                    parent[max(ra, rb)] = min(ra, rb)
+    roots = np.full(n_all, -1, np.int64)
+    for n in range(first, n_all):
+        if sil[n]:
+            roots[n] = _find(parent, n)
+    return roots
+
+
+def merge(
+    ldi: LDI,
+    jobs: list[PatchJob],
+    results: list[InpaintResult],
+    *,
+    label: int,
+    threshold: float,
+    min_edge_length: int,
+) -> Merged:
+    """Merge one pass of inpainting results into ``ldi``.
+
+    Args:
+        ldi: the LDI the jobs were extracted from.
+        jobs: patches with their target positions.
+        results: the inpainter's outputs, one per job.
+        label: label of the new pixels.
+        threshold: discontinuity threshold (normalised disparity).
+        min_edge_length: new edges with fewer pixels are ignored.
+
+    Returns:
+        :class:`Merged`.
+    """
+    color, disparity = ldi.color.copy(), ldi.disparity.copy()
+    new_y, new_x, new_c, new_d = [], [], [], []
+    for job, res in zip(jobs, results, strict=True):
+        y0, x0 = job.patch.origin
+        if job.band.size:
+            by, bx = ldi.y[job.band] - y0, ldi.x[job.band] - x0
+            color[job.band] = res.color[by, bx]
+            disparity[job.band] = res.disparity[by, bx]
+        new_y.append(job.new_y)
+        new_x.append(job.new_x)
+        new_c.append(res.color[job.new_y - y0, job.new_x - x0])
+        new_d.append(res.disparity[job.new_y - y0, job.new_x - x0])
+    ldi = replace(ldi, color=color, disparity=disparity)
+    if not new_y or sum(a.size for a in new_y) == 0:
+        return Merged(ldi, 0, np.zeros(1, np.int64), np.zeros(0, np.int64))
+
+    rows, cols = ldi.lattice_shape
+    cy, cx = np.concatenate(new_y), np.concatenate(new_x)
+    cc, cd = np.concatenate(new_c).astype(np.float32), np.concatenate(new_d).astype(np.float32)
+    cpos = (cy.astype(np.int64) + ldi.border) * cols + (cx + ldi.border)
+    order_c = np.argsort(cpos, kind="stable")
+    starts, order = ldi.position_index()
+    keep_sorted = _select(cpos[order_c], cd[order_c], starts, order, ldi.disparity,
+                          np.float32(threshold))
+    keep = np.sort(order_c[keep_sorted])
+    first = ldi.size
+    added = int(keep.size)
+    links = np.concatenate([ldi.links, np.full((added, 4), -1, np.int32)])
+    ldi = replace(
+        ldi,
+        y=np.concatenate([ldi.y, cy[keep].astype(np.int32)]),
+        x=np.concatenate([ldi.x, cx[keep].astype(np.int32)]),
+        color=np.concatenate([ldi.color, cc[keep]]),
+        disparity=np.concatenate([ldi.disparity, cd[keep]]),
+        links=links,
+        label=np.concatenate([ldi.label, np.full(added, label, np.uint8)]),
+    )
+    pos = ldi.positions()
+    starts, order = ldi.position_index()
+    _link_new(first, pos, ldi.disparity, links, starts, order, rows, cols,
+              np.float32(threshold))
+    roots = _new_edges(first, pos, ldi.disparity, links, starts, order, rows, cols,
+                       np.float32(threshold))
+    sil = np.nonzero(roots >= 0)[0]
+    ids, inverse, counts = np.unique(roots[sil], return_inverse=True, return_counts=True)
+    big = counts >= max(1, min_edge_length)
+    sel = big[inverse]
+    sil, inverse = sil[sel], inverse[sel]
+    by_edge = np.argsort(inverse, kind="stable")
+    edge_ptr = np.concatenate([[0], np.cumsum(counts[big])]).astype(np.int64)
+    return Merged(ldi, added, edge_ptr, sil[by_edge].astype(np.int64))

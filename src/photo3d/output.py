@@ -1,0 +1,113 @@
+"""Saving and reloading 3D photos as a folder, atomically.
+
+A 3D photo folder holds ``photo3d.npz`` (the LDI, lossless), ``mesh.ply``
+(binary by default, the authors' header), ``mesh.glb`` and ``config.json`` (the
+resolved configuration plus stats and timings). Everything is written into a
+temporary sibling folder first and moved into place at the end, so an interrupted
+or failed run never leaves a half-written output folder.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import tempfile
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from photo3d.config import Config
+from photo3d.errors import InputError, OutputError
+from photo3d.io.gltf import write_glb
+from photo3d.io.ply import write_ply
+from photo3d.ldi import load_npz, save_npz
+
+if TYPE_CHECKING:
+    from photo3d.pipeline import Photo3D
+
+LDI_FILE = "photo3d.npz"
+
+
+def check_output(out: str | Path, *, overwrite: bool) -> Path:
+    """Raise :class:`OutputError` early if ``out`` cannot become a 3D photo folder."""
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise OutputError(f"output {out} exists and is not a folder")
+    if out.exists() and any(out.iterdir()) and not overwrite:
+        raise OutputError(f"output folder {out} exists and is not empty (use --overwrite)")
+    return out
+
+
+def save_photo(photo: Photo3D, out: str | Path, *, overwrite: bool = False,
+               ply: str | None = "binary", glb: bool = True) -> Path:
+    """Write a 3D photo folder atomically.
+
+    Args:
+        photo: the 3D photo.
+        out: destination folder; must not exist or be empty unless ``overwrite``.
+        ply: ``"binary"``, ``"ascii"`` or None (no PLY).
+        glb: also write ``mesh.glb``.
+
+    Returns:
+        ``out`` as a :class:`~pathlib.Path`.
+
+    Example:
+        >>> import photo3d, numpy as np, tempfile, pathlib
+        >>> photo = photo3d.make(np.zeros((16, 16, 3)), depth=np.ones((16, 16)),
+        ...                      config=photo3d.Config(size=None))
+        >>> tmp = pathlib.Path(tempfile.mkdtemp()) / "out"
+        >>> sorted(p.name for p in photo.save(tmp).iterdir())
+        ['config.json', 'mesh.glb', 'mesh.ply', 'photo3d.npz']
+    """
+    if ply not in ("binary", "ascii", None):
+        raise OutputError(f"ply must be 'binary', 'ascii' or None, got {ply!r}")
+    out = check_output(out, overwrite=overwrite)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
+    try:
+        meta = {"config": photo.config.to_dict(), "stats": photo.stats,
+                "timings": photo.timings}
+        save_npz(photo.ldi, tmp / LDI_FILE, meta=meta)
+        (tmp / "config.json").write_text(json.dumps(meta, indent=2))
+        if ply or glb:
+            mesh = photo.mesh()
+            if ply:
+                write_ply(tmp / "mesh.ply", mesh, binary=ply == "binary")
+            if glb:
+                write_glb(tmp / "mesh.glb", mesh)
+        if out.exists():
+            old = out.with_name(f".{out.name}.old")
+            shutil.rmtree(old, ignore_errors=True)
+            os.replace(out, old)
+            os.replace(tmp, out)
+            shutil.rmtree(old, ignore_errors=True)
+        else:
+            os.replace(tmp, out)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    return out
+
+
+def load_photo(path: str | Path) -> Photo3D:
+    """Reload a 3D photo from its folder or its ``photo3d.npz``.
+
+    Example:
+        >>> import photo3d, numpy as np, tempfile, pathlib
+        >>> photo = photo3d.make(np.zeros((16, 16, 3)), depth=np.ones((16, 16)),
+        ...                      config=photo3d.Config(size=None))
+        >>> tmp = photo.save(pathlib.Path(tempfile.mkdtemp()) / "out", glb=False, ply=None)
+        >>> photo3d.load(tmp).ldi.size == photo.ldi.size
+        True
+    """
+    from photo3d.pipeline import Photo3D
+
+    path = Path(path)
+    if path.is_dir():
+        path = path / LDI_FILE
+    if not path.exists():
+        raise InputError(f"no 3D photo at {path}")
+    ldi, meta = load_npz(path)
+    config = Config.from_dict(meta.get("config", {}))
+    return Photo3D(ldi=ldi, config=config, timings=meta.get("timings", {}),
+                   stats=meta.get("stats", {}))

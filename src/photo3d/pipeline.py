@@ -1,0 +1,181 @@
+"""``make``: image + depth -> :class:`Photo3D`. Wires the stages, holds no algorithm."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from photo3d.border import extend_border
+from photo3d.config import Config
+from photo3d.depth.normalize import prepare_depth
+from photo3d.errors import InputError
+from photo3d.inpaint import get_inpainter
+from photo3d.inpaint.base import Inpainter
+from photo3d.inpaint.patches import extract_patches
+from photo3d.io.images import read_image, to_float_image
+from photo3d.ldi import LDI, cut, from_image
+from photo3d.merge import merge
+from photo3d.mesh import Mesh, build_mesh
+from photo3d.preprocess import preprocess
+from photo3d.regions import find_regions
+
+Progress = Callable[[str, float], None]
+"""``progress(stage, fraction)``; ``fraction`` in [0, 1] within the stage."""
+
+STAGES = ("load", "preprocess", "ldi", "inpaint", "mesh")
+
+
+@dataclass
+class Photo3D:
+    """A 3D photo: the inpainted LDI plus how it was made.
+
+    Attributes:
+        ldi: the layered depth image.
+        config: the configuration that produced it.
+        timings: seconds per stage.
+        stats: counts (edges per pass, pixels added, ...).
+    """
+
+    ldi: LDI
+    config: Config
+    timings: dict[str, float] = field(default_factory=dict)
+    stats: dict[str, object] = field(default_factory=dict)
+
+    def mesh(self) -> Mesh:
+        """The triangle mesh of the LDI (see :func:`photo3d.mesh.build_mesh`)."""
+        return build_mesh(self.ldi)
+
+    def save(self, out: str | Path, *, overwrite: bool = False, ply: str | None = "binary",
+             glb: bool = True) -> Path:
+        """Write ``photo3d.npz``, ``mesh.ply``, ``mesh.glb`` and ``config.json`` to ``out``.
+
+        See :func:`photo3d.output.save_photo`.
+        """
+        from photo3d.output import save_photo
+
+        return save_photo(self, out, overwrite=overwrite, ply=ply, glb=glb)
+
+    @classmethod
+    def load(cls, path: str | Path) -> Photo3D:
+        """Reload a saved 3D photo (a folder or its ``photo3d.npz``)."""
+        from photo3d.output import load_photo
+
+        return load_photo(path)
+
+
+def _edges_csr(labels: np.ndarray, count: int) -> tuple[np.ndarray, np.ndarray]:
+    flat = labels.reshape(-1)
+    pix = np.nonzero(flat)[0]
+    order = np.argsort(flat[pix], kind="stable")
+    counts = np.bincount(flat[pix], minlength=count + 1)[1:]
+    return np.concatenate([[0], np.cumsum(counts)]).astype(np.int64), pix[order].astype(np.int64)
+
+
+def make(
+    image: np.ndarray | str | Path,
+    *,
+    depth: np.ndarray | str | Path,
+    config: Config | None = None,
+    inpainter: Inpainter | None = None,
+    progress: Progress | None = None,
+) -> Photo3D:
+    """Turn an RGB-D photo into a 3D photo.
+
+    Args:
+        image: path or array (``(H, W)``, ``(H, W, 3)`` or ``(H, W, 4)``; uint8,
+            uint16 or float in [0, 1]).
+        depth: path or ``(H, W)`` array of disparity (default) or depth
+            (``config.depth_kind``); NaN/inf/negative values are filled.
+        config: :class:`Config` (defaults: 1024 px, diffusion inpainting).
+        inpainter: a backend instance overriding ``config.inpainter``.
+        progress: optional ``progress(stage, fraction)`` callback.
+
+    Returns:
+        :class:`Photo3D`.
+
+    Example:
+        >>> import photo3d
+        >>> img = np.random.default_rng(0).random((64, 96, 3)).astype(np.float32)
+        >>> disp = np.ones((64, 96), np.float32); disp[16:48, 32:64] = 3.0
+        >>> photo = photo3d.make(img, depth=disp, config=photo3d.Config(size=None))
+        >>> photo.stats["edges"][0] > 0, photo.ldi.size > 64 * 96
+        (True, True)
+    """
+    config = config or Config()
+    backend = inpainter or get_inpainter(config.inpainter)
+    report = progress or (lambda stage, fraction: None)
+    timings: dict[str, float] = {}
+    t = time.perf_counter()
+
+    def done(stage: str) -> None:
+        nonlocal t
+        now = time.perf_counter()
+        timings[stage] = now - t
+        t = now
+        report(stage, 1.0)
+
+    from photo3d.io.depth import read_depth
+
+    img = read_image(image) if isinstance(image, str | Path) else to_float_image(image)
+    raw = read_depth(depth) if isinstance(depth, str | Path) else np.asarray(depth)
+    if min(img.shape[:2]) < 2:
+        raise InputError(f"image is {img.shape[1]}x{img.shape[0]} pixels; too small")
+    dep = prepare_depth(raw, img.shape[:2], kind=config.depth_kind)
+    done("load")
+
+    pre = preprocess(img, dep.disparity, config=config)
+    done("preprocess")
+
+    reg = config.regions
+    thr = config.preprocess.discontinuity
+
+    def px(value: int) -> int:
+        return config.spatial(value, pre.working_size)
+
+    ldi = from_image(pre.image, pre.disparity)
+    ldi = cut(ldi, pre.edges.cuts)
+    ldi = extend_border(ldi, px(reg.border))
+    edge_ptr, edge_pixels = _edges_csr(pre.edges.labels, pre.edges.count)
+    done("ldi")
+
+    edges_per_pass, added_per_pass = [], []
+    for k in range(reg.max_passes):
+        if edge_pixels.size == 0:
+            break
+        regions = find_regions(
+            ldi, edge_ptr, edge_pixels,
+            synthesis_iterations=px(reg.synthesis_iterations),
+            context_iterations=px(reg.context_iterations),
+            dilation=px(reg.edge_dilation) if k == 0 else 0,
+            threshold=thr,
+        )
+        jobs = extract_patches(ldi, regions, edge_pixels, margin=backend.margin)
+
+        def on_patch(i: int, n: int, k: int = k) -> None:
+            report("inpaint", (k + i / max(n, 1)) / reg.max_passes)
+
+        results = backend.inpaint([j.patch for j in jobs], progress=on_patch)
+        merged = merge(ldi, jobs, results, label=min(k + 2, 3), threshold=thr,
+                       min_edge_length=px(config.preprocess.min_edge_length))
+        edges_per_pass.append(int(edge_ptr.size - 1))
+        added_per_pass.append(merged.added)
+        ldi, edge_ptr, edge_pixels = merged.ldi, merged.edge_ptr, merged.edge_pixels
+    done("inpaint")
+
+    return Photo3D(
+        ldi=ldi,
+        config=config,
+        timings=timings,
+        stats={
+            "working_size": [pre.image.shape[1], pre.image.shape[0]],
+            "edges": edges_per_pass,
+            "pixels_added": added_per_pass,
+            "passes": len(edges_per_pass),
+            "unknown_depth_filled": int(dep.unknown.sum()),
+            "disparity_range": list(pre.disparity_range),
+        },
+    )

@@ -1,0 +1,290 @@
+"""Tests of photo3d.io.images: files written by Pillow/tifffile, read back."""
+
+from __future__ import annotations
+
+import sys
+
+import numpy as np
+import pytest
+import tifffile
+from PIL import Image
+
+from photo3d.errors import InputError, OutputError
+from photo3d.io.images import read_image, to_float_image, write_image
+
+RNG = np.random.default_rng(0)
+EXACT = 0.5 / 255  # lossless formats must come back to the same 8-bit value
+
+
+def _random_rgb(height: int = 12, width: int = 16) -> np.ndarray:
+    return RNG.integers(0, 256, size=(height, width, 3), dtype=np.uint8)
+
+
+@pytest.mark.parametrize(
+    ("suffix", "options"),
+    [
+        (".png", {}),
+        (".tif", {}),
+        (".tiff", {"compression": "tiff_lzw"}),
+        (".webp", {"lossless": True}),
+    ],
+)
+def test_lossless_formats_round_trip_exactly(tmp_path, suffix, options):
+    pixels = _random_rgb()
+    path = tmp_path / f"photo{suffix}"
+    Image.fromarray(pixels).save(path, **options)
+    image = read_image(path)
+    assert image.shape == (12, 16, 3)
+    assert image.dtype == np.float32
+    np.testing.assert_allclose(image, pixels / 255.0, atol=EXACT)
+
+
+def test_jpeg_round_trip_within_tolerance(tmp_path):
+    y, x = np.mgrid[0:32, 0:48]
+    pixels = np.stack([x * 5, y * 7, (x + y) * 3], axis=-1).astype(np.uint8)
+    path = tmp_path / "photo.jpg"
+    Image.fromarray(pixels).save(path, quality=95)
+    image = read_image(path)
+    assert image.shape == (32, 48, 3)
+    assert np.abs(image - pixels / 255.0).mean() < 0.01
+
+
+@pytest.mark.parametrize(("orientation", "red_corner"), [(6, "top_right"), (8, "bottom_left")])
+def test_exif_orientation_is_applied(tmp_path, orientation, red_corner):
+    stored = np.zeros((16, 24, 3), np.uint8)  # 24 wide, 16 tall, red block top-left
+    stored[:8, :8, 0] = 255
+    exif = Image.Exif()
+    exif[0x0112] = orientation
+    path = tmp_path / "rotated.jpg"
+    Image.fromarray(stored).save(path, exif=exif, quality=95)
+
+    image = read_image(path)
+
+    assert image.shape == (24, 16, 3)  # width and height swapped
+    corners = {
+        "top_left": image[2, 2],
+        "top_right": image[2, -3],
+        "bottom_left": image[-3, 2],
+        "bottom_right": image[-3, -3],
+    }
+    for name, pixel in corners.items():
+        is_red = pixel[0] > 0.8 and pixel[1] < 0.2 and pixel[2] < 0.2
+        assert is_red == (name == red_corner), (name, pixel)
+
+
+def test_grey_becomes_three_equal_channels(tmp_path):
+    grey = RNG.integers(0, 256, size=(10, 9), dtype=np.uint8)
+    path = tmp_path / "grey.png"
+    Image.fromarray(grey).save(path)
+    image = read_image(path)
+    assert image.shape == (10, 9, 3)
+    for channel in range(3):
+        np.testing.assert_allclose(image[..., channel], grey / 255.0, atol=1e-6)
+
+
+def test_transparent_pixels_are_composited_over_white(tmp_path):
+    rgba = np.zeros((8, 8, 4), np.uint8)  # black everywhere
+    rgba[:, :4, 3] = 0  # left half fully transparent
+    rgba[:, 4:, 3] = 255  # right half opaque
+    rgba[0, 4:, 3] = 128  # first row of the right half half transparent
+    path = tmp_path / "rgba.png"
+    Image.fromarray(rgba).save(path)
+    image = read_image(path)
+    np.testing.assert_array_equal(image[:, :4], 1.0)
+    np.testing.assert_array_equal(image[1:, 4:], 0.0)
+    np.testing.assert_allclose(image[0, 4:], 1.0 - 128 / 255, atol=1e-6)
+
+
+def test_palette_with_transparency_is_composited_over_white(tmp_path):
+    indices = np.zeros((8, 8), np.uint8)
+    indices[4:] = 1
+    im = Image.fromarray(indices, mode="P")
+    im.putpalette([0, 0, 255, 255, 0, 0] + [0] * 762)
+    path = tmp_path / "palette.png"
+    im.save(path, transparency=0)  # index 0 (blue) is transparent
+    image = read_image(path)
+    np.testing.assert_array_equal(image[:4], 1.0)
+    np.testing.assert_array_equal(image[4:, :, 0], 1.0)
+    np.testing.assert_array_equal(image[4:, :, 1:], 0.0)
+
+
+@pytest.mark.parametrize("suffix", [".png", ".tif"])
+def test_sixteen_bit_grey_is_divided_by_65535(tmp_path, suffix):
+    values = np.zeros((8, 8), np.uint16)
+    values[0, 0], values[0, 1], values[0, 2] = 65535, 32768, 257
+    path = tmp_path / f"grey16{suffix}"
+    Image.fromarray(values).save(path)
+    image = read_image(path)
+    assert image[0, 0].tolist() == [1.0, 1.0, 1.0]
+    np.testing.assert_allclose(image[0, 1], 0.5, atol=1e-4)
+    np.testing.assert_allclose(image[0, 2], 257 / 65535, rtol=1e-6)
+    assert image[1, 1].tolist() == [0.0, 0.0, 0.0]
+
+
+def test_sixteen_bit_rgb_tiff_keeps_its_precision(tmp_path):
+    values = RNG.integers(0, 65536, size=(9, 11, 3), dtype=np.uint16)
+    path = tmp_path / "rgb16.tif"
+    tifffile.imwrite(path, values, photometric="rgb")
+    image = read_image(path)
+    np.testing.assert_allclose(image, values / 65535.0, rtol=1e-6, atol=1e-7)
+
+
+def test_sixteen_bit_planar_rgb_tiff(tmp_path):
+    values = RNG.integers(0, 65536, size=(3, 9, 11), dtype=np.uint16)
+    path = tmp_path / "planar.tif"
+    tifffile.imwrite(path, values, photometric="rgb", planarconfig="separate")
+    image = read_image(path)
+    np.testing.assert_allclose(image, np.moveaxis(values, 0, -1) / 65535.0, rtol=1e-6)
+
+
+def test_sixteen_bit_rgb_tiff_orientation_tag_is_applied(tmp_path):
+    values = RNG.integers(0, 65536, size=(9, 11, 3), dtype=np.uint16)
+    path = tmp_path / "rgb16.tif"
+    tifffile.imwrite(path, values, photometric="rgb", extratags=[(274, "H", 1, 6, True)])
+    image = read_image(path)
+    expected = np.rot90(values, k=-1)  # orientation 6: turn 90 degrees clockwise
+    np.testing.assert_allclose(image, expected / 65535.0, rtol=1e-6, atol=1e-7)
+
+
+def test_sixteen_bit_rgb_tiff_without_tifffile_names_the_extra(tmp_path, monkeypatch):
+    path = tmp_path / "rgb16.tif"
+    tifffile.imwrite(path, np.zeros((9, 9, 3), np.uint16), photometric="rgb")
+    monkeypatch.setitem(sys.modules, "tifffile", None)
+    with pytest.raises(InputError, match=r"pip install 'photo3d\[tiff\]'"):
+        read_image(path)
+
+
+def test_float_tiff_in_unit_range_is_read_and_out_of_range_refused(tmp_path):
+    values = RNG.random((8, 8), dtype=np.float32)
+    good, bad = tmp_path / "good.tif", tmp_path / "bad.tif"
+    Image.fromarray(values).save(good)
+    Image.fromarray(values * 10).save(bad)
+    np.testing.assert_array_equal(read_image(good)[..., 2], values)
+    with pytest.raises(InputError, match=r"bad\.tif.*expected \[0, 1\]"):
+        read_image(bad)
+
+
+def test_missing_file(tmp_path):
+    path = tmp_path / "nope.jpg"
+    with pytest.raises(InputError, match=r"^image file not found: .*nope\.jpg$"):
+        read_image(path)
+
+
+def test_text_file_named_png_is_not_an_image(tmp_path):
+    path = tmp_path / "notes.png"
+    path.write_text("hello, I am not a picture\n")
+    with pytest.raises(InputError, match=r"^cannot read image .*notes\.png: ") as info:
+        read_image(path)
+    assert "\n" not in str(info.value)
+
+
+def test_truncated_png_is_unreadable(tmp_path):
+    path = tmp_path / "cut.png"
+    Image.fromarray(_random_rgb(64, 64)).save(path)
+    path.write_bytes(path.read_bytes()[:200])
+    with pytest.raises(InputError, match=r"cannot read image .*cut\.png"):
+        read_image(path)
+
+
+def test_folder_is_not_an_image(tmp_path):
+    with pytest.raises(InputError, match="folder"):
+        read_image(tmp_path)
+
+
+def test_tiny_image_is_refused_with_its_size(tmp_path):
+    path = tmp_path / "tiny.png"
+    Image.fromarray(np.zeros((3, 4, 3), np.uint8)).save(path)  # 4 wide, 3 tall
+    message = r"^image .*tiny\.png is 4x3 pixels; photo3d needs at least 8x8$"
+    with pytest.raises(InputError, match=message):
+        read_image(path)
+
+
+def test_errors_are_value_errors(tmp_path):
+    with pytest.raises(ValueError, match="not found"):
+        read_image(tmp_path / "missing.png")
+
+
+def test_to_float_image_rules():
+    rgb = _random_rgb(8, 8)
+    np.testing.assert_allclose(to_float_image(rgb), rgb / 255.0, atol=1e-7)
+    assert to_float_image(np.full((8, 8), 65535, np.uint16)).tolist() == np.ones((8, 8, 3)).tolist()
+    floats = RNG.random((8, 8, 3))
+    out = to_float_image(floats)
+    assert out.dtype == np.float32 and out.flags.c_contiguous
+    np.testing.assert_allclose(out, floats, atol=1e-7)
+
+
+def test_to_float_image_returns_a_copy():
+    floats = np.zeros((8, 8, 3), np.float32)
+    out = to_float_image(floats)
+    out[...] = 1.0
+    assert floats.max() == 0.0
+
+
+def test_to_float_image_rgba_float_alpha_blend():
+    rgba = np.zeros((8, 8, 4), np.float32)
+    rgba[..., 0] = 1.0  # red
+    rgba[..., 3] = 0.25
+    np.testing.assert_allclose(to_float_image(rgba)[0, 0], [1.0, 0.75, 0.75])
+
+
+@pytest.mark.parametrize(
+    ("array", "message"),
+    [
+        (
+            np.zeros((4, 4, 5)),
+            r"^image has shape \(4, 4, 5\); expected \(H, W\), \(H, W, 3\) or \(H, W, 4\)$",
+        ),
+        (np.zeros((4, 4, 1)), r"shape \(4, 4, 1\)"),
+        (np.zeros(4), r"shape \(4,\)"),
+        (np.zeros((0, 4, 3)), "no pixels"),
+        (np.zeros((4, 4, 3), np.int32), "dtype int32"),
+        (np.full((4, 4, 3), 1.5), r"span \[1\.5, 1\.5\]"),
+        (np.full((4, 4, 3), np.nan), "NaN"),
+    ],
+)
+def test_to_float_image_refuses_bad_arrays(array, message):
+    with pytest.raises(InputError, match=message):
+        to_float_image(array)
+
+
+def test_write_image_float_clips_and_rounds(tmp_path):
+    image = np.array([[-0.2, 0.5, 1.3, 0.2]], np.float32).repeat(8, axis=0)
+    image = np.repeat(image[:, :, None], 3, axis=2)
+    path = tmp_path / "out.png"
+    write_image(path, image)
+    stored = np.asarray(Image.open(path))  # independent reader
+    assert stored.dtype == np.uint8
+    assert stored[0, :, 0].tolist() == [0, 128, 255, 51]
+
+
+def test_write_image_uint8_and_grey_written_as_is(tmp_path):
+    pixels = _random_rgb(8, 9)
+    write_image(tmp_path / "rgb.png", pixels)
+    np.testing.assert_array_equal(np.asarray(Image.open(tmp_path / "rgb.png")), pixels)
+    grey = pixels[..., 0]
+    write_image(tmp_path / "grey.png", grey)
+    np.testing.assert_array_equal(np.asarray(Image.open(tmp_path / "grey.png")), grey)
+
+
+def test_write_image_jpeg(tmp_path):
+    image = np.full((16, 16, 3), [0.2, 0.4, 0.6], np.float32)
+    path = tmp_path / "out.JPEG"
+    write_image(path, image)
+    with Image.open(path) as im:
+        assert im.format == "JPEG"
+    np.testing.assert_allclose(read_image(path), image, atol=0.02)
+
+
+def test_write_image_errors(tmp_path):
+    image = np.zeros((8, 8, 3), np.float32)
+    with pytest.raises(OutputError, match=r"unsupported extension '\.bmp'"):
+        write_image(tmp_path / "out.bmp", image)
+    with pytest.raises(OutputError, match=r"cannot write image .*missing"):
+        write_image(tmp_path / "missing" / "out.png", image)
+    with pytest.raises(InputError, match=r"shape \(8, 8, 4\)"):
+        write_image(tmp_path / "out.png", np.zeros((8, 8, 4)))
+    with pytest.raises(InputError, match="dtype uint16"):
+        write_image(tmp_path / "out.png", np.zeros((8, 8, 3), np.uint16))
+    with pytest.raises(InputError, match="NaN"):
+        write_image(tmp_path / "out.png", np.full((8, 8, 3), np.nan))

@@ -1,0 +1,45 @@
+import numpy as np
+import pytest
+
+from photo3d.depth.normalize import fill_unknown, normalize, prepare_depth
+from photo3d.errors import InputError
+
+
+def test_unknown_pixels_take_the_farther_row_neighbour():
+    d = np.array([[1.0, np.inf, np.nan, 5.0], [3.0, -1.0, 3.0, 3.0]], np.float32)
+    out = prepare_depth(d, (2, 4), kind="disparity")
+    assert out.disparity.tolist() == [[1.0, 1.0, 1.0, 5.0], [3.0, 3.0, 3.0, 3.0]]
+    assert out.unknown.sum() == 3
+
+
+def test_rows_without_known_values_take_the_farthest_value():
+    d = np.array([[2.0, 4.0], [np.nan, np.nan]], np.float32)
+    assert fill_unknown(d, np.isnan(d)).tolist() == [[2.0, 4.0], [2.0, 2.0]]
+
+
+def test_depth_kind_inverts():
+    d = np.array([[2.0, 4.0]], np.float32)
+    out = prepare_depth(d, (1, 2), kind="depth").disparity
+    np.testing.assert_allclose(out, [[0.5, 0.25]])
+
+
+def test_resamples_same_aspect_with_warning_and_refuses_other_shapes():
+    d = np.ones((10, 20), np.float32)
+    with pytest.warns(UserWarning, match="resampling"):
+        assert prepare_depth(d, (20, 40), kind="disparity").disparity.shape == (20, 40)
+    with pytest.raises(InputError, match=r"shape \(10, 20\) but image is \(20, 20\)"):
+        prepare_depth(d, (20, 20), kind="disparity")
+
+
+def test_all_invalid_is_an_error():
+    with pytest.raises(InputError, match="no valid value"):
+        prepare_depth(np.full((4, 4), np.nan), (4, 4), kind="disparity")
+    with pytest.raises(InputError, match="no valid value"):
+        prepare_depth(-np.ones((4, 4)), (4, 4), kind="depth")
+
+
+def test_normalize_range_and_constant_map():
+    n, lo, hi = normalize(np.array([[3.0, 5.0, 4.0]], np.float32))
+    assert n.tolist() == [[0.0, 1.0, 0.5]] and (lo, hi) == (3.0, 5.0)
+    n, _, _ = normalize(np.full((2, 2), 7.0, np.float32))
+    assert not n.any()

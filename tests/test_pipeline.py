@@ -1,0 +1,116 @@
+import json
+import warnings
+
+import numpy as np
+import pytest
+import trimesh
+from conftest import exact_config, texture, two_planes
+from PIL import Image
+
+import photo3d
+from photo3d.errors import InputError, OutputError
+from photo3d.io.ply import read_ply
+
+
+def test_make_save_load_round_trip(tmp_path):
+    img, d = two_planes()
+    photo = photo3d.make(img, depth=d, config=exact_config(border=4))
+    out = photo.save(tmp_path / "out")
+    assert sorted(p.name for p in out.iterdir()) == [
+        "config.json", "mesh.glb", "mesh.ply", "photo3d.npz"]
+    back = photo3d.load(out)
+    np.testing.assert_array_equal(back.ldi.links, photo.ldi.links)
+    np.testing.assert_array_equal(back.ldi.color, photo.ldi.color)
+    assert back.config == photo.config
+    meta = json.loads((out / "config.json").read_text())
+    assert meta["config"]["regions"]["border"] == 4
+    # independent reader sees the same mesh
+    ply = trimesh.load(out / "mesh.ply", process=False)
+    mesh = photo.mesh()
+    assert len(ply.vertices) == len(mesh.vertices) and len(ply.faces) == len(mesh.faces)
+    assert read_ply(out / "mesh.ply").width == 96
+
+
+def test_existing_output_is_refused_and_overwrite_replaces_it(tmp_path):
+    img, d = two_planes(16, 16, 8)
+    photo = photo3d.make(img, depth=d, config=exact_config())
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "keep.txt").write_text("mine")
+    with pytest.raises(OutputError, match="exists and is not empty"):
+        photo.save(out)
+    assert (out / "keep.txt").read_text() == "mine"
+    photo.save(out, overwrite=True, glb=False, ply="ascii")
+    assert sorted(p.name for p in out.iterdir()) == ["config.json", "mesh.ply", "photo3d.npz"]
+    assert (out / "mesh.ply").read_bytes().startswith(b"ply\nformat ascii 1.0\n")
+
+
+def test_failed_save_leaves_no_folder(tmp_path, monkeypatch):
+    img, d = two_planes(16, 16, 8)
+    photo = photo3d.make(img, depth=d, config=exact_config())
+
+    def boom(*args, **kwargs):
+        raise OSError("disk full")
+
+    monkeypatch.setattr("photo3d.output.write_glb", boom)
+    with pytest.raises(OSError, match="disk full"):
+        photo.save(tmp_path / "out")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_constant_depth_gives_a_flat_valid_photo():
+    img = texture(32, 48)
+    photo = photo3d.make(img, depth=np.full((32, 48), 5.0), config=exact_config(border=3))
+    assert photo.stats["edges"] == [] and photo.stats["passes"] == 0
+    m = photo.mesh()
+    assert m.faces.shape[0] == 2 * (32 + 6 - 1) * (48 + 6 - 1)
+    assert np.ptp(m.vertices[:, 2]) == 0
+
+
+def test_working_size_resizes_the_longer_side_and_scales_parameters():
+    img, d = two_planes(64, 96, 48)
+    photo = photo3d.make(img, depth=d, config=photo3d.Config(size=192))
+    assert photo.ldi.intrinsics.width == 192 and photo.ldi.intrinsics.height == 128
+    assert photo.ldi.border == round(60 * 192 / 1024)
+
+
+def test_inputs_from_files_with_unknown_depth(tmp_path):
+    img, d = two_planes(32, 48, 24)
+    Image.fromarray((img * 255).astype(np.uint8)).save(tmp_path / "a.jpg")
+    d = d.copy()
+    d[0, :5] = np.inf
+    np.save(tmp_path / "d.npy", d)
+    photo = photo3d.make(tmp_path / "a.jpg", depth=tmp_path / "d.npy", config=exact_config())
+    assert photo.stats["unknown_depth_filled"] == 5
+
+
+def test_depth_kind_depth_puts_small_values_in_front():
+    img, d = two_planes(32, 48, 24)  # disparity 1 on the left, 2 on the right
+    as_depth = photo3d.make(img, depth=d, config=exact_config().with_(depth_kind="depth"))
+    as_disp = photo3d.make(img, depth=d, config=exact_config())
+    z_depth, z_disp = as_depth.ldi.depth(), as_disp.ldi.depth()
+    left, right = 5, 40
+    assert z_depth[left] < z_depth[right]  # depth 1 is nearer than depth 2
+    assert z_disp[left] > z_disp[right]  # disparity 1 is farther than disparity 2
+
+
+def test_bad_inputs_raise_one_line_errors(tmp_path):
+    img, d = two_planes(32, 48, 24)
+    with pytest.raises(InputError, match="aspect ratios differ"):
+        photo3d.make(img, depth=np.ones((10, 10)))
+    with pytest.raises(InputError, match="no valid value"):
+        photo3d.make(img, depth=np.full((32, 48), np.nan))
+    with pytest.raises(InputError, match="not found"):
+        photo3d.make(tmp_path / "missing.jpg", depth=d)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(UserWarning, match="resampling"):
+            photo3d.make(img, depth=np.ones((16, 24)))
+
+
+def test_tiny_image_still_works():
+    img = texture(8, 8)
+    d = np.ones((8, 8), np.float32)
+    d[:, 4:] = 2
+    photo = photo3d.make(img, depth=d, config=photo3d.Config(size=None))
+    assert photo.mesh().faces.shape[0] > 0
