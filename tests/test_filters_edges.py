@@ -63,3 +63,16 @@ def test_junction_of_three_layers_is_split_by_ldi_connectivity():
     horizontal = set(e.labels[19, 21:].tolist()) - {0}
     assert len(vertical) == 1 and len(horizontal) == 1 and vertical != horizontal
     assert e.count == 2
+
+
+def test_short_segment_touching_a_long_edge_is_attached_or_dropped():
+    d = np.zeros((30, 30), np.float32)
+    d[:, 20:] = 1.0
+    d[10:13, 17:20] = 0.5  # small middle-depth blob against the foreground
+    attached = link_edges(d, threshold=0.04, min_length=10)
+    dropped = link_edges(d, threshold=0.04, min_length=10, attach_short=False)
+    long_id = attached.labels[0, 19]
+    assert long_id > 0
+    assert np.all(attached.labels[10:13, 19] == long_id)
+    assert np.all(attached.cuts[10:13, 19] & 2)
+    assert np.all(dropped.labels[10:13, 19] == 0) and np.all(dropped.cuts[10:13, 19] == 0)

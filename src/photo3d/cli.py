@@ -28,8 +28,9 @@ STAGE_LABELS = {
 }
 
 
-def _add_make_options(p: argparse.ArgumentParser) -> None:
-    p.add_argument("-o", "--out", type=Path, help="output folder (must not exist or be empty)")
+def _add_make_options(p: argparse.ArgumentParser, *, out_required: bool) -> None:
+    p.add_argument("-o", "--out", type=Path, required=out_required,
+                   help="output folder (must not exist or be empty)")
     p.add_argument("--preset", choices=sorted(PRESETS), default="default",
                    help="named configuration (default: %(default)s)")
     p.add_argument("--size", type=int, help="longer side of the working image in pixels "
@@ -59,9 +60,9 @@ def build_parser() -> argparse.ArgumentParser:
     mk.add_argument("--depth-kind", choices=["disparity", "depth"], default="disparity",
                     help="what the depth map holds: disparity (near = large, default) or "
                          "depth (near = small)")
-    _add_make_options(mk)
+    _add_make_options(mk, out_required=True)
     demo = sub.add_parser("demo", help="make a 3D photo of the bundled Middlebury sample")
-    _add_make_options(demo)
+    _add_make_options(demo, out_required=False)
     demo.set_defaults(out=Path("out/demo"))
     return parser
 
@@ -110,8 +111,6 @@ def _run_make(args: argparse.Namespace, image, depth, config: Config) -> int:
     from photo3d.output import check_output
     from photo3d.pipeline import make
 
-    if args.out is None:
-        raise Photo3DError("an output folder is required: -o OUT")
     check_output(args.out, overwrite=args.overwrite)
     bar = _Bar(args.quiet)
     try:

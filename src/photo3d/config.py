@@ -36,6 +36,9 @@ class PreprocessConfig:
     """Neighbour disparity difference (normalised) that marks a discontinuity."""
     min_edge_length: int = 10
     """Linked depth edges shorter than this (px at 1024) are dropped."""
+    attach_short: bool = True
+    """Short segments touching a long edge join it instead of being dropped (the
+    paper drops them; their links then stretch into streaks in novel views)."""
 
 
 @dataclass(frozen=True)
@@ -115,6 +118,5 @@ class Config:
 PRESETS: dict[str, Config] = {
     "default": Config(),
     "fast": Config(size=640),
-    "paper": Config(size=1024, regions=RegionConfig(border=60)),
 }
 """Named configurations (``photo3d make --preset NAME``)."""

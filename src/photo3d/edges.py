@@ -20,6 +20,7 @@ from dataclasses import dataclass
 
 import numba
 import numpy as np
+from scipy import ndimage
 
 DY = np.array([0, 0, -1, 1], np.int64)
 DX = np.array([-1, 1, 0, 0], np.int64)
@@ -118,13 +119,18 @@ def _link(disc, candidates):  # pragma: no cover - jit
     return labels
 
 
-def link_edges(disparity: np.ndarray, *, threshold: float, min_length: int) -> DepthEdges:
+def link_edges(disparity: np.ndarray, *, threshold: float, min_length: int,
+               attach_short: bool = True) -> DepthEdges:
     """Detect, link and clean depth edges.
 
     Args:
         disparity: ``(H, W) float32`` normalised (filtered) disparity.
         threshold: discontinuity threshold.
         min_length: edges with fewer pixels are dropped.
+        attach_short: a short segment that touches (8-adjacency) a long edge joins
+            it instead of being dropped. Dropping keeps the segment's links, which
+            the mesh then stretches across the depth step: thin streaks in novel
+            views. The paper drops them; isolated short segments are dropped either way.
 
     Returns:
         :class:`DepthEdges` (ids ordered by first pixel in raster order).
@@ -149,5 +155,13 @@ def link_edges(disparity: np.ndarray, *, threshold: float, min_length: int) -> D
     new_id = np.zeros(ids.size, np.int32)
     new_id[keep] = np.arange(1, int(keep.sum()) + 1, dtype=np.int32)
     labels = new_id[inverse]
+    short = (ids > 0) & ~keep
+    if attach_short and short.any() and keep.any():
+        near = ndimage.maximum_filter(labels, size=3)
+        is_short = short[inverse]
+        # each short segment takes the largest neighbouring long-edge id it touches
+        target = np.zeros(ids.size, np.int32)
+        np.maximum.at(target, inverse[is_short], near[is_short])
+        labels = np.where(is_short, target[inverse], labels).astype(np.int32)
     return DepthEdges(labels=labels, cuts=np.where(labels > 0, cuts, 0).astype(np.uint8),
                       count=int(keep.sum()))

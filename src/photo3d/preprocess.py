@@ -106,5 +106,6 @@ def preprocess(image: np.ndarray, disparity: np.ndarray, *, config: Config) -> P
         threshold=pre.discontinuity,
     )
     edges = link_edges(filtered, threshold=pre.discontinuity,
-                       min_length=config.spatial(pre.min_edge_length, working))
+                       min_length=config.spatial(pre.min_edge_length, working),
+                       attach_short=pre.attach_short)
     return Preprocessed(img, filtered, edges, (lo, hi), working)

@@ -8,6 +8,8 @@ How it works:
 * Vertices are transformed, projected and snapped to a 1/256 px grid once
   (:mod:`photo3d.render._clip`); triangles crossing the near plane are clipped
   (Sutherland-Hodgman, up to two triangles), triangles entirely behind it dropped.
+  Snapping moves a vertex by at most 1/512 px (invisible, but depth on a plane seen
+  at a grazing angle inherits that much parallax error).
 * The image is cut into a few horizontal bands rendered in parallel; each band scans
   every triangle and rasterizes it inside its bounding box clamped to the band.
 * Coverage uses float64 edge functions, evaluated with each edge's end points in a
@@ -124,6 +126,8 @@ def _draw(sv, col, scale, i0, i1, i2, y_lo, y_hi, width, color, depth, count):
                     color[y, x, ch] = min(max(v, 0.0), 1.0)
 
 
+# Kernels inline their helpers: keep them in the same file, or numba's on-disk cache
+# (keyed by this file's timestamp) would not see a helper change.
 @njit(parallel=True, cache=True, error_model="numpy")
 def _raster(sv, col, scale, faces, xsv, xcol, xfaces, height, width, bands, background, count):
     """Z-buffer render of ``faces`` over ``sv`` and ``xfaces`` over ``xsv``.
@@ -238,7 +242,7 @@ def rasterize(
         >>> f.mask.all(), float(f.depth[0, 0]), f.color[0, 0].tolist()
         (np.True_, 1.0, [1.0, 1.0, 1.0])
     """
-    vertices, colors, scale, faces, rot, trans = _prepare(vertices, colors, faces, pose)
+    prepared = _prepare(vertices, colors, faces, pose)
     height, width = int(intrinsics.height), int(intrinsics.width)
     if height <= 0 or width <= 0:
         raise InputError(f"intrinsics size must be positive, got {width}x{height}")
@@ -251,21 +255,8 @@ def rasterize(
     if bg.shape != (3,):
         raise InputError(f"background must be an RGB triple, got shape {bg.shape}")
     k = np.array([intrinsics.fx, intrinsics.fy, intrinsics.cx, intrinsics.cy], np.float64)
-    color, depth, mask = _render(
-        vertices,
-        colors,
-        scale,
-        faces,
-        rot,
-        trans,
-        k,
-        float(near),
-        height,
-        width,
-        min(bands, height),
-        bg,
-        _NO_COUNT,
-    )
+    image = (height, width, min(bands, height), bg, _NO_COUNT)
+    color, depth, mask = _render(*prepared, k, float(near), *image)
     return Fragments(color=color, depth=depth, mask=mask)
 
 
@@ -279,5 +270,5 @@ def _render(vertices, colors, scale, faces, rot, trans, k, near, height, width, 
     else:
         xsv, xcol = np.empty((0, 3), np.float32), np.empty((0, 3), np.float32)
         xfaces = np.empty((0, 3), np.int32)
-    args = (height, width, bands, bg, count)
-    return _raster(sv, colors, scale, faces, xsv, xcol, xfaces, *args)
+    image = (height, width, bands, bg, count)
+    return _raster(sv, colors, scale, faces, xsv, xcol, xfaces, *image)

@@ -1,0 +1,93 @@
+"""Benchmark ``photo3d.make`` on the Middlebury motorcycle pair (diffusion backend).
+
+Each run is a fresh process (numba's on-disk cache is warmed first, so no run pays
+for compilation); the time is measured around ``photo3d.make`` only, the peak
+memory is the child's peak resident set size. Prints a table and writes
+``benchmarks/results/make.json``.
+
+Usage: python benchmarks/bench_make.py [--runs 5] [--size 1024]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import resource
+import statistics
+import subprocess
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).parent))
+from _machine import machine_info  # noqa: E402
+
+CHILD = r"""
+import json, resource, sys, time
+import numpy as np
+import photo3d
+from photo3d.data import motorcycle
+s = motorcycle()
+cfg = photo3d.Config(size=int(sys.argv[1]), inpainter=sys.argv[2])
+t = time.perf_counter()
+photo = photo3d.make(s.left, depth=np.asarray(s.disparity), config=cfg)
+wall = time.perf_counter() - t
+t = time.perf_counter()
+mesh = photo.mesh()
+mesh_time = time.perf_counter() - t
+print(json.dumps({"make_s": wall, "mesh_s": mesh_time, "stages": photo.timings,
+                  "ldi_pixels": photo.ldi.size, "faces": int(mesh.faces.shape[0]),
+                  "stats": photo.stats}))
+"""
+
+
+def run_once(size: int, inpainter: str) -> dict:
+    before = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
+    out = subprocess.run([sys.executable, "-c", CHILD, str(size), inpainter],
+                         capture_output=True, text=True, check=True)
+    peak_kb = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
+    result = json.loads(out.stdout.strip().splitlines()[-1])
+    # ru_maxrss of children is the max over all children so far: runs are ordered
+    # so that this is the current child's peak unless an earlier child was larger.
+    result["peak_rss_mb"] = max(peak_kb, before) / 1024
+    return result
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--runs", type=int, default=5)
+    parser.add_argument("--size", type=int, default=1024)
+    parser.add_argument("--inpainter", default="diffusion")
+    parser.add_argument("--out", type=Path,
+                        default=Path(__file__).parent / "results" / "make.json")
+    args = parser.parse_args()
+
+    run_once(args.size, args.inpainter)  # warm-up: fills numba's cache, page cache
+    runs = [run_once(args.size, args.inpainter) for _ in range(args.runs)]
+    med = {
+        "make_s": statistics.median(r["make_s"] for r in runs),
+        "mesh_s": statistics.median(r["mesh_s"] for r in runs),
+        "peak_rss_mb": max(r["peak_rss_mb"] for r in runs),
+        "stages": {k: statistics.median(r["stages"][k] for r in runs)
+                   for k in runs[0]["stages"]},
+    }
+    record = {"benchmark": "make", "size": args.size, "inpainter": args.inpainter,
+              "runs": runs, "median": med, "machine": machine_info(),
+              "command": " ".join(["python", "benchmarks/bench_make.py", *sys.argv[1:]])}
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.out.write_text(json.dumps(record, indent=2))
+    stats = runs[0]["stats"]
+    print(f"motorcycle {stats['working_size'][0]}x{stats['working_size'][1]}, "
+          f"inpainter {args.inpainter}, {args.runs} runs (median), {record['machine']['cpu']}, "
+          f"{record['machine']['cores']} cores")
+    print(f"make: {med['make_s']:.2f} s  (" + ", ".join(
+        f"{k} {v:.2f}" for k, v in med["stages"].items()) + ")")
+    print(f"mesh: {med['mesh_s']:.2f} s, {runs[0]['faces']:,} faces, "
+          f"{runs[0]['ldi_pixels']:,} LDI pixels, passes {stats['passes']}, "
+          f"edges per pass {stats['edges']}")
+    print(f"peak memory (whole process): {med['peak_rss_mb']:.0f} MB")
+    times = ", ".join(f"{r['make_s']:.2f}" for r in runs)
+    print(f"individual make times: {times}")
+
+
+if __name__ == "__main__":
+    main()
