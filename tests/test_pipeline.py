@@ -102,6 +102,8 @@ def test_bad_inputs_raise_one_line_errors(tmp_path):
         photo3d.make(img, depth=np.full((32, 48), np.nan))
     with pytest.raises(InputError, match="not found"):
         photo3d.make(tmp_path / "missing.jpg", depth=d)
+    with pytest.raises(InputError, match="needs at least 8x8"):
+        photo3d.make(np.zeros((4, 3, 3)), depth=np.ones((4, 3)))
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         with pytest.raises(UserWarning, match="resampling"):

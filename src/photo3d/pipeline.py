@@ -16,7 +16,7 @@ from photo3d.errors import InputError
 from photo3d.inpaint import get_inpainter
 from photo3d.inpaint.base import Inpainter
 from photo3d.inpaint.patches import extract_patches
-from photo3d.io.images import read_image, to_float_image
+from photo3d.io.images import MIN_SIDE, read_image, to_float_image
 from photo3d.ldi import LDI, cut, from_image
 from photo3d.merge import merge
 from photo3d.mesh import Mesh, build_mesh
@@ -122,8 +122,9 @@ def make(
 
     img = read_image(image) if isinstance(image, str | Path) else to_float_image(image)
     raw = read_depth(depth) if isinstance(depth, str | Path) else np.asarray(depth)
-    if min(img.shape[:2]) < 2:
-        raise InputError(f"image is {img.shape[1]}x{img.shape[0]} pixels; too small")
+    if min(img.shape[:2]) < MIN_SIDE:
+        raise InputError(f"image is {img.shape[1]}x{img.shape[0]} pixels; photo3d needs at "
+                         f"least {MIN_SIDE}x{MIN_SIDE}")
     dep = prepare_depth(raw, img.shape[:2], kind=config.depth_kind)
     done("load")
 
