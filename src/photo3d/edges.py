@@ -22,6 +22,8 @@ import numba
 import numpy as np
 from scipy import ndimage
 
+from photo3d._lattice import find_root, union
+
 DY = np.array([0, 0, -1, 1], np.int64)
 DX = np.array([-1, 1, 0, 0], np.int64)
 
@@ -67,14 +69,6 @@ def find_discontinuities(disparity: np.ndarray, threshold: float) -> np.ndarray:
 
 
 @numba.njit(cache=True)
-def _find(parent, i):  # pragma: no cover - jit
-    while parent[i] != i:
-        parent[i] = parent[parent[i]]
-        i = parent[i]
-    return i
-
-
-@numba.njit(cache=True)
 def _link(disc, candidates):  # pragma: no cover - jit
     """Union-find over silhouette pixels; ``disc`` is the 'link is broken' bit set."""
     h, w = disc.shape
@@ -108,14 +102,12 @@ def _link(disc, candidates):  # pragma: no cover - jit
                     via_b = ((disc[y, x] >> 3) & 1) == 0 and ((disc[ny, x] >> sx) & 1) == 0
                     ok = via_a or via_b
                 if ok:
-                    ra, rb = _find(parent, p), _find(parent, ny * w + nx)
-                    if ra != rb:
-                        parent[max(ra, rb)] = min(ra, rb)
+                    union(parent, p, ny * w + nx)
     labels = np.zeros((h, w), np.int64)
     for y in range(h):
         for x in range(w):
             if candidates[y, x]:
-                labels[y, x] = _find(parent, y * w + x) + 1
+                labels[y, x] = find_root(parent, y * w + x) + 1
     return labels
 
 

@@ -21,6 +21,7 @@ from dataclasses import dataclass, replace
 import numba
 import numpy as np
 
+from photo3d._lattice import find_root, step, union
 from photo3d.inpaint.base import InpaintResult
 from photo3d.inpaint.patches import PatchJob
 from photo3d.ldi import LDI
@@ -69,17 +70,13 @@ def _select(cand_pos, cand_disp, starts, order, disp, thr):  # pragma: no cover 
 
 @numba.njit(cache=True)
 def _link_new(first, pos, disp, links, starts, order, rows, cols, thr):  # pragma: no cover
-    dpos = np.array([-1, 1, -cols, cols])
     for n in range(first, pos.shape[0]):
-        r, c = pos[n] // cols, pos[n] % cols
         for d in range(4):
             if links[n, d] >= 0:
                 continue
-            if (d == 0 and c == 0) or (d == 1 and c == cols - 1):
+            b = step(pos[n], d, rows, cols)
+            if b < 0:
                 continue
-            if (d == 2 and r == 0) or (d == 3 and r == rows - 1):
-                continue
-            b = pos[n] + dpos[d]
             best = -1
             best_diff = thr
             for k in range(starts[b], starts[b + 1]):
@@ -94,29 +91,17 @@ def _link_new(first, pos, disp, links, starts, order, rows, cols, thr):  # pragm
 
 
 @numba.njit(cache=True)
-def _find(parent, i):  # pragma: no cover - jit
-    while parent[i] != i:
-        parent[i] = parent[parent[i]]
-        i = parent[i]
-    return i
-
-
-@numba.njit(cache=True)
 def _new_edges(first, pos, disp, links, starts, order, rows, cols, thr):  # pragma: no cover
     """Union-find roots of new background silhouettes (-1 = not a silhouette)."""
     n_all = pos.shape[0]
-    dpos = np.array([-1, 1, -cols, cols])
     sil = np.zeros(n_all, np.bool_)
     for n in range(first, n_all):
-        r, c = pos[n] // cols, pos[n] % cols
         for d in range(4):
             if links[n, d] >= 0:
                 continue
-            if (d == 0 and c == 0) or (d == 1 and c == cols - 1):
+            b = step(pos[n], d, rows, cols)
+            if b < 0:
                 continue
-            if (d == 2 and r == 0) or (d == 3 and r == rows - 1):
-                continue
-            b = pos[n] + dpos[d]
             for k in range(starts[b], starts[b + 1]):
                 m = order[k]
                 if m >= first and disp[m] > disp[n] + thr:
@@ -130,19 +115,17 @@ def _new_edges(first, pos, disp, links, starts, order, rows, cols, thr):  # prag
             if q < 0:
                 continue
             if sil[q]:
-                ra, rb = _find(parent, n), _find(parent, q)
-                parent[max(ra, rb)] = min(ra, rb)
+                union(parent, n, q)
             for d2 in range(4):
                 if d2 // 2 == d // 2:
                     continue
                 m = links[q, d2]
                 if m >= 0 and sil[m]:
-                    ra, rb = _find(parent, n), _find(parent, m)
-                    parent[max(ra, rb)] = min(ra, rb)
+                    union(parent, n, m)
     roots = np.full(n_all, -1, np.int64)
     for n in range(first, n_all):
         if sil[n]:
-            roots[n] = _find(parent, n)
+            roots[n] = find_root(parent, n)
     return roots
 
 

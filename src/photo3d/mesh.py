@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from photo3d.camera import unproject
+from photo3d.errors import InputError
 from photo3d.ldi import LDI
 
 
@@ -40,6 +41,36 @@ class Mesh:
     height: int
     hfov: float
     vfov: float
+
+    def checked(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """``(vertices, colors, labels, faces)`` in the documented dtypes, validated.
+
+        Raises :class:`~photo3d.errors.InputError` on inconsistent shapes or face
+        indices out of range (what writers need before they touch a file).
+
+        Example:
+            >>> m = Mesh(np.zeros((3, 3)), np.zeros((3, 3)), np.ones(3), np.array([[0, 1, 2]]),
+            ...          4, 4, 1.0, 1.0)
+            >>> [a.dtype.name for a in m.checked()]
+            ['float32', 'uint8', 'uint8', 'int32']
+        """
+        vertices = np.asarray(self.vertices, np.float32)
+        count = len(vertices)
+        arrays = (
+            vertices,
+            np.asarray(self.colors, np.uint8),
+            np.asarray(self.labels, np.uint8),
+            np.asarray(self.faces, np.int32),
+        )
+        shapes = ((count, 3), (count, 3), (count,), (len(arrays[3]), 3))
+        for name, array, shape in zip(
+            ("vertices", "colors", "labels", "faces"), arrays, shapes, strict=True
+        ):
+            if array.shape != shape:
+                raise InputError(f"mesh.{name} has shape {array.shape}, expected {shape}")
+        if arrays[3].size and (arrays[3].min() < 0 or arrays[3].max() >= count):
+            raise InputError(f"mesh.faces has indices outside [0, {count})")
+        return arrays
 
 
 def build_mesh(ldi: LDI) -> Mesh:

@@ -26,6 +26,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
+from photo3d._lattice import step
 from photo3d.ldi import LDI
 
 
@@ -88,7 +89,6 @@ def _regions(pos, disp, links, starts, order, rows, cols, edge_ptr, edge_pix,
     syn_ptr = np.zeros(n_edges + 1, np.int64)
     nc = 0
     ns = 0
-    dpos = np.array([-1, 1, -cols, cols])
     for e in range(n_edges):
         c0 = nc
         for k in range(edge_ptr[e], edge_ptr[e + 1]):
@@ -104,16 +104,13 @@ def _regions(pos, disp, links, starts, order, rows, cols, edge_ptr, edge_pix,
         s0 = ns
         for k in range(edge_ptr[e], edge_ptr[e + 1]):
             p = edge_pix[k]
-            r, c = pos[p] // cols, pos[p] % cols
             for d in range(4):
                 if links[p, d] >= 0:
                     continue
-                if (d == 0 and c == 0) or (d == 1 and c == cols - 1):
+                b = step(pos[p], d, rows, cols)
+                if b < 0 or stamp[b] == e:
                     continue
-                if (d == 2 and r == 0) or (d == 3 and r == rows - 1):
-                    continue
-                b = pos[p] + dpos[d]
-                if stamp[b] != e and _admissible(b, disp[p], disp, starts, order, margin):
+                if _admissible(b, disp[p], disp, starts, order, margin):
                     stamp[b] = e
                     syn = _grow(syn, ns)
                     syn_seed = _grow(syn_seed, ns)
@@ -140,14 +137,11 @@ def _regions(pos, disp, links, starts, order, rows, cols, edge_ptr, edge_pix,
                 for k in range(s_lo, s_hi):
                     a = syn[k]
                     seed = syn_seed[k]
-                    r, c = a // cols, a % cols
                     for d in range(4):
-                        if (d == 0 and c == 0) or (d == 1 and c == cols - 1):
+                        b = step(a, d, rows, cols)
+                        if b < 0 or stamp[b] == e:
                             continue
-                        if (d == 2 and r == 0) or (d == 3 and r == rows - 1):
-                            continue
-                        b = a + dpos[d]
-                        if stamp[b] != e and _admissible(b, seed, disp, starts, order, margin):
+                        if _admissible(b, seed, disp, starts, order, margin):
                             stamp[b] = e
                             syn = _grow(syn, ns)
                             syn_seed = _grow(syn_seed, ns)

@@ -7,32 +7,11 @@ from dataclasses import replace
 import numpy as np
 import pytest
 import trimesh
+from conftest import grid_mesh
 
 from photo3d.errors import InputError, OutputError
 from photo3d.io.ply import read_ply, write_ply
 from photo3d.mesh import Mesh
-
-
-def grid_mesh(rows: int = 3, cols: int = 3) -> Mesh:
-    """A fronto-parallel grid at z = 2.5 facing the camera, 2 triangles per cell.
-
-    x, y are jittered (not exactly representable decimals); colours cover every
-    uint8 level on the red channel once there are 256 vertices; labels cycle 1..5.
-    """
-    rng = np.random.default_rng(7)
-    r, c = np.mgrid[0:rows, 0:cols]
-    x = (c - cols / 2) * 0.37 + rng.uniform(-0.01, 0.01, r.shape)
-    y = (r - rows / 2) * 0.29 + rng.uniform(-0.01, 0.01, r.shape)
-    vertices = np.stack([x, y, np.full(r.shape, 2.5)], -1).reshape(-1, 3).astype(np.float32)
-    i = np.arange(rows * cols)
-    colors = np.stack([i % 256, 255 - i % 256, (i * 37) % 256], 1).astype(np.uint8)
-    q = (r[:-1, :-1] * cols + c[:-1, :-1]).ravel()  # top-left corner of each cell
-    faces = np.concatenate(
-        [np.stack([q, q + cols, q + 1], 1), np.stack([q + 1, q + cols, q + cols + 1], 1)]
-    )
-    return Mesh(
-        vertices, colors, (i % 5 + 1).astype(np.uint8), faces.astype(np.int32), 640, 480, 1.1, 0.85
-    )
 
 
 def assert_same_mesh(got: Mesh, want: Mesh) -> None:

@@ -282,25 +282,10 @@ def _linear_to_srgb(linear: np.ndarray) -> np.ndarray:
 
 
 def _checked_arrays(mesh: Mesh) -> tuple[np.ndarray, ...]:
-    """The mesh arrays with the documented dtypes, after shape and value checks."""
-    vertices = np.asarray(mesh.vertices, np.float32)
-    count = len(vertices)
-    arrays = (
-        vertices,
-        np.asarray(mesh.colors, np.uint8),
-        np.asarray(mesh.labels, np.uint8),
-        np.asarray(mesh.faces, np.int32),
-    )
-    shapes = ((count, 3), (count, 3), (count,), (len(arrays[3]), 3))
-    for name, array, shape in zip(
-        ("vertices", "colors", "labels", "faces"), arrays, shapes, strict=True
-    ):
-        if array.shape != shape:
-            raise InputError(f"mesh.{name} has shape {array.shape}, expected {shape}")
-    if count == 0 or len(arrays[3]) == 0:
+    """:meth:`Mesh.checked` plus what glTF cannot store (empty or non-finite data)."""
+    arrays = mesh.checked()
+    if len(arrays[0]) == 0 or len(arrays[3]) == 0:
         raise InputError("mesh has no vertices or no faces; glTF cannot store it")
-    if arrays[3].min() < 0 or arrays[3].max() >= count:
-        raise InputError(f"mesh.faces has indices outside [0, {count})")
-    if not np.isfinite(vertices).all():
+    if not np.isfinite(arrays[0]).all():
         raise InputError("mesh.vertices has NaN or infinite values")
     return arrays

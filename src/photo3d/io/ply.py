@@ -82,7 +82,7 @@ def write_ply(path: PathLike, mesh: Mesh, *, binary: bool = True) -> None:
         >>> path.read_text().splitlines()[2:6]
         ['comment H 3', 'comment W 4', 'comment hFov 0.5', 'comment vFov 0.4']
     """
-    vertices, colors, labels, faces = _checked_arrays(mesh)
+    vertices, colors, labels, faces = mesh.checked()
     fmt = "binary_little_endian" if binary else "ascii"
     header = (
         f"ply\nformat {fmt} 1.0\ncomment H {int(mesh.height)}\ncomment W {int(mesh.width)}\n"
@@ -292,24 +292,3 @@ def _write_rows(file: BinaryIO, row_format: str, rows: np.ndarray) -> None:
     for begin in range(0, len(rows), _ASCII_CHUNK):
         chunk = rows[begin : begin + _ASCII_CHUNK]
         file.write(((row_format * len(chunk)) % tuple(chunk.ravel().tolist())).encode("ascii"))
-
-
-def _checked_arrays(mesh: Mesh) -> tuple[np.ndarray, ...]:
-    """The mesh arrays with the documented dtypes, after shape and index checks."""
-    vertices = np.asarray(mesh.vertices, np.float32)
-    count = len(vertices)
-    arrays = (
-        vertices,
-        np.asarray(mesh.colors, np.uint8),
-        np.asarray(mesh.labels, np.uint8),
-        np.asarray(mesh.faces, np.int32),
-    )
-    shapes = ((count, 3), (count, 3), (count,), (len(arrays[3]), 3))
-    for name, array, shape in zip(
-        ("vertices", "colors", "labels", "faces"), arrays, shapes, strict=True
-    ):
-        if array.shape != shape:
-            raise InputError(f"mesh.{name} has shape {array.shape}, expected {shape}")
-    if arrays[3].size and (arrays[3].min() < 0 or arrays[3].max() >= count):
-        raise InputError(f"mesh.faces has indices outside [0, {count})")
-    return arrays
