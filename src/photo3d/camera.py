@@ -118,3 +118,69 @@ def unproject(x: np.ndarray, y: np.ndarray, z: np.ndarray, k: Intrinsics) -> np.
     px = (np.asarray(x, np.float32) + 0.5 - k.cx) / k.fx
     py = (np.asarray(y, np.float32) + 0.5 - k.cy) / k.fy
     return np.stack([px * z, py * z, z], axis=1).astype(np.float32)
+
+
+def intrinsics_from_fov(width: int, height: int, vfov: float) -> Intrinsics:
+    """Square-pixel intrinsics with vertical field of view ``vfov`` (radians).
+
+    Example:
+        >>> k = intrinsics_from_fov(200, 100, 2 * math.atan(0.5))
+        >>> round(k.fx, 6), k.cx, k.cy
+        (100.0, 100.0, 50.0)
+    """
+    f = height / (2.0 * math.tan(vfov / 2.0))
+    return Intrinsics(f, f, width / 2.0, height / 2.0, int(width), int(height))
+
+
+@dataclass(frozen=True)
+class Camera:
+    """A camera: intrinsics (which also fix the output size) and a pose.
+
+    Attributes:
+        intrinsics: pinhole intrinsics in pixels.
+        pose: ``(4, 4) float64`` camera-from-world matrix (the input view is the
+            identity; world = the input camera's OpenCV frame).
+
+    Example:
+        >>> cam = Camera.translated(Intrinsics.default(64, 48), (0.1, 0.0, 0.0))
+        >>> cam.position.tolist()
+        [0.1, 0.0, 0.0]
+    """
+
+    intrinsics: Intrinsics
+    pose: np.ndarray
+
+    @classmethod
+    def translated(cls, intrinsics: Intrinsics, position: tuple[float, float, float]) -> Camera:
+        """Camera looking along +z like the input view, centred at ``position`` (world)."""
+        pose = np.eye(4)
+        pose[:3, 3] = -np.asarray(position, float)
+        return cls(intrinsics, pose)
+
+    @classmethod
+    def look_at(cls, intrinsics: Intrinsics, position, target, up=(0.0, -1.0, 0.0)) -> Camera:
+        """Camera at ``position`` looking at ``target``; ``up`` is world up (OpenCV: -y).
+
+        Example:
+            >>> cam = Camera.look_at(Intrinsics.default(8, 8), (0, 0, 0), (0, 0, 5))
+            >>> np.allclose(cam.pose, np.eye(4))
+            True
+        """
+        position = np.asarray(position, float)
+        forward = np.asarray(target, float) - position
+        forward /= np.linalg.norm(forward)
+        right = np.cross(-np.asarray(up, float), forward)
+        if np.linalg.norm(right) < 1e-9:
+            raise ValueError("look_at: up is parallel to the viewing direction")
+        right /= np.linalg.norm(right)
+        down = np.cross(forward, right)
+        rot = np.stack([right, down, forward])  # rows: camera axes in world coordinates
+        pose = np.eye(4)
+        pose[:3, :3] = rot
+        pose[:3, 3] = -rot @ position
+        return cls(intrinsics, pose)
+
+    @property
+    def position(self) -> np.ndarray:
+        """``(3,)`` camera centre in world coordinates."""
+        return -self.pose[:3, :3].T @ self.pose[:3, 3]
