@@ -39,8 +39,45 @@ def _add_make_options(p: argparse.ArgumentParser, *, out_required: bool) -> None
     p.add_argument("--ply", choices=["binary", "ascii", "none"], default="binary",
                    help="PLY mesh encoding (default: %(default)s)")
     p.add_argument("--no-glb", action="store_true", help="do not write mesh.glb")
+    p.add_argument("--no-video", action="store_true",
+                   help="do not render the four standard videos")
     p.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
+    _add_video_options(p, paths_default=None)
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
+
+
+def _size(text: str) -> tuple[int, int]:
+    try:
+        w, h = (int(v) for v in text.lower().split("x"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"size must look like 1280x720, got {text!r}") from None
+    return w, h
+
+
+def _add_video_options(p: argparse.ArgumentParser, *, paths_default) -> None:
+    g = p.add_argument_group("video")
+    g.add_argument("--path", dest="paths", action="append", default=paths_default,
+                   metavar="NAME|FILE",
+                   help="camera path: dolly-zoom-in, zoom-in, circle, swing or a JSON/YAML "
+                        "keyframe file (repeatable; make renders all four presets by default)")
+    g.add_argument("--video-size", "--resolution", dest="video_size", type=_size,
+                   metavar="WxH", help="video size, even numbers (default: the photo's size)")
+    g.add_argument("--fps", type=float, default=40.0, help="frames per second (default 40)")
+    g.add_argument("--frames", type=int, default=240, help="frames per video (default 240)")
+    g.add_argument("--format", choices=["mp4", "webm", "gif"], default="mp4",
+                   help="video format (default mp4: H.264, yuv420p)")
+    g.add_argument("--ssaa", type=int, default=2, help="supersampling factor (default 2)")
+    g.add_argument("--no-crop", action="store_true",
+                   help="do not crop the frame border like the authors' videos")
+    g.add_argument("--backend", choices=["auto", "numba", "gl"], default="auto",
+                   help="rasterizer (default auto: OpenGL on a GPU, else numba on the CPU)")
+    g.add_argument("--stereo", choices=["sbs", "sbs-half", "anaglyph"],
+                   help="render stereo videos: side by side (full or half width) or "
+                        "red-cyan anaglyph")
+    g.add_argument("--eye-separation", type=float, default=0.01,
+                   help="stereo eye distance in depth units (default 0.01)")
+    g.add_argument("--eye-order", choices=["lr", "rl"], default="lr",
+                   help="side-by-side order: lr (parallel) or rl (cross-eyed)")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -64,6 +101,10 @@ def build_parser() -> argparse.ArgumentParser:
     demo = sub.add_parser("demo", help="make a 3D photo of the bundled Middlebury sample")
     _add_make_options(demo, out_required=False)
     demo.set_defaults(out=Path("out/demo"))
+    rd = sub.add_parser("render", help="render videos of a saved 3D photo (no recomputing)")
+    rd.add_argument("photo", type=Path, help="a 3D photo folder written by make")
+    _add_video_options(rd, paths_default=None)
+    rd.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
     return parser
 
 
@@ -74,6 +115,24 @@ def _config(args: argparse.Namespace, **changes) -> Config:
     if args.inpainter:
         changes["inpainter"] = args.inpainter
     return cfg.with_(**changes)
+
+
+def _videos(args: argparse.Namespace) -> list:
+    from photo3d.render.animate import VideoSpec
+    from photo3d.render.paths import PRESETS
+
+    paths = args.paths or list(PRESETS)
+    return [VideoSpec(path=p, size=args.video_size, fps=args.fps, frames=args.frames,
+                      format=args.format, stereo=args.stereo,
+                      eye_separation=args.eye_separation, eye_order=args.eye_order)
+            for p in paths]
+
+
+def _render_settings(args: argparse.Namespace):
+    from photo3d.render.renderer import AUTHORS_CROP, RenderSettings
+
+    return RenderSettings(ssaa=args.ssaa, crop=(0.0,) * 4 if args.no_crop else AUTHORS_CROP,
+                          backend=args.backend)
 
 
 class _Bar:
@@ -87,8 +146,8 @@ class _Bar:
             self.bar = tqdm(total=100, bar_format="{desc:<12}{bar}| {percentage:3.0f}% "
                             "[{elapsed}]", file=sys.stderr, leave=False,
                             disable=None)  # no bar when stderr is not a terminal
-        self.weights = {"load": 2, "preprocess": 10, "ldi": 3, "inpaint": 70, "mesh": 5,
-                        "save": 10}
+        self.weights = {"load": 1, "preprocess": 4, "ldi": 1, "inpaint": 20, "mesh": 1,
+                        "save": 3, "video": 70}
         self.stage = None
 
     def __call__(self, stage: str, fraction: float) -> None:
@@ -112,16 +171,18 @@ def _run_make(args: argparse.Namespace, image, depth, config: Config) -> int:
     from photo3d.pipeline import make
 
     check_output(args.out, overwrite=args.overwrite)
+    videos = [] if args.no_video else _videos(args)
+    settings = _render_settings(args)
     bar = _Bar(args.quiet)
     try:
         photo = make(image, depth=depth, config=config, progress=bar)
         bar("mesh", 0.0)
         t = time.perf_counter()
-        photo.timings["save"] = 0.0
         photo.save(args.out, overwrite=args.overwrite,
-                   ply=None if args.ply == "none" else args.ply, glb=not args.no_glb)
-        photo.timings["save"] = time.perf_counter() - t
-        bar("save", 1.0)
+                   ply=None if args.ply == "none" else args.ply, glb=not args.no_glb,
+                   videos=videos, render_settings=settings, progress=bar)
+        photo.timings["save + video" if videos else "save"] = time.perf_counter() - t
+        bar("video", 1.0)
     finally:
         bar.close()
     if not args.quiet:
@@ -136,8 +197,31 @@ def _summary(photo, out: Path) -> None:
     total = sum(photo.timings.values())
     parts = ", ".join(f"{STAGE_LABELS.get(k, k)} {v:.2f}s" for k, v in photo.timings.items())
     print(f"time: {total:.2f}s ({parts})")
-    for name in sorted(p.name for p in out.iterdir()):
-        print(f"  {name:<14} {(out / name).stat().st_size / 1e6:8.2f} MB")
+    _list_files(out)
+
+
+def _list_files(out: Path) -> None:
+    for path in sorted(p for p in out.rglob("*") if p.is_file()):
+        print(f"  {str(path.relative_to(out)):<24} {path.stat().st_size / 1e6:8.2f} MB")
+
+
+def _run_render(args: argparse.Namespace) -> int:
+    from photo3d.output import load_photo, write_videos
+
+    photo = load_photo(args.photo)
+    videos = _videos(args)
+    bar = _Bar(args.quiet)
+    t = time.perf_counter()
+    try:
+        written = write_videos(photo, None, args.photo, videos,
+                               settings=_render_settings(args), progress=bar)
+    finally:
+        bar.close()
+    if not args.quiet:
+        print(f"rendered {len(written)} video(s) in {time.perf_counter() - t:.2f}s:")
+        for path in written:
+            print(f"  {path}  {path.stat().st_size / 1e6:.2f} MB")
+    return 0
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -153,6 +237,8 @@ def main(argv: list[str] | None = None) -> int:
         if args.command == "make":
             cfg = _config(args, depth_kind=args.depth_kind)
             return _run_make(args, args.image, args.depth, cfg)
+        if args.command == "render":
+            return _run_render(args)
         if args.command == "demo":
             from photo3d.data import motorcycle
 

@@ -50,7 +50,13 @@ class RegionConfig:
     context_iterations: int = 100
     """Flood-fill steps of the context region (px at 1024)."""
     edge_dilation: int = 5
-    """Synthesis region dilated into the context near the edge (px at 1024)."""
+    """Synthesis region dilated into the context near the edge (px at 1024): these
+    pixels, often a mix of foreground and background colour where colour and depth
+    edges are misaligned, are hidden from the inpainter."""
+    overwrite_dilation: bool = False
+    """Also replace the visible pixels of that band with the inpainted values
+    (removes foreground-coloured fringes, but the input view no longer reproduces
+    the photo exactly near depth edges)."""
     border: int = 60
     """Width of the extrapolated frame around the image (px at 1024; 0 = none)."""
     max_passes: int = 3

@@ -7,7 +7,7 @@ another edge of the same pass, or when it would not be hidden behind every
 existing pixel there. Each new pixel links to the lattice neighbour of closest
 disparity within the threshold whose slot facing it is free, so links stay
 symmetric and new layers join the context they grew from. Dilation-band pixels
-get their re-synthesised values in place.
+get their re-synthesised values in place only if ``overwrite_band`` is set.
 
 Multi-layer inpainting (paper, Sec. 3.3) continues where new pixels meet other new
 pixels of this pass across a discontinuity: the farther ones form the background
@@ -137,6 +137,7 @@ def merge(
     label: int,
     threshold: float,
     min_edge_length: int,
+    overwrite_band: bool = False,
 ) -> Merged:
     """Merge one pass of inpainting results into ``ldi``.
 
@@ -147,6 +148,8 @@ def merge(
         label: label of the new pixels.
         threshold: discontinuity threshold (normalised disparity).
         min_edge_length: new edges with fewer pixels are ignored.
+        overwrite_band: replace the dilation band's colour and disparity by the
+            inpainted values (else the input view stays exactly the photo).
 
     Returns:
         :class:`Merged`.
@@ -155,7 +158,7 @@ def merge(
     new_y, new_x, new_c, new_d = [], [], [], []
     for job, res in zip(jobs, results, strict=True):
         y0, x0 = job.patch.origin
-        if job.band.size:
+        if overwrite_band and job.band.size:
             by, bx = ldi.y[job.band] - y0, ldi.x[job.band] - x0
             color[job.band] = res.color[by, bx]
             disparity[job.band] = res.disparity[by, bx]

@@ -126,12 +126,16 @@ def build_mesh(ldi: LDI) -> Mesh:
     c, a_of_c, d_of_c = c[ok], a_of_c[ok], d_of_c[ok]
     faces.append(np.stack([a_of_c, c, d_of_c], 1))
 
+    faces = np.concatenate(faces)
+    # Faces in order of their last vertex: the input layer's faces come first (its
+    # pixels are the first H * W), and neighbouring faces are close in memory.
+    faces = faces[np.argsort(faces.max(axis=1), kind="stable")]
     hfov, vfov = ldi.intrinsics.fov
     return Mesh(
         vertices=unproject(ldi.x, ldi.y, ldi.depth(), ldi.intrinsics),
         colors=np.clip(np.round(ldi.color * 255.0), 0, 255).astype(np.uint8),
         labels=ldi.label.copy(),
-        faces=np.concatenate(faces).astype(np.int32),
+        faces=faces.astype(np.int32),
         width=ldi.width,
         height=ldi.height,
         hfov=hfov,

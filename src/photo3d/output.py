@@ -13,6 +13,7 @@ import json
 import os
 import shutil
 import tempfile
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -24,6 +25,8 @@ from photo3d.ldi import load_npz, save_npz
 
 if TYPE_CHECKING:
     from photo3d.pipeline import Photo3D
+    from photo3d.render.animate import VideoSpec
+    from photo3d.render.renderer import RenderSettings
 
 LDI_FILE = "photo3d.npz"
 
@@ -39,7 +42,9 @@ def check_output(out: str | Path, *, overwrite: bool) -> Path:
 
 
 def save_photo(photo: Photo3D, out: str | Path, *, overwrite: bool = False,
-               ply: str | None = "binary", glb: bool = True) -> Path:
+               ply: str | None = "binary", glb: bool = True,
+               videos: Sequence[VideoSpec] = (), render_settings: RenderSettings | None = None,
+               progress: Callable[[str, float], None] | None = None) -> Path:
     """Write a 3D photo folder atomically.
 
     Args:
@@ -47,6 +52,10 @@ def save_photo(photo: Photo3D, out: str | Path, *, overwrite: bool = False,
         out: destination folder; must not exist or be empty unless ``overwrite``.
         ply: ``"binary"``, ``"ascii"`` or None (no PLY).
         glb: also write ``mesh.glb``.
+        videos: videos to render into ``out/video/`` (see
+            :class:`~photo3d.render.animate.VideoSpec`).
+        render_settings: how videos are rendered.
+        progress: ``progress(stage, fraction)`` with stages ``save`` and ``video``.
 
     Returns:
         ``out`` as a :class:`~pathlib.Path`.
@@ -69,12 +78,15 @@ def save_photo(photo: Photo3D, out: str | Path, *, overwrite: bool = False,
                 "timings": photo.timings}
         save_npz(photo.ldi, tmp / LDI_FILE, meta=meta)
         (tmp / "config.json").write_text(json.dumps(meta, indent=2))
-        if ply or glb:
-            mesh = photo.mesh()
-            if ply:
-                write_ply(tmp / "mesh.ply", mesh, binary=ply == "binary")
-            if glb:
-                write_glb(tmp / "mesh.glb", mesh)
+        mesh = photo.mesh() if ply or glb or videos else None
+        if ply:
+            write_ply(tmp / "mesh.ply", mesh, binary=ply == "binary")
+        if glb:
+            write_glb(tmp / "mesh.glb", mesh)
+        if progress:
+            progress("save", 1.0)
+        if videos:
+            write_videos(photo, mesh, tmp, videos, settings=render_settings, progress=progress)
         if out.exists():
             old = out.with_name(f".{out.name}.old")
             shutil.rmtree(old, ignore_errors=True)
@@ -87,6 +99,26 @@ def save_photo(photo: Photo3D, out: str | Path, *, overwrite: bool = False,
         shutil.rmtree(tmp, ignore_errors=True)
         raise
     return out
+
+
+def write_videos(photo: Photo3D, mesh, folder: Path, videos: Sequence[VideoSpec], *,
+                 settings: RenderSettings | None = None,
+                 progress: Callable[[str, float], None] | None = None) -> list[Path]:
+    """Render ``videos`` of ``photo`` into ``folder/video/`` (one renderer for all)."""
+    from photo3d.render.animate import render_video
+    from photo3d.render.renderer import Renderer
+
+    (folder / "video").mkdir(exist_ok=True)
+    written = []
+    with Renderer(mesh if mesh is not None else photo.mesh(), settings) as renderer:
+        for i, spec in enumerate(videos):
+            def on_frame(done: int, total: int, i: int = i) -> None:
+                if progress:
+                    progress("video", (i + done / total) / len(videos))
+
+            target = folder / "video" / f"{spec.name}.{spec.format}"
+            written.append(render_video(renderer, photo.ldi, spec, target, progress=on_frame))
+    return written
 
 
 def load_photo(path: str | Path) -> Photo3D:

@@ -6,10 +6,12 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from photo3d.border import extend_border
+from photo3d.camera import Camera
 from photo3d.config import Config
 from photo3d.depth.normalize import prepare_depth
 from photo3d.errors import InputError
@@ -22,6 +24,9 @@ from photo3d.merge import merge
 from photo3d.mesh import Mesh, build_mesh
 from photo3d.preprocess import preprocess
 from photo3d.regions import find_regions
+
+if TYPE_CHECKING:
+    from photo3d.render.renderer import RenderSettings, View
 
 Progress = Callable[[str, float], None]
 """``progress(stage, fraction)``; ``fraction`` in [0, 1] within the stage."""
@@ -49,15 +54,46 @@ class Photo3D:
         """The triangle mesh of the LDI (see :func:`photo3d.mesh.build_mesh`)."""
         return build_mesh(self.ldi)
 
+    def render(self, camera: Camera, *, settings: RenderSettings | None = None) -> View:
+        """Render a novel view.
+
+        Args:
+            camera: intrinsics (output size) and camera-from-world pose; the input
+                view is ``Camera(photo.ldi.intrinsics, np.eye(4))``.
+            settings: :class:`~photo3d.render.renderer.RenderSettings` (default:
+                2x supersampling, holes filled, automatic backend).
+
+        Returns:
+            :class:`~photo3d.render.renderer.View` with ``color (H, W, 3)``,
+            ``depth (H, W)`` and the coverage ``mask (H, W)``.
+
+        For many views of one photo use :class:`~photo3d.render.renderer.Renderer`
+        directly: it prepares the mesh once.
+
+        Example:
+            >>> import photo3d
+            >>> photo = photo3d.make(np.full((16, 16, 3), 0.5), depth=np.ones((16, 16)),
+            ...                      config=photo3d.Config(size=None))
+            >>> cam = Camera.translated(photo.ldi.intrinsics, (0.01, 0.0, 0.0))
+            >>> photo.render(cam).color.shape
+            (16, 16, 3)
+        """
+        from photo3d.render.renderer import Renderer
+
+        with Renderer(self.mesh(), settings) as renderer:
+            return renderer.render(camera)
+
     def save(self, out: str | Path, *, overwrite: bool = False, ply: str | None = "binary",
-             glb: bool = True) -> Path:
-        """Write ``photo3d.npz``, ``mesh.ply``, ``mesh.glb`` and ``config.json`` to ``out``.
+             glb: bool = True, videos=(), render_settings=None, progress=None) -> Path:
+        """Write ``photo3d.npz``, ``mesh.ply``, ``mesh.glb``, ``config.json`` and the
+        requested videos (``video/NAME.mp4``) to ``out``, atomically.
 
         See :func:`photo3d.output.save_photo`.
         """
         from photo3d.output import save_photo
 
-        return save_photo(self, out, overwrite=overwrite, ply=ply, glb=glb)
+        return save_photo(self, out, overwrite=overwrite, ply=ply, glb=glb, videos=videos,
+                          render_settings=render_settings, progress=progress)
 
     @classmethod
     def load(cls, path: str | Path) -> Photo3D:
@@ -161,7 +197,8 @@ def make(
 
         results = backend.inpaint([j.patch for j in jobs], progress=on_patch)
         merged = merge(ldi, jobs, results, label=min(k + 2, 3), threshold=thr,
-                       min_edge_length=px(config.preprocess.min_edge_length))
+                       min_edge_length=px(config.preprocess.min_edge_length),
+                       overwrite_band=reg.overwrite_dilation)
         edges_per_pass.append(int(edge_ptr.size - 1))
         added_per_pass.append(merged.added)
         ldi, edge_ptr, edge_pixels = merged.ldi, merged.edge_ptr, merged.edge_pixels

@@ -37,7 +37,7 @@ from photo3d.camera import Intrinsics
 from photo3d.errors import InputError
 from photo3d.render._clip import clip_near, project_vertices
 
-__all__ = ["Fragments", "rasterize"]
+__all__ = ["CPURasterizer", "Fragments", "rasterize"]
 
 
 @dataclass(frozen=True)
@@ -128,14 +128,40 @@ def _draw(sv, col, scale, i0, i1, i2, y_lo, y_hi, width, color, depth, count):
 
 # Kernels inline their helpers: keep them in the same file, or numba's on-disk cache
 # (keyed by this file's timestamp) would not see a helper change.
+@njit(cache=True, error_model="numpy", inline="always")
+def _occluded(sv, i0, i1, i2, y_lo, y_hi, width, tile_max, tile):
+    """True if the triangle lies behind the farthest depth of every tile it touches."""
+    iz = max(sv[i0, 2], sv[i1, 2], sv[i2, 2])
+    if min(sv[i0, 2], sv[i1, 2], sv[i2, 2]) < 0 or iz <= 0:
+        return False
+    zmin = 1.0 / iz
+    ys = (sv[i0, 1], sv[i1, 1], sv[i2, 1])
+    xs = (sv[i0, 0], sv[i1, 0], sv[i2, 0])
+    r0 = max(y_lo, math.ceil(min(ys) - 0.5))
+    r1 = min(y_hi - 1, math.floor(max(ys) - 0.5))
+    c0 = max(0, math.ceil(min(xs) - 0.5))
+    c1 = min(width - 1, math.floor(max(xs) - 0.5))
+    if r0 > r1 or c0 > c1:
+        return True  # covers no sample of this band
+    for ty in range((r0 - y_lo) // tile, (r1 - y_lo) // tile + 1):
+        for tx in range(c0 // tile, c1 // tile + 1):
+            if tile_max[ty, tx] >= zmin:
+                return False
+    return True
+
+
 @njit(parallel=True, cache=True, error_model="numpy")
-def _raster(sv, col, scale, faces, xsv, xcol, xfaces, height, width, bands, background, count):
+def _raster(sv, col, scale, faces, n_first, xsv, xcol, xfaces, height, width, bands,
+            background, count):
     """Z-buffer render of ``faces`` over ``sv`` and ``xfaces`` over ``xsv``.
 
     ``col``: ``(N, 3)`` vertex colours (times ``scale`` in [0, 1]); ``xcol``:
     ``(K, 3) float32`` colours of ``xsv``. ``count``: ``(H, W) int32`` coverage
-    counter (tests), or ``(0, 0)`` for none.
+    counter (tests), or ``(0, 0)`` for none. ``faces[:n_first]`` are drawn first;
+    each later face is skipped when it is behind the farthest depth drawn so far in
+    every 8x8 tile it touches (hierarchical z; exact, only saves work).
     """
+    tile = 8
     color = np.empty((height, width, 3), np.float32)
     depth = np.empty((height, width), np.float32)
     mask = np.empty((height, width), np.bool_)
@@ -145,17 +171,35 @@ def _raster(sv, col, scale, faces, xsv, xcol, xfaces, height, width, bands, back
         for y in range(y_lo, y_hi):
             for x in range(width):
                 depth[y, x] = np.inf
-                for ch in range(3):
-                    color[y, x, ch] = background[ch]
-        for t in range(faces.shape[0]):
+        for t in range(n_first):
             i0, i1, i2 = faces[t, 0], faces[t, 1], faces[t, 2]
             _draw(sv, col, scale, i0, i1, i2, y_lo, y_hi, width, color, depth, count)
+        if n_first < faces.shape[0]:
+            nty = (y_hi - y_lo + tile - 1) // tile
+            ntx = (width + tile - 1) // tile
+            tile_max = np.zeros((nty, ntx), np.float32)
+            for y in range(y_lo, y_hi):
+                ty = (y - y_lo) // tile
+                for x in range(width):
+                    tx = x // tile
+                    if depth[y, x] > tile_max[ty, tx]:
+                        tile_max[ty, tx] = depth[y, x]
+            cull = count.shape[0] == 0  # the coverage counter must see every face
+            for t in range(n_first, faces.shape[0]):
+                i0, i1, i2 = faces[t, 0], faces[t, 1], faces[t, 2]
+                if cull and _occluded(sv, i0, i1, i2, y_lo, y_hi, width, tile_max, tile):
+                    continue
+                _draw(sv, col, scale, i0, i1, i2, y_lo, y_hi, width, color, depth, count)
         for t in range(xfaces.shape[0]):
             i0, i1, i2 = xfaces[t, 0], xfaces[t, 1], xfaces[t, 2]
             _draw(xsv, xcol, 1.0, i0, i1, i2, y_lo, y_hi, width, color, depth, count)
         for y in range(y_lo, y_hi):
             for x in range(width):
-                mask[y, x] = depth[y, x] < np.inf
+                hit = depth[y, x] < np.inf
+                mask[y, x] = hit
+                if not hit:  # colour is only written where a triangle wins
+                    for ch in range(3):
+                        color[y, x, ch] = background[ch]
     return color, depth, mask
 
 
@@ -193,12 +237,16 @@ def _prepare(vertices, colors, faces, pose):
             f"faces index vertices out of range [0, {len(vertices)}): "
             f"min {faces.min()}, max {faces.max()}"
         )
+    rot, trans = _check_pose(pose)
+    return vertices, colors, scale, faces, rot, trans
+
+
+def _check_pose(pose) -> tuple[np.ndarray, np.ndarray]:
+    """``(rotation (3, 3), translation (3,))`` of a camera-from-world pose (None: identity)."""
     pose = np.eye(4) if pose is None else np.asarray(pose, np.float64)
     if pose.shape != (4, 4) or not np.all(np.isfinite(pose)):
         raise InputError(f"pose must be a finite 4x4 camera-from-world matrix, got {pose.shape}")
-    rot = np.ascontiguousarray(pose[:3, :3])
-    trans = np.ascontiguousarray(pose[:3, 3])
-    return vertices, colors, scale, faces, rot, trans
+    return np.ascontiguousarray(pose[:3, :3]), np.ascontiguousarray(pose[:3, 3])
 
 
 def default_bands() -> int:
@@ -216,6 +264,7 @@ def rasterize(
     near: float = 1e-3,
     background: tuple[float, float, float] = (0.0, 0.0, 0.0),
     bands: int | None = None,
+    first: int | None = None,
 ) -> Fragments:
     """Render a vertex-coloured triangle mesh from a pinhole camera.
 
@@ -231,6 +280,9 @@ def rasterize(
         near: near-plane depth, > 0; triangles crossing it are clipped.
         background: RGB in [0, 1] of pixels that nothing covers.
         bands: number of row bands rendered in parallel; None = :func:`default_bands`.
+        first: draw ``faces[:first]`` first and cull later faces hidden behind them
+            (hierarchical z, same image, less work when the first faces are the
+            visible layer: photo3d meshes list the input layer first). None: all.
 
     Returns:
         :class:`Fragments` of shape ``(intrinsics.height, intrinsics.width)``.
@@ -256,12 +308,15 @@ def rasterize(
         raise InputError(f"background must be an RGB triple, got shape {bg.shape}")
     k = np.array([intrinsics.fx, intrinsics.fy, intrinsics.cx, intrinsics.cy], np.float64)
     image = (height, width, min(bands, height), bg, _NO_COUNT)
-    color, depth, mask = _render(*prepared, k, float(near), *image)
+    n_first = len(prepared[3]) if first is None else int(np.clip(first, 0, len(prepared[3])))
+    color, depth, mask = _render(*prepared, k, float(near), *image, n_first=n_first)
     return Fragments(color=color, depth=depth, mask=mask)
 
 
-def _render(vertices, colors, scale, faces, rot, trans, k, near, height, width, bands, bg, count):
+def _render(vertices, colors, scale, faces, rot, trans, k, near, height, width, bands, bg, count,
+            n_first=None):
     """Vertex stage, clipping and rasterization on validated inputs."""
+    n_first = len(faces) if n_first is None else n_first
     sv, n_behind, n_bad = project_vertices(vertices, rot, trans, k, near)
     if n_bad:
         raise InputError(f"{n_bad} vertices have non-finite coordinates")
@@ -271,4 +326,48 @@ def _render(vertices, colors, scale, faces, rot, trans, k, near, height, width, 
         xsv, xcol = np.empty((0, 3), np.float32), np.empty((0, 3), np.float32)
         xfaces = np.empty((0, 3), np.int32)
     image = (height, width, bands, bg, count)
-    return _raster(sv, colors, scale, faces, xsv, xcol, xfaces, *image)
+    return _raster(sv, colors, scale, faces, n_first, xsv, xcol, xfaces, *image)
+
+
+class CPURasterizer:
+    """:func:`rasterize` for many views of one mesh: inputs are checked once.
+
+    The same interface as :class:`photo3d.render.gl.GLRasterizer`.
+
+    Example:
+        >>> v = np.array([[-9, -9, 1], [9, -9, 1], [0, 9, 1]], np.float32)
+        >>> r = CPURasterizer(v, np.ones((3, 3), np.float32), np.array([[0, 1, 2]]))
+        >>> bool(r.render(Intrinsics.default(4, 4)).mask.all())
+        True
+    """
+
+    renderer = "numba (CPU)"
+
+    def __init__(self, vertices, colors, faces, *, first: int | None = None) -> None:
+        self._prepared = _prepare(vertices, colors, faces, None)[:4]
+        n = len(self._prepared[3])
+        self._first = n if first is None else int(np.clip(first, 0, n))
+
+    def render(self, intrinsics: Intrinsics, *, pose=None, near: float = 1e-3,
+               background=(0.0, 0.0, 0.0)) -> Fragments:
+        """Render one view; see :func:`rasterize` for the arguments."""
+        rot, trans = _check_pose(pose)
+        if not near > 0:
+            raise InputError(f"near must be > 0, got {near}")
+        height, width = int(intrinsics.height), int(intrinsics.width)
+        k = np.array([intrinsics.fx, intrinsics.fy, intrinsics.cx, intrinsics.cy], np.float64)
+        bg = np.asarray(background, np.float32)
+        color, depth, mask = _render(
+            *self._prepared[:3], self._prepared[3], rot, trans, k, float(near), height, width,
+            min(default_bands(), height), bg, _NO_COUNT, n_first=self._first,
+        )
+        return Fragments(color=color, depth=depth, mask=mask)
+
+    def release(self) -> None:
+        """Nothing to release (symmetry with the OpenGL rasterizer)."""
+
+    def __enter__(self) -> CPURasterizer:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.release()

@@ -1,0 +1,125 @@
+"""Camera paths rendered to videos (mono or stereo)."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from photo3d.camera import Camera, Intrinsics
+from photo3d.errors import ConfigError
+from photo3d.ldi import LDI
+from photo3d.render.paths import PRESETS, load_path, preset_path
+from photo3d.render.renderer import Renderer, output_intrinsics
+from photo3d.render.stereo import compose, eye_cameras
+
+Progress = Callable[[int, int], None]
+
+
+@dataclass(frozen=True)
+class VideoSpec:
+    """What to render for one video.
+
+    Attributes:
+        path: a preset name (``dolly-zoom-in``, ``zoom-in``, ``circle``, ``swing``)
+            or a JSON/YAML keyframe file.
+        size: ``(width, height)`` in pixels (even numbers; None: the photo's size
+            rounded down to even numbers).
+        fps: frames per second (the authors': 40).
+        frames: number of frames (the authors': 240).
+        format: ``mp4``, ``webm`` or ``gif``.
+        stereo: None (mono) or a mode of :data:`photo3d.render.stereo.MODES`.
+        eye_separation: distance between the eyes in depth units.
+        eye_order: ``lr`` or ``rl`` for side-by-side.
+    """
+
+    path: str = "circle"
+    size: tuple[int, int] | None = None
+    fps: float = 40.0
+    frames: int = 240
+    format: str = "mp4"
+    stereo: str | None = None
+    eye_separation: float = 0.01
+    eye_order: str = "lr"
+
+    def __post_init__(self) -> None:
+        if self.size is not None and (self.size[0] % 2 or self.size[1] % 2 or min(self.size) < 2):
+            raise ConfigError(f"video size must be even numbers, got {self.size[0]}x{self.size[1]}")
+        if self.frames < 1 or not self.fps > 0:
+            raise ConfigError("frames and fps must be positive")
+
+    @property
+    def name(self) -> str:
+        """File stem of the video (preset name or keyframe file stem, plus stereo mode)."""
+        stem = self.path if self.path in PRESETS else Path(self.path).stem
+        return f"{stem}_{self.stereo}" if self.stereo else stem
+
+
+def centre_depth(ldi: LDI) -> float:
+    """Depth of the input pixel at the image centre (the dolly zoom keeps its plane)."""
+    return float(ldi.depth()[(ldi.height // 2) * ldi.width + ldi.width // 2])
+
+
+def path_cameras(ldi: LDI, spec: VideoSpec) -> list[Camera]:
+    """The cameras of ``spec`` for a photo, at the output size.
+
+    Example:
+        >>> from photo3d.ldi import from_image
+        >>> ldi = from_image(np.zeros((10, 16, 3), np.float32), np.ones((10, 16), np.float32))
+        >>> cams = path_cameras(ldi, VideoSpec(path="zoom-in", frames=3, size=(32, 20)))
+        >>> len(cams), cams[0].intrinsics.width
+        (3, 32)
+    """
+    width, height = spec.size or (ldi.width // 2 * 2, ldi.height // 2 * 2)
+    k = output_intrinsics(ldi.intrinsics, width, height)
+    if spec.path in PRESETS:
+        return preset_path(spec.path, k, frames=spec.frames, centre_depth=centre_depth(ldi))
+    return load_path(spec.path, k, frames=spec.frames)
+
+
+def render_frames(renderer: Renderer, cameras: Sequence[Camera], *, stereo: str | None = None,
+                  eye_separation: float = 0.01, eye_order: str = "lr",
+                  progress: Progress | None = None) -> Iterator[np.ndarray]:
+    """Yield ``(H, W, 3) uint8`` frames, one per camera (stereo frames composed).
+
+    Example:
+        >>> from photo3d.ldi import from_image
+        >>> from photo3d.mesh import build_mesh
+        >>> from photo3d.render.renderer import RenderSettings
+        >>> mesh = build_mesh(from_image(np.ones((8, 8, 3), np.float32),
+        ...                              np.ones((8, 8), np.float32)))
+        >>> r = Renderer(mesh, RenderSettings(backend="numba"))
+        >>> cams = [Camera(Intrinsics.default(8, 8), np.eye(4))] * 2
+        >>> [f.shape for f in render_frames(r, cams, stereo="sbs")]
+        [(8, 16, 3), (8, 16, 3)]
+    """
+    for i, cam in enumerate(cameras):
+        if stereo:
+            left, right = (renderer.render(c).color for c in eye_cameras(cam, eye_separation))
+            image = compose(left, right, stereo, order=eye_order)
+        else:
+            image = renderer.render(cam).color
+        yield np.round(image * 255.0).astype(np.uint8)
+        if progress is not None:
+            progress(i + 1, len(cameras))
+
+
+def render_video(renderer: Renderer, ldi: LDI, spec: VideoSpec, out: str | Path, *,
+                 progress: Progress | None = None) -> Path:
+    """Render ``spec`` to the video file ``out`` (format from ``spec.format``).
+
+    The file is written to a temporary name and renamed when complete.
+    """
+    from photo3d.io.video import VideoWriter
+
+    cameras = path_cameras(ldi, spec)
+    k: Intrinsics = cameras[0].intrinsics
+    width = k.width * (2 if spec.stereo == "sbs" else 1)
+    with VideoWriter(out, fps=spec.fps, size=(width, k.height)) as writer:
+        for frame in render_frames(renderer, cameras, stereo=spec.stereo,
+                                   eye_separation=spec.eye_separation,
+                                   eye_order=spec.eye_order, progress=progress):
+            writer.write(frame)
+    return Path(out)

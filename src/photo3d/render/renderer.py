@@ -1,0 +1,213 @@
+"""Novel views of a mesh: settings + rasterizer backend + supersampling and holes.
+
+The renderer composes three parts (pytorch3d's layout): :class:`RenderSettings`, a
+rasterizer backend (``numba``: :func:`photo3d.render.raster.rasterize` on the CPU;
+``gl``: :class:`photo3d.render.gl.GLRasterizer` through moderngl) and the shading
+done here: supersampling anti-aliasing (render ``ssaa`` times larger, average
+``ssaa x ssaa`` blocks), the border crop of the authors' videos (done exactly by
+changing the intrinsics, not by resampling the image) and holes (pixels no triangle
+reached) filled from their surroundings or shown in a neutral colour.
+
+``backend="auto"`` takes OpenGL only when it runs on real GPU hardware; on a
+software OpenGL driver (Mesa llvmpipe / softpipe) the numba rasterizer is faster
+here (DESIGN.md section 8), so it is used instead.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from photo3d.camera import Camera, Intrinsics
+from photo3d.errors import ConfigError
+from photo3d.mesh import Mesh
+from photo3d.render._resolve import grow_fill, resolve
+
+AUTHORS_CROP = (0.03, 0.03, 0.05, 0.03)
+"""Border crop of the authors' videos: top, left, bottom, right fractions."""
+
+
+@dataclass(frozen=True)
+class RenderSettings:
+    """How views are rendered."""
+
+    ssaa: int = 2
+    """Supersampling factor per axis (1 = off)."""
+    crop: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0)
+    """Fractions of the view cut away (top, left, bottom, right) before it fills the
+    output; :data:`AUTHORS_CROP` reproduces the authors' videos."""
+    fill_holes: bool = True
+    """Fill pixels no triangle covers from their surroundings (else ``background``)."""
+    background: tuple[float, float, float] = (0.5, 0.5, 0.5)
+    """Colour of uncovered pixels when ``fill_holes`` is off."""
+    near: float = 1e-3
+    """Near clipping plane (depth units)."""
+    backend: str = "auto"
+    """``auto``, ``numba`` or ``gl``."""
+
+    def __post_init__(self) -> None:
+        if not 1 <= self.ssaa <= 8:
+            raise ConfigError(f"ssaa must be between 1 and 8, got {self.ssaa}")
+        if len(self.crop) != 4 or any(not 0 <= c < 0.5 for c in self.crop):
+            raise ConfigError(f"crop must be 4 fractions in [0, 0.5), got {self.crop}")
+        if self.backend not in ("auto", "numba", "gl"):
+            raise ConfigError(f"backend must be auto, numba or gl, got {self.backend!r}")
+
+
+@dataclass(frozen=True)
+class View:
+    """A rendered view.
+
+    Attributes:
+        color: ``(H, W, 3) float32`` in [0, 1].
+        depth: ``(H, W) float32`` camera z (from the supersampled pixel nearest the
+            centre of each output pixel), ``+inf`` where nothing was hit.
+        mask: ``(H, W) bool`` True where triangles covered the whole pixel.
+    """
+
+    color: np.ndarray
+    depth: np.ndarray
+    mask: np.ndarray
+
+
+def cropped(k: Intrinsics, crop: tuple[float, float, float, float]) -> Intrinsics:
+    """Intrinsics whose image is the ``crop`` window of ``k`` stretched to the same size.
+
+    Example:
+        >>> k = cropped(Intrinsics.default(100, 100), (0.1, 0.1, 0.1, 0.1))
+        >>> k.fx, k.cx
+        (125.0, 50.0)
+    """
+    top, left, bottom, right = crop
+    sx, sy = 1.0 / (1.0 - left - right), 1.0 / (1.0 - top - bottom)
+    return replace(k, fx=k.fx * sx, fy=k.fy * sy, cx=(k.cx - left * k.width) * sx,
+                   cy=(k.cy - top * k.height) * sy)
+
+
+def output_intrinsics(k: Intrinsics, width: int, height: int) -> Intrinsics:
+    """The input camera for an output of another size or shape.
+
+    The input image is scaled to *cover* the output (like CSS ``object-fit: cover``):
+    an output of another aspect ratio shows the middle of the photo, never beyond it.
+
+    Example:
+        >>> k = output_intrinsics(Intrinsics.default(200, 100), 400, 400)
+        >>> k.fx, k.cx, k.cy
+        (800.0, 200.0, 200.0)
+    """
+    s = max(width / k.width, height / k.height)
+    return Intrinsics(k.fx * s, k.fy * s, k.cx * s + (width - k.width * s) / 2.0,
+                      k.cy * s + (height - k.height * s) / 2.0, int(width), int(height))
+
+
+def fill_holes(color: np.ndarray, known: np.ndarray) -> np.ndarray:
+    """Push-pull fill: unknown pixels get a smooth average of nearby known ones.
+
+    Args:
+        color: ``(H, W, C) float32``.
+        known: ``(H, W)`` weights in [0, 1] (1 = fully known).
+
+    Example:
+        >>> c = np.zeros((4, 4, 1), np.float32); c[0, 0] = 1.0
+        >>> k = np.zeros((4, 4)); k[0, 0] = 1
+        >>> float(fill_holes(c, k)[3, 3, 0])
+        1.0
+    """
+    w = np.clip(known, 0.0, 1.0).astype(np.float32)
+    if w.min() >= 1.0 or w.max() <= 0.0:
+        return color
+    levels = [(color * w[..., None], w)]
+    while min(levels[-1][1].shape) > 1:
+        c, k = levels[-1]
+        h2, w2 = (c.shape[0] + 1) // 2, (c.shape[1] + 1) // 2
+        pc = np.zeros((h2 * 2, w2 * 2, c.shape[2]), np.float32)
+        pk = np.zeros((h2 * 2, w2 * 2), np.float32)
+        pc[: c.shape[0], : c.shape[1]], pk[: k.shape[0], : k.shape[1]] = c, k
+        c2 = pc.reshape(h2, 2, w2, 2, -1).sum((1, 3))
+        k2 = pk.reshape(h2, 2, w2, 2).sum((1, 3))
+        norm = np.maximum(k2, 1e-12)[..., None]
+        levels.append((c2 / norm * np.minimum(k2, 1.0)[..., None], np.minimum(k2, 1.0)))
+    filled = levels[-1][0] / np.maximum(levels[-1][1], 1e-12)[..., None]
+    for c, k in reversed(levels[:-1]):
+        up = np.repeat(np.repeat(filled, 2, 0), 2, 1)[: c.shape[0], : c.shape[1]]
+        filled = c + (1.0 - k)[..., None] * up
+    return filled.astype(np.float32)
+
+
+class Renderer:
+    """Render views of one mesh with one backend (uploads the mesh once).
+
+    Example:
+        >>> from photo3d.ldi import from_image
+        >>> from photo3d.mesh import build_mesh
+        >>> mesh = build_mesh(from_image(np.full((8, 8, 3), 0.5, np.float32),
+        ...                              np.ones((8, 8), np.float32)))
+        >>> view = Renderer(mesh, RenderSettings(backend="numba")).render(
+        ...     Camera(Intrinsics.default(8, 8), np.eye(4)))
+        >>> view.color.shape, round(float(view.color[4, 4, 0]), 3)
+        ((8, 8, 3), 0.502)
+    """
+
+    def __init__(self, mesh: Mesh, settings: RenderSettings | None = None) -> None:
+        self.settings = settings or RenderSettings()
+        self.mesh = mesh
+        self._vertices, self._colors, _, self._faces = mesh.checked()
+        self.backend = self._select(self.settings.backend)
+        if self.backend == "gl":
+            from photo3d.render.gl import GLRasterizer
+
+            self._raster = GLRasterizer(self._vertices, self._colors, self._faces)
+        else:
+            from photo3d.render.raster import CPURasterizer
+
+            # photo3d meshes list the faces of the input layer first (build_mesh):
+            # drawing those first lets hidden layers be culled cheaply.
+            n_input = mesh.width * mesh.height
+            first = int(np.count_nonzero(self._faces.max(axis=1) < n_input))
+            self._raster = CPURasterizer(self._vertices, self._colors, self._faces, first=first)
+
+    @staticmethod
+    def _select(name: str) -> str:
+        if name == "numba":
+            return "numba"
+        try:
+            from photo3d.render.gl import gl_available, gl_renderer, is_software_renderer
+        except ImportError:
+            if name == "gl":
+                raise
+            return "numba"
+        if name == "gl":
+            if not gl_available():
+                raise ConfigError("backend 'gl' requested but no OpenGL context can be made")
+            return "gl"
+        if gl_available() and not is_software_renderer(gl_renderer() or ""):
+            return "gl"
+        return "numba"
+
+    def close(self) -> None:
+        """Release GPU resources (if any)."""
+        self._raster.release()
+
+    def __enter__(self) -> Renderer:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def render(self, camera: Camera) -> View:
+        """Render ``camera`` (its intrinsics give the output size)."""
+        s = self.settings
+        k = cropped(camera.intrinsics, s.crop) if any(s.crop) else camera.intrinsics
+        f = s.ssaa
+        big = Intrinsics(k.fx * f, k.fy * f, k.cx * f, k.cy * f, k.width * f, k.height * f)
+        frag = self._raster.render(big, pose=camera.pose, near=s.near, background=s.background)
+        color, coverage, depth = resolve(frag.color, frag.mask, frag.depth, f)
+        mask = coverage >= 1.0
+        if s.fill_holes:
+            if grow_fill(color, coverage, 8):  # large holes left: smooth pyramid fill
+                color = fill_holes(color, np.where(mask, 1.0, coverage))
+        else:
+            bg = np.asarray(s.background, np.float32)
+            color = color * coverage[..., None] + bg * (1.0 - coverage[..., None])
+        return View(color=np.clip(color, 0.0, 1.0, out=color), depth=depth, mask=mask)

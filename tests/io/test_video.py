@@ -1,0 +1,309 @@
+"""Tests of photo3d.io.video, checked with an independent reader.
+
+Videos are written with PyAV and read back with the ffmpeg binary that ships in the
+``imageio-ffmpeg`` wheel (a separate FFmpeg build), plus a byte-level MP4 box walk
+and Pillow for the GIF loop flag.
+"""
+
+from __future__ import annotations
+
+import re
+import struct
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from photo3d.errors import ConfigError, InputError, OutputError
+from photo3d.io.video import VideoWriter, video_formats, write_video
+
+pytest.importorskip("av")
+iio = pytest.importorskip("imageio_ffmpeg")
+FFMPEG = iio.get_ffmpeg_exe()
+
+W, H, N, FPS = 64, 48, 48, 24
+
+
+def moving_bar(n: int = N, height: int = H, width: int = W) -> list[np.ndarray]:
+    """``n`` frames ``(height, width, 3) uint8``: a smooth colour gradient with a bright
+    Gaussian bar (sigma 2 px) whose centre moves right by 1 px per frame, from x = 8."""
+    yy, xx = np.mgrid[0:height, 0:width].astype(np.float32)
+    base = np.stack(
+        [0.2 + 0.3 * xx / width, 0.25 + 0.3 * yy / height, 0.4 + 0.1 * np.sin(xx / 9)], axis=2
+    )
+    frames = []
+    for i in range(n):
+        bar = 0.4 * np.exp(-0.5 * ((xx - bar_centre(i)) / 2.0) ** 2)
+        frames.append(np.round(255 * (base + bar[:, :, None])).astype(np.uint8))
+    return frames
+
+
+def bar_centre(i: int) -> float:
+    return 8.0 + i
+
+
+def probe(path) -> dict:
+    """Codec, pixel format (with colour tags), size and fps from ``ffmpeg -i``."""
+    info = subprocess.run(
+        [FFMPEG, "-hide_banner", "-i", str(path)], capture_output=True, text=True, check=False
+    ).stderr
+    line = next(x for x in info.splitlines() if "Stream #0:0" in x and "Video:" in x)
+    fields = re.split(r",\s*(?![^()]*\))", line.split("Video: ", 1)[1])  # commas outside ()
+    size = next(f for f in fields if re.fullmatch(r"\d+x\d+( \[.*\])?", f))
+    fps = next(f for f in fields if f.endswith(" fps"))
+    return {
+        "codec": fields[0].split()[0],
+        "pix_fmt": fields[1],
+        "size": tuple(int(v) for v in size.split()[0].split("x")),
+        "fps": float(fps.split()[0]),
+    }
+
+
+def decode(path) -> tuple[dict, list[np.ndarray]]:
+    """Probe, and every frame as stored (no frame-rate conversion), ``(h, w, 3) uint8``."""
+    meta = probe(path)
+    raw = subprocess.run(
+        [
+            FFMPEG,
+            "-v",
+            "error",
+            "-i",
+            str(path),
+            "-fps_mode",
+            "passthrough",
+            "-f",
+            "rawvideo",
+            "-pix_fmt",
+            "rgb24",
+            "-",
+        ],
+        capture_output=True,
+        check=True,
+    ).stdout
+    width, height = meta["size"]
+    frames = np.frombuffer(raw, np.uint8).reshape(-1, height, width, 3)
+    return meta, list(frames)
+
+
+def frame_count(path) -> int:
+    return iio.count_frames_and_secs(str(path))[0]
+
+
+def mean_abs_error(decoded: list[np.ndarray], written: list[np.ndarray]) -> float:
+    assert len(decoded) == len(written)
+    return float(
+        np.mean(
+            [np.abs(d.astype(np.float32) - w).mean() for d, w in zip(decoded, written, strict=True)]
+        )
+    )
+
+
+def top_level_boxes(path) -> list[str]:
+    """Names of the top-level ISO-BMFF boxes of an MP4, in file order."""
+    data, names, pos = path.read_bytes(), [], 0
+    while pos + 8 <= len(data):
+        size, name = struct.unpack(">I4s", data[pos : pos + 8])
+        if size == 1:
+            size = struct.unpack(">Q", data[pos + 8 : pos + 16])[0]
+        names.append(name.decode("latin-1"))
+        pos += size if size else len(data)
+    return names
+
+
+def test_mp4_is_h264_yuv420p_faststart_with_frames_in_order(tmp_path):
+    frames = moving_bar()
+    path = write_video(tmp_path / "path.mp4", frames, fps=FPS)
+    assert path == tmp_path / "path.mp4"
+    meta, decoded = decode(path)
+    assert meta["codec"] == "h264"
+    assert meta["pix_fmt"] == "yuv420p(tv, bt709, progressive)"
+    assert meta["size"] == (W, H)
+    assert meta["fps"] == pytest.approx(FPS)
+    assert frame_count(path) == N
+    boxes = top_level_boxes(path)
+    assert boxes.index("moov") < boxes.index("mdat")  # +faststart
+    assert mean_abs_error(decoded, frames) < 6
+    columns = [d.astype(np.float32).mean(axis=(0, 2)) for d in decoded]
+    centres = [np.argmax(c) for c in columns]
+    assert np.all(np.diff(centres) > 0)
+    np.testing.assert_allclose(centres, [bar_centre(i) for i in range(N)], atol=1)
+
+
+def test_webm_is_vp9(tmp_path):
+    frames = moving_bar()
+    path = write_video(tmp_path / "path.webm", frames, fps=FPS)
+    meta, decoded = decode(path)
+    assert meta["codec"] == "vp9"
+    assert meta["pix_fmt"] == "yuv420p(tv, bt709)"
+    assert meta["fps"] == pytest.approx(FPS)
+    assert meta["size"] == (W, H)
+    assert frame_count(path) == N
+    assert mean_abs_error(decoded, frames) < 8
+
+
+@pytest.mark.parametrize("suffix", [".mp4", ".webm"])
+def test_saturated_colours_survive_the_yuv_matrix(tmp_path, suffix):
+    # A BT.601 / BT.709 mix-up between encoding and the stream's colour tags moves
+    # saturated colours by 10-40 levels; a correct round trip keeps them within a few.
+    colours = np.array([[230, 20, 20], [20, 200, 40], [30, 40, 220], [128, 128, 128]], np.uint8)
+    frame = np.repeat(np.repeat(colours[None], 32, axis=0), 16, axis=1)  # (32, 64, 3)
+    path = write_video(tmp_path / f"colours{suffix}", [frame] * 4, fps=FPS)
+    _, decoded = decode(path)
+    for k, colour in enumerate(colours):
+        block = decoded[-1][8:24, 16 * k + 4 : 16 * k + 12].reshape(-1, 3).mean(axis=0)
+        np.testing.assert_allclose(block, colour, atol=4, err_msg=f"colour {colour}")
+
+
+def test_gif_loops_with_every_frame_and_roughly_right_colours(tmp_path):
+    frames = moving_bar()
+    path = write_video(tmp_path / "path.gif", frames, fps=FPS)
+    meta, decoded = decode(path)
+    assert meta["codec"] == "gif"
+    assert meta["size"] == (W, H)
+    assert frame_count(path) == N
+    assert len(decoded) == N
+    assert mean_abs_error(decoded, frames) < 8
+    centres = [np.argmax(d.astype(np.float32).mean(axis=(0, 2))) for d in decoded]
+    np.testing.assert_allclose(centres, [bar_centre(i) for i in range(N)], atol=1)
+    with Image.open(path) as gif:
+        assert gif.info["loop"] == 0  # forever
+        assert gif.n_frames == N
+    assert b"NETSCAPE2.0" in path.read_bytes()[:2048]
+
+
+def test_gif_takes_odd_sizes_and_fewer_frames_than_the_palette_needs(tmp_path):
+    frames = moving_bar(n=3, height=21, width=33)
+    path = write_video(tmp_path / "short.gif", frames, fps=10)
+    meta, decoded = decode(path)
+    assert meta["size"] == (33, 21)
+    assert len(decoded) == 3
+    assert mean_abs_error(decoded, frames) < 8
+
+
+def test_gif_writer_copies_frames_when_the_caller_reuses_its_buffer(tmp_path):
+    frames = moving_bar(n=12)
+    buffer = np.empty_like(frames[0])
+    with VideoWriter(tmp_path / "reuse.gif", fps=FPS, size=(W, H)) as writer:
+        for frame in frames:
+            buffer[:] = frame  # a renderer drawing every frame into one array
+            writer.write(buffer)
+    _, decoded = decode(tmp_path / "reuse.gif")
+    centres = [np.argmax(d.astype(np.float32).mean(axis=(0, 2))) for d in decoded]
+    np.testing.assert_allclose(centres, [bar_centre(i) for i in range(12)], atol=1)
+
+
+def test_float_frames_encode_exactly_like_their_uint8_rounding(tmp_path):
+    frames = moving_bar(n=8)
+    frames[0][0, :2] = [[255, 0, 128], [1, 254, 7]]
+    floats = [f.astype(np.float32) / 255 for f in frames]
+    floats[0][0, 0] = [1.2, -0.1, 128.4 / 255]  # out of range: clipped; 128.4 rounds to 128
+    floats[0][0, 1] = [0.6 / 255, 253.6 / 255, 6.5001 / 255]  # rounds, not truncates
+    _, from_uint8 = decode(write_video(tmp_path / "uint8.gif", frames, fps=FPS))
+    _, from_float = decode(write_video(tmp_path / "float.gif", floats, fps=FPS))
+    np.testing.assert_array_equal(from_float, from_uint8)
+
+
+def test_lower_quality_makes_a_smaller_file(tmp_path):
+    frames = moving_bar()
+    good = write_video(tmp_path / "good.mp4", frames, fps=FPS, quality=10)
+    poor = write_video(tmp_path / "poor.mp4", frames, fps=FPS, quality=40)
+    assert poor.stat().st_size < 0.7 * good.stat().st_size
+
+
+def test_odd_size_is_refused_for_yuv420p(tmp_path):
+    with pytest.raises(OutputError, match="even"):
+        VideoWriter(tmp_path / "odd.mp4", size=(63, 48))
+    with pytest.raises(OutputError, match="even"):
+        write_video(tmp_path / "odd.webm", moving_bar(n=2, width=64, height=47))
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_unknown_extension_names_the_supported_ones(tmp_path):
+    with pytest.raises(OutputError, match=r"\.avi.*\.mp4, \.webm, \.gif"):
+        VideoWriter(tmp_path / "clip.avi", size=(W, H))
+    assert set(video_formats()) == {".mp4", ".webm", ".gif"}
+
+
+@pytest.mark.parametrize(
+    "frame",
+    [
+        np.zeros((H, W + 2, 3), np.uint8),
+        np.zeros((H, W), np.uint8),
+        np.zeros((H, W, 4), np.uint8),
+        np.zeros((H, W, 3), np.uint16),
+    ],
+    ids=["width", "grey", "rgba", "uint16"],
+)
+def test_wrong_frame_is_an_input_error_and_leaves_no_file(tmp_path, frame):
+    with pytest.raises(
+        InputError,
+        match=rf"frame 1 has shape \({frame.shape[0]}, .*expected "
+        rf"\({H}, {W}, 3\)",
+    ):
+        with VideoWriter(tmp_path / "bad.mp4", fps=FPS, size=(W, H)) as writer:
+            writer.write(moving_bar(n=1)[0])
+            writer.write(frame)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_non_finite_float_frame_is_an_input_error(tmp_path):
+    frame = np.full((H, W, 3), np.nan, np.float32)
+    with pytest.raises(InputError, match="NaN"):
+        write_video(tmp_path / "nan.mp4", [frame])
+
+
+@pytest.mark.parametrize("suffix", [".mp4", ".gif"])
+def test_exception_inside_with_keeps_the_old_file_and_no_temp(tmp_path, suffix):
+    target = tmp_path / f"clip{suffix}"
+    target.write_bytes(b"previous video")
+    with pytest.raises(RuntimeError, match="render failed"):
+        with VideoWriter(target, fps=FPS, size=(W, H)) as writer:
+            for frame in moving_bar(n=12):
+                writer.write(frame)
+            raise RuntimeError("render failed")
+    assert list(tmp_path.iterdir()) == [target]
+    assert target.read_bytes() == b"previous video"
+
+
+def test_successful_close_replaces_the_old_file_and_leaves_no_temp(tmp_path):
+    target = tmp_path / "clip.mp4"
+    target.write_bytes(b"previous video")
+    with VideoWriter(target, fps=FPS, size=(W, H)) as writer:
+        for frame in moving_bar(n=5):
+            writer.write(frame)
+    assert writer.count == 5
+    assert list(tmp_path.iterdir()) == [target]
+    assert frame_count(target) == 5
+    with pytest.raises(OutputError, match="closed"):
+        writer.write(moving_bar(n=1)[0])
+
+
+def test_no_frames_is_an_input_error_and_leaves_no_file(tmp_path):
+    with pytest.raises(InputError, match="no frames"):
+        write_video(tmp_path / "empty.mp4", [])
+    with pytest.raises(InputError, match="no frames"):
+        with VideoWriter(tmp_path / "empty.gif", size=(W, H)):
+            pass
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_bad_settings(tmp_path):
+    with pytest.raises(OutputError, match="does not exist"):
+        VideoWriter(tmp_path / "missing" / "clip.mp4", size=(W, H))
+    with pytest.raises(ConfigError, match="fps"):
+        VideoWriter(tmp_path / "clip.mp4", fps=0, size=(W, H))
+    with pytest.raises(ConfigError, match="50 fps"):
+        VideoWriter(tmp_path / "clip.gif", fps=60, size=(W, H))
+    with pytest.raises(ConfigError, match=r"0\.\.51"):
+        VideoWriter(tmp_path / "clip.mp4", size=(W, H), quality=60)
+    with pytest.raises(OutputError, match="encoder 'nope'"):
+        VideoWriter(tmp_path / "clip.mp4", size=(W, H), codec="nope")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_missing_pyav_names_the_install_command(tmp_path, monkeypatch):
+    monkeypatch.setitem(sys.modules, "av", None)
+    with pytest.raises(ImportError, match="pip install av"):
+        VideoWriter(tmp_path / "clip.mp4", size=(W, H))
