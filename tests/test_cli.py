@@ -17,15 +17,54 @@ def files(tmp_path):
     return tmp_path
 
 
-def test_make_writes_a_3d_photo_and_a_timing_summary(files, capsys):
+def test_make_writes_a_3d_photo_the_four_videos_and_a_timing_summary(files, capsys):
+    from videoprobe import frame_count, probe
+
     out = files / "out"
     code = main(["make", str(files / "photo.png"), "--depth", str(files / "depth.png"),
-                 "-o", str(out), "--size", "128"])
+                 "-o", str(out), "--size", "128", "--frames", "6", "--video-size", "64x48"])
     assert code == 0
     assert sorted(p.name for p in out.iterdir()) == [
-        "config.json", "mesh.glb", "mesh.ply", "photo3d.npz"]
+        "config.json", "mesh.glb", "mesh.ply", "photo3d.npz", "video"]
+    videos = sorted(p.name for p in (out / "video").iterdir())
+    assert videos == ["circle.mp4", "dolly-zoom-in.mp4", "swing.mp4", "zoom-in.mp4"]
+    info = probe(out / "video" / "circle.mp4")
+    assert info["codec"] == "h264" and info["size"] == (64, 48) and info["fps"] == 40
+    assert info["pix_fmt"].startswith("yuv420p")
+    assert frame_count(out / "video" / "circle.mp4") == 6
     text = capsys.readouterr().out
     assert "3D photo written to" in text and "time:" in text and "inpaint" in text
+
+
+def test_render_reuses_a_saved_photo(files, capsys):
+    from videoprobe import frame_count, probe
+
+    out = files / "out"
+    assert main(["make", str(files / "photo.png"), "--depth", str(files / "depth.png"),
+                 "-o", str(out), "--size", "96", "--no-video", "-q"]) == 0
+    assert not (out / "video").exists()
+    args = ["render", str(out), "--path", "swing", "--video-size", "32x24", "--frames", "5",
+            "--fps", "10"]
+    assert main(args) == 0
+    assert probe(out / "video" / "swing.mp4")["size"] == (32, 24)
+    assert frame_count(out / "video" / "swing.mp4") == 5
+    assert main(args + ["--stereo", "sbs", "--format", "webm"]) == 0
+    info = probe(out / "video" / "swing_sbs.webm")
+    assert info["codec"] == "vp9" and info["size"] == (64, 24)
+    assert main(args + ["--stereo", "anaglyph", "--format", "gif"]) == 0
+    assert frame_count(out / "video" / "swing_anaglyph.gif") == 5
+    keys = files / "path.json"
+    keys.write_text('[{"position": [0, 0, 0]}, {"position": [0.01, 0, 0]}]')
+    assert main(["render", str(out), "--path", str(keys), "--frames", "3", "-q"]) == 0
+    assert frame_count(out / "video" / "path.mp4") == 3
+    assert "rendered 1 video(s)" in capsys.readouterr().out
+
+
+def test_render_errors_are_one_line(files, capsys):
+    assert main(["render", str(files / "nothing"), "--path", "circle"]) == 2
+    assert capsys.readouterr().err.startswith("photo3d: error: no 3D photo at")
+    assert main(["render", str(files), "--path", "spiral"]) == 2
+    assert "photo3d: error:" in capsys.readouterr().err
 
 
 @pytest.mark.parametrize(
@@ -37,6 +76,8 @@ def test_make_writes_a_3d_photo_and_a_timing_summary(files, capsys):
         (["make", "{d}/photo.png", "--depth", "{d}/depth.png", "-o", "{d}"], "not empty"),
         (["make", "{d}/photo.png", "--depth", "{d}/depth.png", "-o", "{d}/o",
           "--inpainter", "magic"], "unknown inpainter"),
+        (["make", "{d}/photo.png", "--depth", "{d}/depth.png", "-o", "{d}/o",
+          "--video-size", "65x48"], "even"),
     ],
 )
 def test_user_mistakes_give_one_line_and_status_2(files, capsys, args, message):

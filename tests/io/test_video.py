@@ -7,9 +7,7 @@ and Pillow for the GIF loop flag.
 
 from __future__ import annotations
 
-import re
 import struct
-import subprocess
 import sys
 
 import numpy as np
@@ -20,8 +18,7 @@ from photo3d.errors import ConfigError, InputError, OutputError
 from photo3d.io.video import VideoWriter, video_formats, write_video
 
 pytest.importorskip("av")
-iio = pytest.importorskip("imageio_ffmpeg")
-FFMPEG = iio.get_ffmpeg_exe()
+from videoprobe import decode, frame_count  # noqa: E402
 
 W, H, N, FPS = 64, 48, 48, 24
 
@@ -42,53 +39,6 @@ def moving_bar(n: int = N, height: int = H, width: int = W) -> list[np.ndarray]:
 
 def bar_centre(i: int) -> float:
     return 8.0 + i
-
-
-def probe(path) -> dict:
-    """Codec, pixel format (with colour tags), size and fps from ``ffmpeg -i``."""
-    info = subprocess.run(
-        [FFMPEG, "-hide_banner", "-i", str(path)], capture_output=True, text=True, check=False
-    ).stderr
-    line = next(x for x in info.splitlines() if "Stream #0:0" in x and "Video:" in x)
-    fields = re.split(r",\s*(?![^()]*\))", line.split("Video: ", 1)[1])  # commas outside ()
-    size = next(f for f in fields if re.fullmatch(r"\d+x\d+( \[.*\])?", f))
-    fps = next(f for f in fields if f.endswith(" fps"))
-    return {
-        "codec": fields[0].split()[0],
-        "pix_fmt": fields[1],
-        "size": tuple(int(v) for v in size.split()[0].split("x")),
-        "fps": float(fps.split()[0]),
-    }
-
-
-def decode(path) -> tuple[dict, list[np.ndarray]]:
-    """Probe, and every frame as stored (no frame-rate conversion), ``(h, w, 3) uint8``."""
-    meta = probe(path)
-    raw = subprocess.run(
-        [
-            FFMPEG,
-            "-v",
-            "error",
-            "-i",
-            str(path),
-            "-fps_mode",
-            "passthrough",
-            "-f",
-            "rawvideo",
-            "-pix_fmt",
-            "rgb24",
-            "-",
-        ],
-        capture_output=True,
-        check=True,
-    ).stdout
-    width, height = meta["size"]
-    frames = np.frombuffer(raw, np.uint8).reshape(-1, height, width, 3)
-    return meta, list(frames)
-
-
-def frame_count(path) -> int:
-    return iio.count_frames_and_secs(str(path))[0]
 
 
 def mean_abs_error(decoded: list[np.ndarray], written: list[np.ndarray]) -> float:

@@ -49,6 +49,9 @@ class VideoSpec:
             raise ConfigError(f"video size must be even numbers, got {self.size[0]}x{self.size[1]}")
         if self.frames < 1 or not self.fps > 0:
             raise ConfigError("frames and fps must be positive")
+        if self.path not in PRESETS and not Path(self.path).is_file():
+            raise ConfigError(f"unknown camera path {self.path!r}: not a preset "
+                              f"({', '.join(PRESETS)}) nor a keyframe file")
 
     @property
     def name(self) -> str:
