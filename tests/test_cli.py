@@ -58,6 +58,10 @@ def test_render_reuses_a_saved_photo(files, capsys):
     assert main(["render", str(out), "--path", str(keys), "--frames", "3", "-q"]) == 0
     assert frame_count(out / "video" / "path.mp4") == 3
     assert "rendered 1 video(s)" in capsys.readouterr().out
+    assert main(["render", str(out), "--still", "--stereo", "anaglyph", "--size", "40x30"]) == 0
+    from PIL import Image
+
+    assert Image.open(out / "still_anaglyph.png").size == (40, 30)
 
 
 def test_render_errors_are_one_line(files, capsys):

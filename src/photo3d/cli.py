@@ -42,7 +42,7 @@ def _add_make_options(p: argparse.ArgumentParser, *, out_required: bool) -> None
     p.add_argument("--no-video", action="store_true",
                    help="do not render the four standard videos")
     p.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
-    _add_video_options(p, paths_default=None)
+    _add_video_options(p, command="make")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
 
 
@@ -54,13 +54,15 @@ def _size(text: str) -> tuple[int, int]:
     return w, h
 
 
-def _add_video_options(p: argparse.ArgumentParser, *, paths_default) -> None:
+def _add_video_options(p: argparse.ArgumentParser, *, command: str) -> None:
     g = p.add_argument_group("video")
-    g.add_argument("--path", dest="paths", action="append", default=paths_default,
+    g.add_argument("--path", dest="paths", action="append", default=None,
                    metavar="NAME|FILE",
                    help="camera path: dolly-zoom-in, zoom-in, circle, swing or a JSON/YAML "
                         "keyframe file (repeatable; make renders all four presets by default)")
-    g.add_argument("--video-size", "--resolution", dest="video_size", type=_size,
+    # `make` uses --size for the working size; `render` has no such option
+    names = ["--video-size", "--resolution"] + (["--size"] if command == "render" else [])
+    g.add_argument(*names, dest="video_size", type=_size,
                    metavar="WxH", help="video size, even numbers (default: the photo's size)")
     g.add_argument("--fps", type=float, default=40.0, help="frames per second (default 40)")
     g.add_argument("--frames", type=int, default=240, help="frames per video (default 240)")
@@ -103,7 +105,10 @@ def build_parser() -> argparse.ArgumentParser:
     demo.set_defaults(out=Path("out/demo"))
     rd = sub.add_parser("render", help="render videos of a saved 3D photo (no recomputing)")
     rd.add_argument("photo", type=Path, help="a 3D photo folder written by make")
-    _add_video_options(rd, paths_default=None)
+    _add_video_options(rd, command="render")
+    rd.add_argument("--still", action="store_true",
+                    help="write one image of the input view (stereo with --stereo) to "
+                         "PHOTO/still[_MODE].png instead of videos")
     rd.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
     return parser
 
@@ -210,6 +215,8 @@ def _run_render(args: argparse.Namespace) -> int:
 
     photo = load_photo(args.photo)
     videos = _videos(args)
+    if args.still:
+        return _run_still(args, photo, videos[0])
     bar = _Bar(args.quiet)
     t = time.perf_counter()
     try:
@@ -221,6 +228,20 @@ def _run_render(args: argparse.Namespace) -> int:
         print(f"rendered {len(written)} video(s) in {time.perf_counter() - t:.2f}s:")
         for path in written:
             print(f"  {path}  {path.stat().st_size / 1e6:.2f} MB")
+    return 0
+
+
+def _run_still(args: argparse.Namespace, photo, spec) -> int:
+    from photo3d.io.images import write_image
+    from photo3d.render.animate import render_still
+    from photo3d.render.renderer import Renderer
+
+    with Renderer(photo.mesh(), _render_settings(args)) as renderer:
+        image = render_still(renderer, photo.ldi, spec)
+    path = args.photo / (f"still_{spec.stereo}.png" if spec.stereo else "still.png")
+    write_image(path, image)
+    if not args.quiet:
+        print(f"wrote {path} ({image.shape[1]}x{image.shape[0]})")
     return 0
 
 

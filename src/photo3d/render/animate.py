@@ -109,6 +109,24 @@ def render_frames(renderer: Renderer, cameras: Sequence[Camera], *, stereo: str 
             progress(i + 1, len(cameras))
 
 
+def render_still(renderer: Renderer, ldi: LDI, spec: VideoSpec) -> np.ndarray:
+    """The input view (or the stereo pair around it) at ``spec``'s size, ``uint8``.
+
+    Example:
+        >>> from photo3d.ldi import from_image
+        >>> from photo3d.mesh import build_mesh
+        >>> from photo3d.render.renderer import RenderSettings
+        >>> ldi = from_image(np.ones((8, 8, 3), np.float32), np.ones((8, 8), np.float32))
+        >>> r = Renderer(build_mesh(ldi), RenderSettings(backend="numba"))
+        >>> render_still(r, ldi, VideoSpec(stereo="sbs-half")).shape
+        (8, 8, 3)
+    """
+    width, height = spec.size or (ldi.width // 2 * 2, ldi.height // 2 * 2)
+    cam = Camera(output_intrinsics(ldi.intrinsics, width, height), np.eye(4))
+    return next(render_frames(renderer, [cam], stereo=spec.stereo,
+                              eye_separation=spec.eye_separation, eye_order=spec.eye_order))
+
+
 def render_video(renderer: Renderer, ldi: LDI, spec: VideoSpec, out: str | Path, *,
                  progress: Progress | None = None) -> Path:
     """Render ``spec`` to the video file ``out`` (format from ``spec.format``).
