@@ -61,7 +61,8 @@ def test_render_reuses_a_saved_photo(files, capsys):
     assert main(["render", str(out), "--still", "--stereo", "anaglyph", "--size", "40x30"]) == 0
     from PIL import Image
 
-    assert Image.open(out / "still_anaglyph.png").size == (40, 30)
+    with Image.open(out / "still_anaglyph.png") as still:
+        assert still.size == (40, 30)
 
 
 def test_render_errors_are_one_line(files, capsys):

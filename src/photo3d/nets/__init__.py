@@ -1,0 +1,49 @@
+"""The learned inpainting nets (PyTorch; extra ``photo3d[learned]``).
+
+- :mod:`photo3d.nets.edge`: edge generator (EdgeConnect, spectral norm) and its
+  discriminator.
+- :mod:`photo3d.nets.partialconv`: partial convolution and the depth / colour U-Net.
+- :mod:`photo3d.nets.weights`: loading the authors' checkpoints or our safetensors.
+
+The modules hold no file access; :func:`load_inpainting_nets` reads weights.
+
+Example:
+    >>> from photo3d.nets import color_net
+    >>> color_net().enc_1.conv.input_conv.weight.shape
+    torch.Size([64, 6, 7, 7])
+"""
+
+try:
+    import torch  # noqa: F401
+except ImportError as err:  # pragma: no cover - depends on the environment
+    raise ImportError("photo3d.nets needs PyTorch: pip install 'photo3d[learned]'") from err
+
+from photo3d.nets.edge import EdgeDiscriminator, EdgeGenerator, SpectralNormConv
+from photo3d.nets.partialconv import (
+    PartialConv,
+    PartialConvUNet,
+    color_net,
+    depth_net,
+    partial_conv,
+)
+from photo3d.nets.weights import (
+    InpaintingNets,
+    build_net,
+    load_inpainting_nets,
+    save_safetensors,
+)
+
+__all__ = [
+    "EdgeDiscriminator",
+    "EdgeGenerator",
+    "InpaintingNets",
+    "PartialConv",
+    "PartialConvUNet",
+    "SpectralNormConv",
+    "build_net",
+    "color_net",
+    "depth_net",
+    "load_inpainting_nets",
+    "partial_conv",
+    "save_safetensors",
+]
