@@ -233,3 +233,17 @@ def test_hidden_layer_culling_changes_nothing():
         culled = rasterize(m.vertices, m.colors, m.faces, k, pose=pose, first=first)
         np.testing.assert_array_equal(full.color, culled.color)
         np.testing.assert_array_equal(full.depth, culled.depth)
+
+
+def test_triangles_with_huge_screen_coordinates_still_render():
+    from photo3d.render.raster import rasterize
+
+    k = Intrinsics.default(32, 24)
+    # one vertex projects ~10^7 px off screen (beyond the fixed-point range)
+    v = np.array([[-1, -1, 1], [1e4, 0, 1e-3 * 2], [-1, 1, 1]], np.float32)
+    frag = rasterize(v, np.eye(3, dtype=np.float32), np.array([[0, 1, 2]]), k)
+    xs = (v[:, 0] / v[:, 2]) * k.fx + k.cx
+    assert xs.max() > 2**22
+    # the triangle spans the whole left part of the view: covered, finite colours
+    assert frag.mask[:, :8].all()
+    assert np.isfinite(frag.color).all() and frag.color.max() <= 1.0

@@ -23,21 +23,12 @@ def _edge(sv, p, q):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _draw(sv, col, scale, i0, i1, i2, y_lo, y_hi, width, color, depth, count):
-    """Rasterize triangle ``(i0, i1, i2)`` of ``sv`` into rows ``[y_lo, y_hi)``."""
-    ay, by, cy = np.float64(sv[i0, 1]), np.float64(sv[i1, 1]), np.float64(sv[i2, 1])
-    r0 = max(y_lo, math.ceil(min(ay, by, cy) - 0.5))
-    r1 = min(y_hi - 1, math.floor(max(ay, by, cy) - 0.5))
-    if r0 > r1:
-        return
+def _draw_float(sv, col, scale, i0, i1, i2, r0, r1, c0, c1, color, depth, count):
+    """:func:`_draw` for huge screen coordinates, in float64 edge functions (exact
+    for 1/256-snapped vertices) evaluated with each edge's end points in a canonical
+    order; rows ``r0..r1`` and columns ``c0..c1`` are the clamped bounding box."""
+    ay, ax = np.float64(sv[i0, 1]), np.float64(sv[i0, 0])
     iz0, iz1, iz2 = np.float64(sv[i0, 2]), np.float64(sv[i1, 2]), np.float64(sv[i2, 2])
-    if iz0 < 0 or iz1 < 0 or iz2 < 0:  # crosses the near plane: drawn clipped
-        return
-    ax, bx, cx = np.float64(sv[i0, 0]), np.float64(sv[i1, 0]), np.float64(sv[i2, 0])
-    c0 = max(0, math.ceil(min(ax, bx, cx) - 0.5))
-    c1 = min(width - 1, math.floor(max(ax, bx, cx) - 0.5))
-    if c0 > c1:
-        return
     # Edge k is opposite vertex k; its value is the weight of vertex k.
     ox0, oy0, dx0, dy0, s0 = _edge(sv, i1, i2)
     ox1, oy1, dx1, dy1, s1 = _edge(sv, i2, i0)
@@ -82,8 +73,11 @@ def _draw(sv, col, scale, i0, i1, i2, y_lo, y_hi, width, color, depth, count):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _draw_fixed(sv, col, scale, i0, i1, i2, y_lo, y_hi, width, color, depth, count):
-    """:func:`_draw` in exact 24.8 fixed point with incremental edge functions."""
+def _draw(sv, col, scale, i0, i1, i2, y_lo, y_hi, width, color, depth, count):
+    """Rasterize triangle ``(i0, i1, i2)`` of ``sv`` into rows ``[y_lo, y_hi)``.
+
+    Edge functions are exact integers on the 1/256 px grid the vertices are snapped
+    to (24.8 fixed point), stepped incrementally along each row."""
     ay, by, cy = np.float64(sv[i0, 1]), np.float64(sv[i1, 1]), np.float64(sv[i2, 1])
     r0 = max(y_lo, math.ceil(min(ay, by, cy) - 0.5))
     r1 = min(y_hi - 1, math.floor(max(ay, by, cy) - 0.5))
@@ -99,7 +93,7 @@ def _draw_fixed(sv, col, scale, i0, i1, i2, y_lo, y_hi, width, color, depth, cou
         return
     lim = 4194304.0  # 2^22 px: products stay within int64
     if max(abs(ax), abs(bx), abs(cx), abs(ay), abs(by), abs(cy)) > lim:
-        _draw(sv, col, scale, i0, i1, i2, y_lo, y_hi, width, color, depth, count)
+        _draw_float(sv, col, scale, i0, i1, i2, r0, r1, c0, c1, color, depth, count)
         return
     X0, Y0 = np.int64(ax * 256.0), np.int64(ay * 256.0)
     X1, Y1 = np.int64(bx * 256.0), np.int64(by * 256.0)
@@ -270,7 +264,7 @@ def _raster(sv, col, scale, faces, n_first, bounds, block, xsv, xcol, xfaces, he
                 i0, i1, i2 = faces[t, 0], faces[t, 1], faces[t, 2]
                 if use_tiles and _occluded(sv, i0, i1, i2, y_lo, y_hi, width, tile_max, tile):
                     continue
-                _draw_fixed(sv, col, scale, i0, i1, i2, y_lo, y_hi, width, color, depth, count)
+                _draw(sv, col, scale, i0, i1, i2, y_lo, y_hi, width, color, depth, count)
         for t in range(xfaces.shape[0]):
             i0, i1, i2 = xfaces[t, 0], xfaces[t, 1], xfaces[t, 2]
             _draw(xsv, xcol, 1.0, i0, i1, i2, y_lo, y_hi, width, color, depth, count)

@@ -1,0 +1,253 @@
+"""Backend ``"learned"``: the paper's edge, depth and colour inpainting nets.
+
+Per patch, as the authors' inference does (their margin of 20 px is this backend's
+``margin``, so the pipeline's patch is already the union bounding box + 20 px):
+
+1. **Inputs** are read under ``context`` only (everything else is zeroed, so the
+   nets cannot see the foreground or anything outside the context); each net input is
+   zero-padded, centred, to a multiple of 128.
+2. **Edges** (only if a context edge touches the synthesis region, dilated by one
+   pixel): the edge net sees (rgb, inverse depth / its maximum over the context,
+   edges, context, synthesis); new edges = output > 0.002 inside the synthesis
+   region. If any appear, the net runs ``edge_repeats`` more times (authors: 2) with
+   them added to its edge input. Edges out = context edges + new edges.
+3. **Depth**: the patch's normalised disparity ``d`` becomes camera depth
+   ``z = DepthMapping().depth(d)`` (``1 / max(3 d, 0.05)``, DESIGN section 3); the
+   net sees (log z minus its mean over the context, edges, context, synthesis) and
+   predicts the zero-mean log depth; ``z' = exp(out + mean)`` maps back to
+   ``d' = clip(1 / (3 z'), 0, 1)``, the inverse of that mapping.
+4. **Colour**: the net sees (rgb, edges, context, synthesis). A patch with
+   ``sqrt(h w)`` well above 512 is first shrunk (area averaging; factor chosen like
+   the authors' so the longer side becomes a multiple of 128; masks re-thresholded;
+   the edge channel zeroed, as the authors' code does) and the result is resized
+   back bicubically.
+
+The authors' graph-based edge clean-up, small-mask opening and depth smoothing
+between context and synthesis are not part of this backend. Patches of the same
+padded shape run as one batch (at most ``batch_size`` patches and about
+``batch_pixels`` pixels), under ``torch.inference_mode()``, on CUDA when available.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable, Sequence
+from pathlib import Path
+
+import numpy as np
+from scipy.ndimage import binary_dilation
+
+from photo3d.camera import DepthMapping
+from photo3d.errors import ConfigError
+from photo3d.inpaint.base import InpaintResult, Patch, Progress, register
+
+UNIT = 128
+"""Net inputs are padded to multiples of this (the authors' ``unit_length``)."""
+
+
+def padded_shape(h: int, w: int, unit: int = UNIT) -> tuple[int, int]:
+    """``(h, w)`` rounded up to multiples of ``unit``."""
+    return -(-h // unit) * unit, -(-w // unit) * unit
+
+
+def color_scale(h: int, w: int, size: int = 512) -> float:
+    """The authors' colour-net resize factor (< 1 only for large patches).
+
+    Example:
+        >>> color_scale(256, 256), color_scale(1000, 1000)
+        (2.0, 0.512)
+    """
+    frac = size / math.sqrt(h * w)
+    return math.floor(max(h, w) * frac / 128) * 128 / max(h, w)
+
+
+def run_batched(net: Callable, inputs: Sequence[np.ndarray], *, device, batch_size: int = 8,
+                batch_pixels: int = 8 * 256 * 256, unit: int = UNIT) -> list[np.ndarray]:
+    """Run ``net`` on ``(C, h, w)`` arrays, zero-padded (centred) to multiples of
+    ``unit``, batching equal padded shapes; returns ``(C_out, h, w) float32`` arrays."""
+    import torch
+
+    out: list[np.ndarray | None] = [None] * len(inputs)
+    groups: dict[tuple[int, int], list[int]] = {}
+    for i, x in enumerate(inputs):
+        groups.setdefault(padded_shape(*x.shape[1:], unit), []).append(i)
+    for (hp, wp), idx in groups.items():
+        step = max(1, min(batch_size, batch_pixels // (hp * wp)))
+        for s in range(0, len(idx), step):
+            chunk = idx[s:s + step]
+            batch = np.zeros((len(chunk), inputs[chunk[0]].shape[0], hp, wp), np.float32)
+            anchors = []
+            for b, i in enumerate(chunk):
+                h, w = inputs[i].shape[1:]
+                y0, x0 = (hp - h) // 2, (wp - w) // 2
+                batch[b, :, y0:y0 + h, x0:x0 + w] = inputs[i]
+                anchors.append((y0, x0, h, w))
+            with torch.inference_mode():
+                res = net(torch.from_numpy(batch).to(device)).float().cpu().numpy()
+            for b, (i, (y0, x0, h, w)) in enumerate(zip(chunk, anchors, strict=True)):
+                out[i] = res[b, :, y0:y0 + h, x0:x0 + w]
+    return out  # type: ignore[return-value]
+
+
+class _Inputs:
+    """Per-patch net inputs, everything zero outside the context."""
+
+    def __init__(self, p: Patch, mapping: DepthMapping) -> None:
+        ctx = p.context.astype(bool)
+        self.ctx = ctx.astype(np.float32)
+        self.syn = (p.synthesis.astype(bool) & ~ctx).astype(np.float32)
+        self.rgb = np.where(ctx[None], np.moveaxis(p.color, 2, 0), 0).astype(np.float32)
+        self.edges = np.where(ctx, p.edges, 0).astype(np.float32)
+        depth = mapping.depth(np.where(ctx, p.disparity, 0))
+        inv = np.where(ctx, 1.0 / depth, 0).astype(np.float32)
+        self.disp = inv / inv.max() if ctx.any() else inv
+        log = np.where(ctx, np.log(depth + 1e-8), 0)
+        self.log_mean = float(log[ctx].mean()) if ctx.any() else 0.0
+        self.log_depth = np.where(ctx, log - self.log_mean, 0).astype(np.float32)
+        dilated = binary_dilation(self.syn > 0, structure=np.ones((3, 3), bool))
+        self.needs_edges = bool((self.edges[dilated] > 0).any())
+
+    def edge_input(self, edges: np.ndarray) -> np.ndarray:
+        return np.concatenate([self.rgb, np.stack([self.disp, edges, self.ctx, self.syn])])
+
+
+class LearnedInpainter:
+    """Backend ``"learned"``: edge, depth and colour nets (see the module docstring).
+
+    Args:
+        weights: folder with the authors' ``*-model.pth`` or our ``*.safetensors``
+            (see :func:`photo3d.nets.load_inpainting_nets`).
+        device: torch device (default CUDA when available, else CPU).
+        nets: :class:`photo3d.nets.InpaintingNets` already in memory (instead of
+            ``weights``).
+        edge_threshold: edge probability above which a synthesis pixel is an edge.
+        edge_repeats: extra edge-net runs with the new edges fed back.
+        color_size: target ``sqrt(area)`` of the colour net's input (shrinking only).
+        batch_size, batch_pixels: batch limits (patches, padded pixels).
+
+    Example:
+        >>> from photo3d.nets import InpaintingNets, build_net
+        >>> small = dict(levels=3, width=0.125)
+        >>> nets = InpaintingNets(build_net("edge", width=0.125, blocks=1).eval(),
+        ...                       build_net("depth", **small).eval(),
+        ...                       build_net("color", **small).eval(), "cpu", {})
+        >>> ctx = np.zeros((20, 24), bool); ctx[:, :12] = True
+        >>> p = Patch(np.full((20, 24, 3), 0.5, np.float32) * ctx[..., None],
+        ...           np.full((20, 24), 0.3, np.float32) * ctx, np.zeros((20, 24), np.float32),
+        ...           ctx, ~ctx, (0, 0))
+        >>> r = LearnedInpainter(nets=nets).inpaint([p])[0]
+        >>> r.color.shape, r.disparity.shape, r.edges.dtype
+        ((20, 24, 3), (20, 24), dtype('float32'))
+    """
+
+    name = "learned"
+    margin = 20
+
+    def __init__(self, *, weights: str | Path | None = None, device=None, nets=None,
+                 edge_threshold: float = 0.002, edge_repeats: int = 2, color_size: int = 512,
+                 batch_size: int = 8, batch_pixels: int = 8 * 256 * 256) -> None:
+        if nets is None:
+            if weights is None:
+                raise ConfigError("the learned inpainter needs its network weights: pass "
+                                  "--weights DIR (a folder with edge-model.pth, "
+                                  "depth-model.pth, color-model.pth)")
+            from photo3d.nets.weights import load_inpainting_nets
+
+            nets = load_inpainting_nets(weights, device=device)
+        self.nets = nets
+        self.edge_threshold = edge_threshold
+        self.edge_repeats = edge_repeats
+        self.color_size = color_size
+        self.batch = dict(batch_size=batch_size, batch_pixels=batch_pixels)
+        self.mapping = DepthMapping()
+        # Seconds spent in each net since construction (read by the benchmark).
+        self.timings: dict[str, float] = {"edge": 0.0, "depth": 0.0, "color": 0.0}
+
+    def _run(self, kind: str, inputs: list[np.ndarray]) -> list[np.ndarray]:
+        if not inputs:
+            return []
+        t = time.perf_counter()
+        out = run_batched(getattr(self.nets, kind), inputs, device=self.nets.device,
+                          **self.batch)
+        self.timings[kind] += time.perf_counter() - t
+        return out
+
+    def _edges(self, items: list[_Inputs]) -> list[np.ndarray]:
+        edges = [it.edges for it in items]
+        todo = [i for i, it in enumerate(items) if it.needs_edges]
+        for r in range(1 + self.edge_repeats):
+            outs = self._run("edge", [items[i].edge_input(edges[i]) for i in todo])
+            new = {i: ((o[0] > self.edge_threshold) & (items[i].syn > 0)).astype(np.float32)
+                   for i, o in zip(todo, outs, strict=True)}
+            for i in todo:
+                edges[i] = np.maximum(items[i].edges, new[i])
+            todo = [i for i in todo if new[i].any()] if r == 0 else todo
+        return edges
+
+    def _colors(self, items: list[_Inputs], edges: list[np.ndarray]) -> list[np.ndarray]:
+        import torch
+        import torch.nn.functional as F
+
+        inputs, scaled = [], []
+        for it, e in zip(items, edges, strict=True):
+            h, w = it.ctx.shape
+            frac = color_scale(h, w, self.color_size)
+            if frac >= 1:
+                inputs.append(np.concatenate([it.rgb, np.stack([e, it.ctx, it.syn])]))
+                scaled.append(None)
+                continue
+            size = (int(h * frac), int(w * frac))
+            masks = F.interpolate(torch.from_numpy(np.stack([it.syn, it.ctx]))[None], size,
+                                  mode="area")[0]
+            syn = (masks[0] > 0).float()
+            ctx = ((masks[1] >= 1 - 1e-6) & (syn == 0)).float()
+            rgb = F.interpolate(torch.from_numpy(it.rgb)[None], size, mode="area")[0] * ctx
+            inputs.append(torch.cat([rgb, torch.zeros_like(ctx)[None], ctx[None], syn[None]])
+                          .numpy())
+            scaled.append((h, w))
+        outs = self._run("color", inputs)
+        result = []
+        for o, hw in zip(outs, scaled, strict=True):
+            if hw is not None:
+                o = F.interpolate(torch.from_numpy(np.ascontiguousarray(o))[None], hw,
+                                  mode="bicubic", align_corners=False)[0].numpy()
+            result.append(np.clip(np.moveaxis(o, 0, 2), 0.0, 1.0).astype(np.float32))
+        return result
+
+    def _chunk(self, patches: Sequence[Patch]) -> list[InpaintResult]:
+        items = [_Inputs(p, self.mapping) for p in patches]
+        edges = self._edges(items)
+        depth_out = self._run("depth", [np.stack([it.log_depth, e, it.ctx, it.syn])
+                                        for it, e in zip(items, edges, strict=True)])
+        colors = self._colors(items, edges)
+        results = []
+        for it, e, d, c in zip(items, edges, depth_out, colors, strict=True):
+            z = np.exp(np.clip(d[0].astype(np.float64) + it.log_mean, -30.0, 30.0))
+            disp = (1.0 / z - self.mapping.offset) / self.mapping.scale
+            results.append(InpaintResult(color=c, disparity=np.clip(disp, 0, 1).astype(np.float32),
+                                         edges=e.astype(np.float32)))
+        return results
+
+    def inpaint(self, patches: Sequence[Patch], *,
+                progress: Progress | None = None) -> list[InpaintResult]:
+        """Fill every patch's synthesis region; one result per patch, same order."""
+        order = sorted(range(len(patches)), key=lambda i: padded_shape(*patches[i].shape))
+        results: list[InpaintResult | None] = [None] * len(patches)
+        step = self.batch["batch_size"]
+        done = 0
+        for s in range(0, len(order), step):
+            chunk = order[s:s + step]
+            for i, r in zip(chunk, self._chunk([patches[i] for i in chunk]), strict=True):
+                results[i] = r
+                done += 1
+                if progress is not None:
+                    progress(done, len(patches))
+        return results  # type: ignore[return-value]
+
+
+def _factory(*, weights: str | Path | None = None, device=None, nets=None) -> LearnedInpainter:
+    return LearnedInpainter(weights=weights, device=device, nets=nets)
+
+
+register("learned", _factory)
