@@ -116,3 +116,26 @@ def test_tiny_image_still_works():
     d[:, 4:] = 2
     photo = photo3d.make(img, depth=d, config=photo3d.Config(size=None))
     assert photo.mesh().faces.shape[0] > 0
+
+
+def test_metric_depth_and_intrinsics_are_kept():
+    from photo3d.camera import Intrinsics
+
+    img = texture(40, 60)
+    z = np.full((40, 60), 5.0, np.float32)
+    z[10:30, 20:40] = 2.0  # metres
+    k = Intrinsics(70.0, 70.0, 28.0, 21.0, 60, 40)
+    photo = photo3d.make(img, depth=z, intrinsics=k,
+                         config=exact_config().with_(depth_kind="depth", metric=True))
+    np.testing.assert_allclose(photo.ldi.depth()[: 40 * 60].reshape(40, 60), z, rtol=1e-5)
+    assert photo.ldi.intrinsics == k
+    # a pixel centre back-projects through the given camera
+    v = photo.mesh().vertices[20 * 60 + 30]
+    assert v[0] == pytest.approx((30.5 - 28.0) / 70.0 * 2.0, rel=1e-5)
+    half = photo3d.make(img, depth=z, intrinsics=k, config=photo3d.Config(
+        size=30, depth_kind="depth", metric=True))
+    assert half.ldi.intrinsics.fx == pytest.approx(35.0)
+    with pytest.raises(photo3d.ConfigError, match="metric"):
+        photo3d.Config(metric=True)
+    with pytest.raises(InputError, match="intrinsics are for"):
+        photo3d.make(img, depth=z, intrinsics=Intrinsics.default(10, 10))

@@ -73,6 +73,9 @@ class Config:
     """How to read the depth input: ``disparity`` (near = large) or ``depth``."""
     inpainter: str = "diffusion"
     """Inpainting backend name (see :func:`photo3d.inpaint.available`)."""
+    metric: bool = False
+    """Keep the depth input's units (needs ``depth_kind="depth"``): z of every LDI pixel
+    is the input depth instead of the authors' normalised [1/3, 20] range."""
     spatial_scale: float | None = None
     """Factor applied to spatial sizes (None: working size / 1024, as the paper)."""
     preprocess: PreprocessConfig = field(default_factory=PreprocessConfig)
@@ -83,6 +86,8 @@ class Config:
             raise ConfigError(f"size must be between 16 and 16384 or None, got {self.size}")
         if self.depth_kind not in ("disparity", "depth"):
             raise ConfigError(f"depth_kind must be 'disparity' or 'depth', got {self.depth_kind!r}")
+        if self.metric and self.depth_kind != "depth":
+            raise ConfigError("metric=True needs depth_kind='depth' (metric depth input)")
 
     def with_(self, **changes: Any) -> Config:
         """A copy with top-level fields replaced (nested: pass a new sub-config)."""

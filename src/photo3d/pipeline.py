@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from photo3d.border import extend_border
-from photo3d.camera import Camera
+from photo3d.camera import Camera, DepthMapping, Intrinsics
 from photo3d.config import Config
 from photo3d.depth.normalize import prepare_depth
 from photo3d.errors import InputError
@@ -116,6 +116,7 @@ def make(
     *,
     depth: np.ndarray | str | Path,
     config: Config | None = None,
+    intrinsics: Intrinsics | None = None,
     inpainter: Inpainter | None = None,
     progress: Progress | None = None,
 ) -> Photo3D:
@@ -126,7 +127,11 @@ def make(
             uint16 or float in [0, 1]).
         depth: path or ``(H, W)`` array of disparity (default) or depth
             (``config.depth_kind``); NaN/inf/negative values are filled.
-        config: :class:`Config` (defaults: 1024 px, diffusion inpainting).
+        config: :class:`Config` (defaults: 1024 px, diffusion inpainting). With
+            ``config.metric`` (and ``depth_kind="depth"``) the geometry keeps the
+            depth's own units instead of the authors' [1/3, 20] range.
+        intrinsics: the camera of the input image (at the input's resolution; it is
+            scaled to the working size). Default: focal ``max(H, W)``, centred.
         inpainter: a backend instance overriding ``config.inpainter``.
         progress: optional ``progress(stage, fraction)`` callback.
 
@@ -173,7 +178,17 @@ def make(
     def px(value: int) -> int:
         return config.spatial(value, pre.working_size)
 
-    ldi = from_image(pre.image, pre.disparity)
+    h, w = pre.image.shape[:2]
+    if intrinsics is not None:
+        if (intrinsics.width, intrinsics.height) != (img.shape[1], img.shape[0]):
+            raise InputError(f"intrinsics are for {intrinsics.width}x{intrinsics.height} but "
+                             f"the image is {img.shape[1]}x{img.shape[0]}")
+        intrinsics = intrinsics.scaled(w, h)
+    mapping = None
+    if config.metric:
+        lo, hi = pre.disparity_range  # of 1 / z: normalised d maps back to z exactly
+        mapping = DepthMapping.from_inverse_depth(lo, hi)
+    ldi = from_image(pre.image, pre.disparity, intrinsics=intrinsics, mapping=mapping)
     ldi = cut(ldi, pre.edges.cuts)
     ldi = extend_border(ldi, px(reg.border))
     edge_ptr, edge_pixels = _edges_csr(pre.edges.labels, pre.edges.count)

@@ -1,0 +1,189 @@
+"""The learned backend: wiring of the three nets around each patch.
+
+Random compact nets check shapes and that nothing outside the context is read; stub
+nets with known outputs check thresholds, depth conversion, rescaling and batching.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from conftest import exact_config, two_planes
+
+torch = pytest.importorskip("torch")
+
+import photo3d  # noqa: E402
+import photo3d.inpaint.learned  # noqa: E402,F401  (registers "learned")
+from photo3d.camera import DepthMapping  # noqa: E402
+from photo3d.errors import ConfigError  # noqa: E402
+from photo3d.inpaint import Patch, get_inpainter  # noqa: E402
+from photo3d.inpaint.learned import LearnedInpainter  # noqa: E402
+from photo3d.nets import InpaintingNets, build_net, save_safetensors  # noqa: E402
+
+SMALL = {"edge": dict(width=0.125, blocks=1), "depth": dict(levels=3, width=0.125),
+         "color": dict(levels=3, width=0.125)}
+
+
+def random_nets(seed: int = 0) -> InpaintingNets:
+    torch.manual_seed(seed)
+    built = {k: build_net(k, **cfg).eval() for k, cfg in SMALL.items()}
+    return InpaintingNets(**built, device=torch.device("cpu"), sources={})
+
+
+class Const(torch.nn.Module):
+    """Stub net: a constant output with ``channels`` channels; records input shapes."""
+
+    def __init__(self, channels: int, value: float) -> None:
+        super().__init__()
+        self.channels, self.value, self.calls = channels, value, []
+
+    def forward(self, x):
+        self.calls.append(x.clone())
+        return torch.full((x.shape[0], self.channels, *x.shape[2:]), self.value)
+
+
+def stub_nets(edge=0.5, depth=0.0, color=0.25) -> InpaintingNets:
+    return InpaintingNets(Const(1, edge), Const(1, depth), Const(3, color),
+                          torch.device("cpu"), {})
+
+
+def make_patch(h=40, w=56, seed=0, split=24, edge_col=True) -> Patch:
+    """Context on the left (with a column of edge pixels at its border), synthesis
+    right of it, an unrelated strip (neither) on the far right."""
+    rng = np.random.default_rng(seed)
+    ctx = np.zeros((h, w), bool)
+    ctx[:, :split] = True
+    syn = np.zeros((h, w), bool)
+    syn[:, split:w - 8] = True
+    edges = np.zeros((h, w), np.float32)
+    if edge_col:
+        edges[:, split - 1] = 1
+    color = rng.random((h, w, 3)).astype(np.float32) * ctx[..., None]
+    disp = (0.2 + 0.3 * rng.random((h, w))).astype(np.float32) * ctx
+    return Patch(color, disp, edges, ctx, syn, (0, 0))
+
+
+def test_needs_weights():
+    with pytest.raises(ConfigError, match="--weights DIR"):
+        get_inpainter("learned")
+
+
+def test_registered_and_loads_weights(tmp_path):
+    for kind, net in random_nets().__dict__.items():
+        if kind in SMALL:
+            save_safetensors(net, tmp_path / f"{kind}.safetensors")
+    inp = get_inpainter("learned", weights=tmp_path, device="cpu")
+    assert isinstance(inp, LearnedInpainter) and inp.margin == 20
+    assert inp.nets.sources == {k: "safetensors" for k in SMALL}
+
+
+def test_random_nets_give_finite_results_of_the_patch_shape():
+    patches = [make_patch(), make_patch(33, 70, seed=1)]
+    calls = []
+    results = LearnedInpainter(nets=random_nets()).inpaint(
+        patches, progress=lambda done, total: calls.append((done, total)))
+    assert calls == [(1, 2), (2, 2)]
+    for p, r in zip(patches, results, strict=True):
+        h, w = p.shape
+        assert r.color.shape == (h, w, 3) and r.disparity.shape == (h, w)
+        assert r.edges.shape == (h, w)
+        for a in (r.color, r.disparity, r.edges):
+            assert a.dtype == np.float32 and np.isfinite(a).all()
+        assert r.color.min() >= 0 and r.color.max() <= 1
+        assert r.disparity.min() >= 0 and r.disparity.max() <= 1
+
+
+def test_never_reads_outside_the_context():
+    p = make_patch()
+    rng = np.random.default_rng(5)
+    outside = ~p.context
+    poisoned = Patch(np.where(outside[..., None], rng.random(p.color.shape) * 50, p.color),
+                     np.where(outside, 7.0 + rng.random(p.shape), p.disparity),
+                     np.where(outside, 1.0, p.edges), p.context, p.synthesis, p.origin)
+    inp = LearnedInpainter(nets=random_nets(), edge_threshold=0.5)
+    a, b = inp.inpaint([p])[0], inp.inpaint([poisoned])[0]
+    syn = p.synthesis
+    np.testing.assert_array_equal(a.color[syn], b.color[syn])
+    np.testing.assert_array_equal(a.disparity[syn], b.disparity[syn])
+    np.testing.assert_array_equal(a.edges[syn], b.edges[syn])
+
+
+def test_edge_threshold_and_repeats():
+    p = make_patch()
+    nets = stub_nets(edge=0.003)  # just above the authors' 0.002 everywhere
+    r = LearnedInpainter(nets=nets).inpaint([p])[0]
+    np.testing.assert_array_equal(r.edges, np.maximum(p.edges, p.synthesis))
+    assert len(nets.edge.calls) == 3  # once + two repeats, new edges fed back
+    fed_back = nets.edge.calls[-1][0, 4].numpy()
+    assert fed_back.sum() == pytest.approx((p.edges + p.synthesis).sum())
+    nets = stub_nets(edge=0.001)
+    r = LearnedInpainter(nets=nets).inpaint([p])[0]
+    np.testing.assert_array_equal(r.edges, p.edges)
+    assert len(nets.edge.calls) == 1  # nothing new: no repeats
+    nets = stub_nets()
+    LearnedInpainter(nets=nets).inpaint([make_patch(edge_col=False)])
+    assert nets.edge.calls == []  # no context edge touches the synthesis region
+
+
+def test_inputs_are_laid_out_like_the_authors():
+    p = make_patch(40, 56)
+    nets = stub_nets()
+    LearnedInpainter(nets=nets).inpaint([p])
+    x = nets.edge.calls[0][0].numpy()
+    assert x.shape == (7, 128, 128)  # zero-padded to multiples of 128, centred
+    y0, x0 = (128 - 40) // 2, (128 - 56) // 2
+    crop = x[:, y0:y0 + 40, x0:x0 + 56]
+    assert x.sum() == pytest.approx(crop.sum(), rel=1e-6)
+    np.testing.assert_allclose(crop[:3], np.moveaxis(p.color, 2, 0))
+    inv = 1 / DepthMapping().depth(p.disparity)
+    np.testing.assert_allclose(crop[3][p.context], (inv / inv[p.context].max())[p.context],
+                               rtol=1e-6)
+    np.testing.assert_array_equal(crop[5:], np.stack([p.context, p.synthesis]))
+    d = nets.depth.calls[0][0, :, y0:y0 + 40, x0:x0 + 56].numpy()
+    logz = np.log(DepthMapping().depth(p.disparity))
+    np.testing.assert_allclose(d[0][p.context], (logz - logz[p.context].mean())[p.context],
+                               atol=1e-5)
+    assert not d[0][~p.context].any()
+    c = nets.color.calls[0][0, :, y0:y0 + 40, x0:x0 + 56].numpy()
+    assert c.shape[0] == 6 and not c[:3][:, p.synthesis].any()
+
+
+def test_depth_round_trip_and_constant_colour():
+    p = make_patch()
+    flat = Patch(p.color, np.where(p.context, 0.4, 0).astype(np.float32), p.edges,
+                 p.context, p.synthesis, p.origin)
+    r = LearnedInpainter(nets=stub_nets(depth=0.0, color=0.25)).inpaint([flat])[0]
+    # a zero (mean) log-depth prediction gives back the context's disparity
+    np.testing.assert_allclose(r.disparity[p.synthesis], 0.4, rtol=1e-5)
+    np.testing.assert_allclose(r.color[p.synthesis], 0.25)
+
+
+def test_large_patch_is_shrunk_for_the_colour_net():
+    p = make_patch(600, 640, split=300)
+    nets = stub_nets(color=0.75)
+    r = LearnedInpainter(nets=nets).inpaint([p])[0]
+    assert r.color.shape == (600, 640, 3)
+    np.testing.assert_allclose(r.color, 0.75, atol=1e-6)
+    # sqrt(600 * 640) = 620 > 512: longer side to 512 (a multiple of 128), then padding
+    assert tuple(nets.color.calls[0].shape[2:]) == (512, 512)
+    assert not nets.color.calls[0][0, 3].any()  # the authors drop edges when shrinking
+    assert tuple(nets.depth.calls[0].shape[2:]) == (640, 640)  # depth: full size
+
+
+def test_batches_give_the_same_results_as_single_patches():
+    nets = random_nets(3)
+    patches = [make_patch(seed=s) for s in range(3)]
+    together = LearnedInpainter(nets=nets, edge_threshold=0.5).inpaint(patches)
+    alone = [LearnedInpainter(nets=nets, edge_threshold=0.5, batch_size=1).inpaint([p])[0]
+             for p in patches]
+    for a, b in zip(together, alone, strict=True):
+        np.testing.assert_allclose(a.color, b.color, atol=1e-5)
+        np.testing.assert_allclose(a.disparity, b.disparity, atol=1e-5)
+
+
+def test_make_with_the_learned_backend():
+    img, disp = two_planes()
+    photo = photo3d.make(img, depth=disp, config=exact_config(),
+                         inpainter=LearnedInpainter(nets=random_nets()))
+    assert photo.stats["pixels_added"][0] > 0
+    assert np.isfinite(photo.ldi.color).all() and np.isfinite(photo.ldi.disparity).all()
