@@ -1,0 +1,1 @@
+"""Evaluation: image metrics, real stereo pairs and synthetic scenes with exact ground truth."""
