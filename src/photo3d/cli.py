@@ -106,6 +106,20 @@ def build_parser() -> argparse.ArgumentParser:
     rd = sub.add_parser("render", help="render videos of a saved 3D photo (no recomputing)")
     rd.add_argument("photo", type=Path, help="a 3D photo folder written by make")
     _add_video_options(rd, command="render")
+    ev = sub.add_parser("eval", help="score novel views against a real second view")
+    src = ev.add_mutually_exclusive_group()
+    src.add_argument("--pair", nargs=4, metavar=("LEFT", "RIGHT", "DISP", "CALIB"),
+                     help="a rectified pair: images, left disparity (PFM: inf = unknown, or "
+                          "PNG: 0 = unknown) and a Middlebury calib.txt")
+    src.add_argument("--synthetic", type=int, metavar="N",
+                     help="N synthetic layered scenes with exact ground truth (seeds 0..N-1)")
+    ev.add_argument("--methods", default=",".join(_eval_methods()),
+                    help="comma-separated methods (default: all)")
+    ev.add_argument("--weights", type=Path, help="learned inpainter weights folder")
+    ev.add_argument("--no-lpips", action="store_true", help="skip LPIPS (needs torch)")
+    ev.add_argument("-o", "--out", type=Path, default=Path("out/eval"),
+                    help="results folder (default out/eval)")
+    ev.add_argument("-q", "--quiet", action="store_true", help="print nothing")
     rd.add_argument("--still", action="store_true",
                     help="write one image of the input view (stereo with --stereo) to "
                          "PHOTO/still[_MODE].png instead of videos")
@@ -120,6 +134,44 @@ def _config(args: argparse.Namespace, **changes) -> Config:
     if args.inpainter:
         changes["inpainter"] = args.inpainter
     return cfg.with_(**changes)
+
+
+def _eval_methods() -> tuple[str, ...]:
+    from photo3d.eval.evaluate import METHODS
+
+    return METHODS
+
+
+def _run_eval(args: argparse.Namespace) -> int:
+    from functools import partial
+
+    from photo3d.eval.report import run
+    from photo3d.eval.stereo_pair import load_pair, motorcycle_pair
+    from photo3d.eval.synthetic import synthetic_pair
+
+    methods = [m.strip() for m in args.methods.split(",") if m.strip()]
+    unknown = sorted(set(methods) - set(_eval_methods()))
+    if unknown:
+        raise Photo3DError(f"unknown method(s) {', '.join(unknown)}; "
+                           f"methods: {', '.join(_eval_methods())}")
+    if args.pair:
+        pairs = {Path(args.pair[0]).stem: partial(load_pair, *args.pair)}
+    elif args.synthetic:
+        pairs = {f"synthetic{i}": partial(synthetic_pair, i) for i in range(args.synthetic)}
+    else:
+        pairs = {"motorcycle": motorcycle_pair}
+
+    def say(msg: str) -> None:
+        if not args.quiet:
+            print(f"  {msg}", file=sys.stderr)
+
+    record = run(pairs, args.out, methods=methods, weights=args.weights,
+                 lpips=not args.no_lpips, progress=say)
+    if not args.quiet:
+        print((args.out / "results.md").read_text())
+        print(f"written: {args.out}/results.json, results.md, "
+              f"{', '.join(f'grid_{p}.png' for p in record['pairs'])}")
+    return 0
 
 
 def _videos(args: argparse.Namespace) -> list:
@@ -260,6 +312,8 @@ def main(argv: list[str] | None = None) -> int:
             return _run_make(args, args.image, args.depth, cfg)
         if args.command == "render":
             return _run_render(args)
+        if args.command == "eval":
+            return _run_eval(args)
         if args.command == "demo":
             from photo3d.data import motorcycle
 

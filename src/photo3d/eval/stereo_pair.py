@@ -50,8 +50,9 @@ def read_calib(path: str | Path) -> dict:
     Example:
         >>> import tempfile, pathlib
         >>> p = pathlib.Path(tempfile.mkdtemp()) / "calib.txt"
-        >>> _ = p.write_text("cam0=[100 0 50; 0 100 40; 0 0 1]\\ncam1=[100 0 60; 0 100 40; "
-        ...                  "0 0 1]\\ndoffs=10\\nbaseline=200\\nwidth=100\\nheight=80\\nndisp=64\\n")
+        >>> _ = p.write_text("cam0=[100 0 50; 0 100 40; 0 0 1]\\n"
+        ...                  "cam1=[100 0 60; 0 100 40; 0 0 1]\\ndoffs=10\\nbaseline=200\\n"
+        ...                  "width=100\\nheight=80\\nndisp=64\\n")
         >>> c = read_calib(p)
         >>> c["cam1"][0, 2], c["baseline"], c["width"]
         (60.0, 200.0, 100)
