@@ -1,0 +1,129 @@
+"""Benchmark ``photo3d.make`` with the learned inpainter on the motorcycle pair.
+
+The three nets have the authors' architectures with random weights (inference time
+does not depend on the values; note that random edge nets predict edges almost
+everywhere, so every patch takes the edge net's two repeats, a worst case). Each run
+is a fresh process; building the nets is not timed, the time is measured around
+``photo3d.make`` only, and the backend reports the seconds spent inside each net.
+Prints a table and writes ``benchmarks/results/learned.json``.
+
+Usage: python benchmarks/bench_learned.py [--runs 3] [--size 1024]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import resource
+import statistics
+import subprocess
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).parent))
+from _machine import machine_info  # noqa: E402
+
+CHILD = r"""
+import json, sys, time
+from collections import Counter
+import numpy as np, torch
+import photo3d
+from photo3d.data import motorcycle
+from photo3d.inpaint.learned import LearnedInpainter, padded_shape
+from photo3d.nets import InpaintingNets, build_net
+
+class Counted(torch.nn.Module):
+    def __init__(self, net):
+        super().__init__()
+        self.net, self.items, self.mpx = net, 0, 0.0
+    def forward(self, x):
+        self.items += x.shape[0]
+        self.mpx += x.shape[0] * x.shape[2] * x.shape[3] / 1e6
+        return self.net(x)
+
+class Recording(LearnedInpainter):
+    passes = []
+    def inpaint(self, patches, *, progress=None):
+        self.passes.append([padded_shape(*p.shape) for p in patches])
+        return super().inpaint(patches, progress=progress)
+
+torch.manual_seed(0)
+nets = {k: Counted(build_net(k).eval()) for k in ("edge", "depth", "color")}
+backend = Recording(nets=InpaintingNets(**nets, device=torch.device("cpu"), sources={}),
+                    runtime=sys.argv[2])
+s = motorcycle()
+cfg = photo3d.Config(size=int(sys.argv[1]), inpainter="learned")
+t = time.perf_counter()
+photo = photo3d.make(s.left, depth=np.asarray(s.disparity), config=cfg, inpainter=backend)
+wall = time.perf_counter() - t
+shapes = Counter(f"{h}x{w}" for p in backend.passes for h, w in p)
+print(json.dumps({
+    "make_s": wall, "stages": photo.timings, "stats": photo.stats,
+    "net_s": backend.timings,
+    "net_runs": {k: n.items for k, n in nets.items()},
+    "net_mpx": {k: round(n.mpx, 2) for k, n in nets.items()},
+    "patches_per_pass": [len(p) for p in backend.passes],
+    "padded_shapes": dict(shapes.most_common()),
+    "threads": torch.get_num_threads(),
+}))
+"""
+
+
+def run_once(size: int, runtime: str) -> dict:
+    out = subprocess.run([sys.executable, "-c", CHILD, str(size), runtime],
+                         capture_output=True, text=True, check=True)
+    result = json.loads(out.stdout.strip().splitlines()[-1])
+    result["peak_rss_mb"] = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024
+    return result
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--runs", type=int, default=3)
+    parser.add_argument("--size", type=int, default=1024)
+    parser.add_argument("--runtime", default="torch", choices=["torch", "onnx"])
+    parser.add_argument("--out", type=Path,
+                        default=Path(__file__).parent / "results" / "learned.json")
+    args = parser.parse_args()
+
+    # Warm-up: numba's cache for the pipeline's own kernels (the nets need none).
+    subprocess.run([sys.executable, "-c", "import numpy as np, photo3d; photo3d.make("
+                    "np.random.rand(64, 64, 3), depth=np.random.rand(64, 64) + 1)"],
+                   check=True, capture_output=True)
+    runs = [run_once(args.size, args.runtime) for _ in range(args.runs)]
+    med = {
+        "make_s": statistics.median(r["make_s"] for r in runs),
+        "stages": {k: statistics.median(r["stages"][k] for r in runs) for k in runs[0]["stages"]},
+        "net_s": {k: statistics.median(r["net_s"][k] for r in runs) for k in runs[0]["net_s"]},
+        "peak_rss_mb": max(r["peak_rss_mb"] for r in runs),
+    }
+    first = runs[0]
+    patches = sum(first["patches_per_pass"])
+    record = {"benchmark": "make_learned", "size": args.size, "runtime": args.runtime,
+              "weights": "random, authors' architectures", "runs": runs, "median": med,
+              "machine": machine_info(),
+              "command": " ".join(["python", "benchmarks/bench_learned.py", *sys.argv[1:]])}
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.out.write_text(json.dumps(record, indent=2))
+
+    ws = first["stats"]["working_size"]
+    print(f"motorcycle {ws[0]}x{ws[1]}, learned inpainter ({args.runtime}), random weights, "
+          f"{args.runs} runs (median), {record['machine']['cpu']}, "
+          f"{record['machine']['cores']} cores, {first['threads']} torch threads")
+    print(f"make: {med['make_s']:.1f} s  (" + ", ".join(
+        f"{k} {v:.1f}" for k, v in med["stages"].items()) + ")")
+    print(f"patches per pass {first['patches_per_pass']} (total {patches}); padded shapes "
+          + ", ".join(f"{k}: {v}" for k, v in list(first["padded_shapes"].items())[:6]))
+    print(f"{'net':6} {'runs':>6} {'Mpx':>8} {'seconds':>9} {'s/run':>7} {'s/Mpx':>7}")
+    for k in ("edge", "depth", "color"):
+        sec, n, mpx = med["net_s"][k], first["net_runs"][k], first["net_mpx"][k]
+        print(f"{k:6} {n:6d} {mpx:8.1f} {sec:9.1f} {sec / max(n, 1):7.2f} "
+              f"{sec / max(mpx, 1e-9):7.2f}")
+    total = sum(med["net_s"].values())
+    print(f"nets: {total:.1f} s = {total / max(patches, 1):.2f} s per patch; "
+          f"peak memory {med['peak_rss_mb']:.0f} MB")
+    print("individual make times: " + ", ".join(f"{r['make_s']:.1f}" for r in runs))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,95 @@
+"""Per-stage time and peak memory of ``photo3d.make`` at 512, 1024 and 2048 px.
+
+Input: the motorcycle sample (741x500, resized by the pipeline to each working
+size). Each run is a fresh process (numba cache warm); median of N runs per size and
+backend; peak memory is the child's peak RSS. Writes ``results/speed.json`` and a
+plot of total time vs pixels, ``results/speed.png``.
+
+Usage: python benchmarks/bench_speed.py [--runs 3] [--sizes 512,1024,2048]
+                                        [--backends diffusion,learned]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import statistics
+import subprocess
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).parent))
+from _machine import machine_info  # noqa: E402
+from _plot import line_plot  # noqa: E402
+
+CHILD = r"""
+import json, resource, sys, time
+import numpy as np
+import photo3d
+from photo3d.data import motorcycle
+size, backend = int(sys.argv[1]), sys.argv[2]
+s = motorcycle()
+inpainter = None
+if backend == "learned":
+    from photo3d.inpaint.learned import LearnedInpainter
+    from photo3d.nets.weights import random_nets
+    inpainter = LearnedInpainter(nets=random_nets(seed=0))
+cfg = photo3d.Config(size=size, inpainter=backend)
+t = time.perf_counter()
+photo = photo3d.make(s.left, depth=np.asarray(s.disparity), config=cfg, inpainter=inpainter)
+total = time.perf_counter() - t
+t = time.perf_counter()
+mesh = photo.mesh()
+photo.timings["mesh"] = time.perf_counter() - t
+peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+print(json.dumps({"make_s": total, "stages": photo.timings, "peak_rss_mb": peak,
+                  "pixels": int(photo.stats["working_size"][0] * photo.stats["working_size"][1]),
+                  "ldi_pixels": photo.ldi.size, "faces": int(mesh.faces.shape[0]),
+                  "edges": photo.stats["edges"]}))
+"""
+
+
+def run_once(size: int, backend: str) -> dict:
+    out = subprocess.run([sys.executable, "-c", CHILD, str(size), backend],
+                         capture_output=True, text=True, check=True)
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--runs", type=int, default=3)
+    parser.add_argument("--sizes", default="512,1024,2048")
+    parser.add_argument("--backends", default="diffusion")
+    parser.add_argument("--out", type=Path,
+                        default=Path(__file__).parent / "results" / "speed.json")
+    args = parser.parse_args()
+    sizes = [int(s) for s in args.sizes.split(",")]
+    backends = args.backends.split(",")
+    record = {"benchmark": "speed", "machine": machine_info(), "results": {},
+              "command": " ".join(["python", "benchmarks/bench_speed.py", *sys.argv[1:]])}
+    for backend in backends:
+        run_once(sizes[0], backend)  # warm-up (numba cache, page cache)
+        for size in sizes:
+            runs = [run_once(size, backend) for _ in range(args.runs)]
+            med = {
+                "make_s": statistics.median(r["make_s"] for r in runs),
+                "stages": {k: statistics.median(r["stages"][k] for r in runs)
+                           for k in runs[0]["stages"]},
+                "peak_rss_mb": max(r["peak_rss_mb"] for r in runs),
+                "pixels": runs[0]["pixels"], "ldi_pixels": runs[0]["ldi_pixels"],
+                "faces": runs[0]["faces"], "edges": runs[0]["edges"],
+            }
+            record["results"].setdefault(backend, {})[str(size)] = {"median": med, "runs": runs}
+            stages = ", ".join(f"{k} {v:.2f}" for k, v in med["stages"].items())
+            print(f"{backend:9} {size:5} px: make {med['make_s']:6.2f} s ({stages}); "
+                  f"peak {med['peak_rss_mb']:.0f} MB; {med['pixels']:,} px")
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.out.write_text(json.dumps(record, indent=2))
+    series = {b: [(v["median"]["pixels"] / 1e6, v["median"]["make_s"])
+                  for v in record["results"][b].values()] for b in backends}
+    line_plot(series, args.out.with_suffix(".png"), x_label="megapixels (working size)",
+              y_label="make time (s)", title="photo3d make: time vs image size")
+
+
+if __name__ == "__main__":
+    main()

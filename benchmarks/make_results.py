@@ -1,0 +1,200 @@
+"""Regenerate ``benchmarks/RESULTS.md`` from the JSON results in ``benchmarks/results/``.
+
+Usage:
+    python benchmarks/make_results.py          # rewrite RESULTS.md from the JSON files
+    python benchmarks/make_results.py --run    # first run every benchmark (~30 min)
+
+Each section names the command that produced its numbers; a section whose JSON file
+is missing says so instead of showing numbers.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+HERE = Path(__file__).parent
+RESULTS = HERE / "results"
+BENCHMARKS = [
+    ["bench_make.py", "--runs", "5"],
+    ["bench_render.py", "--runs", "3"],
+    ["bench_render.py", "--runs", "1", "--ssaa", "1", "--out",
+     "benchmarks/results/render_ssaa1.json"],
+    ["bench_speed.py", "--runs", "3", "--backends", "diffusion,learned"],
+    ["bench_quality.py"],
+    ["bench_learned.py"],
+    ["bench_stereo.py"],
+    ["bench_viewer.py"],
+]
+
+
+def load(name: str) -> dict | None:
+    path = RESULTS / name
+    return json.loads(path.read_text()) if path.is_file() else None
+
+
+def machine_line(rec: dict) -> str:
+    m = rec["machine"]
+    v = m.get("versions", {})
+    return (f"{m['cpu']}, {m['cores']} cores, {m['memory_gb']} GB RAM, Python {m['python']}, "
+            f"numpy {v.get('numpy')}, numba {v.get('numba')}")
+
+
+def missing(cmd: str) -> str:
+    return f"_No results yet: run `{cmd}`._\n"
+
+
+def section_make() -> str:
+    out = ["## `make` speed and memory (issue 2)", ""]
+    rec = load("make.json")
+    if rec is None:
+        return "\n".join(out) + "\n" + missing("python benchmarks/bench_make.py")
+    med, runs = rec["median"], rec["runs"]
+    stats = runs[0]["stats"]
+    times = [r["make_s"] for r in runs]
+    out += [
+        f"Command: `{rec['command']}`. Machine: {machine_line(rec)}.", "",
+        f"Input: the Middlebury 2014 *Motorcycle* left view + ground-truth disparity, working "
+        f"size {stats['working_size'][0]}x{stats['working_size'][1]}, {rec['inpainter']} "
+        f"inpainter, default configuration.", "",
+        "| | photo3d | target | authors' code (960 px, same machine kind) |",
+        "| --- | --- | --- | --- |",
+        f"| `make` wall time, median of {len(runs)} | **{med['make_s']:.2f} s** "
+        f"({min(times):.2f}-{max(times):.2f}) | < 10 s | 205 s |",
+        f"| peak memory (whole process) | **{med['peak_rss_mb']:.0f} MB** | < 2 GB | 5.4 GB |",
+        "",
+        "Per stage (median): " + ", ".join(f"{k} {v:.2f} s" for k, v in med["stages"].items())
+        + f"; inpainting passes {stats['passes']} (edges per pass {stats['edges']}). Building "
+        f"the mesh afterwards ({runs[0]['faces']:,} triangles over {runs[0]['ldi_pixels']:,} "
+        f"LDI pixels) takes {med['mesh_s']:.2f} s.", ""]
+    return "\n".join(out)
+
+
+def section_render() -> str:
+    out = ["## Video rendering speed and memory (issue 3)", ""]
+    rec, rec1 = load("render.json"), load("render_ssaa1.json")
+    if rec is None:
+        return "\n".join(out) + "\n" + missing("python benchmarks/bench_render.py")
+    n = 4 * rec["frames"]
+    times = [r["render_s"] for r in rec["runs"]]
+    out += [
+        f"Command: `{rec['command']}`. Machine: {machine_line(rec)}.", "",
+        f"The four standard camera paths of the 1024 px motorcycle 3D photo "
+        f"({rec['runs'][0]['faces']:,} triangles), {rec['frames']} frames each at "
+        f"{rec['size'][0]}x{rec['size'][1]} with the authors' border crop, backend "
+        f"`{rec['backend']}` (here: the numba CPU rasterizer; only Mesa's llvmpipe OpenGL "
+        "exists, ~4x slower), encoded to H.264 MP4 (x264 `veryfast`, CRF 18). Time: "
+        "rendering + encoding of all four videos.", "",
+        "| | photo3d | target | authors' code (960x640, same machine kind) |",
+        "| --- | --- | --- | --- |",
+        f"| 4 x {rec['frames']} frames, {rec['ssaa']}x supersampling per axis, median of "
+        f"{len(times)} | **{rec['median_render_s']:.1f} s** ({min(times):.1f}-{max(times):.1f}; "
+        f"{1000 * rec['median_render_s'] / n:.0f} ms/frame) | < 60 s | 155-160 s *per video* |"]
+    if rec1 is not None:
+        per_frame = 1000 * rec1["median_render_s"] / (4 * rec1["frames"])
+        out.append(f"| same, no supersampling (`{rec1['command']}`) | "
+                   f"{rec1['median_render_s']:.1f} s ({per_frame:.0f} ms/frame) | | |")
+    out += [f"| peak memory (whole process, incl. making the photo) | **{rec['peak_rss_mb']:.0f} "
+            "MB** | < 2 GB | 12 GB |", ""]
+    if rec["median_render_s"] > 60:
+        out += [
+            "**The 60 s target is not met.** Where a frame's time goes (2x supersampling, one "
+            "frame at a time): rasterization ~70 ms on the two cores (the input layer alone "
+            "~50 ms; hidden layers are mostly culled by the block and hierarchical-z tests), "
+            "vertex projection and block bounds ~12 ms, supersampling resolve and hole "
+            "filling ~10 ms, H.264 encoding ~14 ms. Encoding on a background thread gained "
+            "nothing (both cores are busy). The mesh has about twice the 1.5M triangles the "
+            "issue's 26 ms/frame estimate assumed (input, inpainted and border pixels).", ""]
+    return "\n".join(out)
+
+
+def section_speed() -> str:
+    out = ["## Speed and memory vs image size (issue 6)", ""]
+    rec = load("speed.json")
+    if rec is None:
+        return "\n".join(out) + "\n" + missing("python benchmarks/bench_speed.py")
+    out += [f"Command: `{rec['command']}`. Machine: {machine_line(rec)}.", "",
+            "Per-stage wall time (median) and peak memory of `photo3d.make` on the "
+            "motorcycle sample resized to each working size. Plot: `results/speed.png`.", "",
+            "| backend | size | pixels | load | preprocess | LDI | inpaint | mesh | make total "
+            "| peak MB |", "|" + " --- |" * 10]
+    for backend, sizes in rec["results"].items():
+        for size, r in sizes.items():
+            m = r["median"]
+            st = m["stages"]
+            out.append(f"| {backend} | {size} | {m['pixels']:,} | {st.get('load', 0):.2f} | "
+                       f"{st.get('preprocess', 0):.2f} | {st.get('ldi', 0):.2f} | "
+                       f"{st.get('inpaint', 0):.2f} | {st.get('mesh', 0):.2f} | "
+                       f"{m['make_s']:.2f} | {m['peak_rss_mb']:.0f} |")
+    out += ["", "![time vs pixels](results/speed.png)", ""]
+    return "\n".join(out)
+
+
+def section_quality() -> str:
+    out = ["## Novel-view quality on a real second view and on synthetic scenes (issue 6)", ""]
+    rec = load("quality.json")
+    if rec is None:
+        return "\n".join(out) + "\n" + missing("python benchmarks/bench_quality.py")
+    real = (RESULTS / "quality" / "real" / "results.md").read_text()
+    synth = (RESULTS / "quality" / "synthetic" / "results.md").read_text()
+    out += [
+        f"Command: `{rec['command']}`. Machine: {machine_line(rec)}.", "",
+        "Each method renders the right view of a rectified pair from the left image and its "
+        "ground-truth depth (metric depth `Z = baseline f / (d + doffs)`, the left camera's "
+        "intrinsics; rendered with the right camera's own intrinsics). Regions: **all** = "
+        "right-view pixels between the first and last pixel that the z-buffered forward warp "
+        "of the left view reaches in each row; **disoccluded** = those it does not reach "
+        "(hidden in the left view, or without ground truth there). LPIPS: AlexNet v0.1 "
+        "weights, averaged over the region (lower is better).", "",
+        "### Real: Middlebury 2014 Motorcycle (scikit-image)", "",
+        real.split("\n", 2)[2] if real.startswith("### ") else real,
+        "Synthetic: layered textured planes (photos from scikit-image) ray-cast from two "
+        "cameras, independently of photo3d's renderer; exact depth.", "",
+        synth, ""]
+    return "\n".join(out)
+
+
+def section_json(name: str, title: str, cmd: str) -> str:
+    """Sections owned by benchmark scripts that write their own markdown summary."""
+    rec = load(name)
+    out = [f"## {title}", ""]
+    if rec is None:
+        return "\n".join(out) + "\n" + missing(cmd)
+    summary = rec.get("markdown") or "```\n" + json.dumps(
+        {k: v for k, v in rec.items() if k not in ("runs", "machine")}, indent=2)[:3000] + "\n```"
+    return "\n".join(out + [f"Command: `{rec.get('command', cmd)}`. Machine: "
+                            f"{machine_line(rec)}.", "", summary, ""])
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--run", action="store_true", help="run every benchmark first")
+    args = parser.parse_args()
+    if args.run:
+        for cmd in BENCHMARKS:
+            script = HERE / cmd[0]
+            if script.is_file():
+                subprocess.run([sys.executable, str(script), *cmd[1:]], check=True)
+    parts = [
+        "# Results", "",
+        "Generated by `python benchmarks/make_results.py` from the JSON files in "
+        "`benchmarks/results/` (method: [README.md](README.md); `--run` re-runs every "
+        "benchmark first). Every number below comes from the command named in its section.",
+        "",
+        section_make(), section_render(), section_speed(), section_quality(),
+        section_json("learned.json", "Learned inpainter speed (issue 4)",
+                     "python benchmarks/bench_learned.py"),
+        section_json("stereo.json", "Stereo depth quality (issue 7)",
+                     "python benchmarks/bench_stereo.py"),
+        section_json("viewer.json", "Interactive viewer size and first frame (issue 8)",
+                     "python benchmarks/bench_viewer.py"),
+    ]
+    (HERE / "RESULTS.md").write_text("\n".join(parts).rstrip() + "\n")
+    print(f"wrote {HERE / 'RESULTS.md'}")
+
+
+if __name__ == "__main__":
+    main()
