@@ -102,3 +102,29 @@ def test_console_script_runs_without_traceback(files):
     )
     assert proc.returncode == 2
     assert "Traceback" not in proc.stderr and "image file not found" in proc.stderr
+
+
+def test_depth_command_and_make_from_a_stereo_pair(tmp_path, capsys):
+    pytest.importorskip("cv2")
+    from photo3d.eval.synthetic import synthetic_pair
+
+    pair = synthetic_pair(2, width=320, height=240)
+    for name, img in (("left.png", pair.left), ("right.png", pair.right)):
+        Image.fromarray(np.round(img * 255).astype(np.uint8)).save(tmp_path / name)
+    assert main(["depth", str(tmp_path / "left.png"), "--right", str(tmp_path / "right.png"),
+                 "-o", str(tmp_path / "d.png")]) == 0
+    with Image.open(tmp_path / "d.png") as d:
+        assert d.size == (320, 240) and d.mode.startswith("I")
+        disp = np.asarray(d, np.float64)
+    assert (tmp_path / "d_preview.png").is_file()
+    # near planes are brighter than the back plane
+    truth = pair.disparity
+    assert np.corrcoef(disp.ravel(), truth.ravel())[0, 1] > 0.8
+    out = tmp_path / "o"
+    assert main(["make", str(tmp_path / "left.png"), "--right", str(tmp_path / "right.png"),
+                 "-o", str(out), "--no-video", "--size", "160", "-q"]) == 0
+    assert (out / "photo3d.npz").is_file()
+    capsys.readouterr()
+    assert main(["make", str(tmp_path / "left.png"), "-o", str(tmp_path / "o2")]) == 2
+    err = capsys.readouterr().err
+    assert "no depth given" in err and not (tmp_path / "o2").exists()

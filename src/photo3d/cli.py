@@ -28,6 +28,43 @@ STAGE_LABELS = {
 }
 
 
+def _add_depth_sources(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group("depth (one of; default: the depth map embedded in the photo)")
+    src = g.add_mutually_exclusive_group()
+    src.add_argument("--depth", type=Path,
+                     help="depth map: PNG (8/16-bit), .npy, .pfm or float TIFF")
+    src.add_argument("--right", type=Path,
+                     help="right image of a rectified stereo pair (disparity by OpenCV SGM)")
+    src.add_argument("--depth-model", metavar="NAME_OR_PATH",
+                     help="monocular depth model: a Hugging Face name (e.g. "
+                          "depth-anything/Depth-Anything-V2-Small-hf), a local folder or "
+                          "an .onnx file")
+    g.add_argument("--depth-kind", choices=["disparity", "depth"],
+                   help="what --depth holds: disparity (near = large, the default for "
+                        "files) or depth (near = small); models and stereo know their kind")
+
+
+def _resolve_depth(args: argparse.Namespace):
+    from photo3d.depth.sources import resolve_depth
+
+    est = resolve_depth(args.image, depth=args.depth, right=args.right,
+                        depth_model=args.depth_model, kind=args.depth_kind)
+    if not getattr(args, "quiet", False):
+        print(f"depth: {est.source}", file=sys.stderr)
+    for warning in est.warnings:
+        print(f"photo3d: warning: {warning}", file=sys.stderr)
+    return est
+
+
+def _run_depth(args: argparse.Namespace) -> int:
+    from photo3d.depth.export import export_depth
+
+    est = _resolve_depth(args)
+    png, preview = export_depth(est, args.out)
+    print(f"wrote {png} (16-bit normalised disparity, near = bright) and {preview}")
+    return 0
+
+
 def _add_make_options(p: argparse.ArgumentParser, *, out_required: bool) -> None:
     p.add_argument("-o", "--out", type=Path, required=out_required,
                    help="output folder (must not exist or be empty)")
@@ -35,7 +72,10 @@ def _add_make_options(p: argparse.ArgumentParser, *, out_required: bool) -> None
                    help="named configuration (default: %(default)s)")
     p.add_argument("--size", type=int, help="longer side of the working image in pixels "
                    "(default 1024; 0 keeps the input size)")
-    p.add_argument("--inpainter", help="inpainting backend (default: diffusion)")
+    p.add_argument("--inpainter", help="inpainting backend: diffusion (default) or learned")
+    p.add_argument("--weights", type=Path, metavar="DIR",
+                   help="weights of the learned inpainter: the authors' edge-model.pth, "
+                        "depth-model.pth, color-model.pth or photo3d *.safetensors")
     p.add_argument("--ply", choices=["binary", "ascii", "none"], default="binary",
                    help="PLY mesh encoding (default: %(default)s)")
     p.add_argument("--no-glb", action="store_true", help="do not write mesh.glb")
@@ -93,13 +133,14 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"photo3d {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
     mk = sub.add_parser("make", help="make a 3D photo from an image and a depth map")
-    mk.add_argument("image", type=Path, help="JPEG, PNG, TIFF or WebP photo")
-    mk.add_argument("--depth", type=Path, required=True,
-                    help="depth map: PNG (8/16-bit), .npy, .pfm or float TIFF")
-    mk.add_argument("--depth-kind", choices=["disparity", "depth"], default="disparity",
-                    help="what the depth map holds: disparity (near = large, default) or "
-                         "depth (near = small)")
+    mk.add_argument("image", type=Path, help="JPEG, PNG, TIFF, WebP or HEIC photo")
+    _add_depth_sources(mk)
     _add_make_options(mk, out_required=True)
+    dp = sub.add_parser("depth", help="write the depth map the pipeline would use "
+                        "(16-bit PNG + colour preview) to inspect or edit")
+    dp.add_argument("image", type=Path, help="JPEG, PNG, TIFF, WebP or HEIC photo")
+    _add_depth_sources(dp)
+    dp.add_argument("-o", "--out", type=Path, required=True, help="output PNG (16-bit)")
     demo = sub.add_parser("demo", help="make a 3D photo of the bundled Middlebury sample")
     _add_make_options(demo, out_required=False)
     demo.set_defaults(out=Path("out/demo"))
@@ -224,15 +265,25 @@ class _Bar:
 
 
 def _run_make(args: argparse.Namespace, image, depth, config: Config) -> int:
+    """Validate everything cheap first, then resolve depth (if a callable), make, save.
+
+    ``depth`` may be a callable returning ``(image, depth, depth_kind)``: it runs
+    only after the options are known to be valid (it can be slow: stereo, models).
+    """
+    from photo3d.inpaint import get_inpainter
     from photo3d.output import check_output
     from photo3d.pipeline import make
 
     check_output(args.out, overwrite=args.overwrite)
     videos = [] if args.no_video else _videos(args)
     settings = _render_settings(args)
+    backend = get_inpainter(config.inpainter, **_inpainter_options(args))
+    if callable(depth):
+        image, depth, kind = depth()
+        config = config.with_(depth_kind=kind)
     bar = _Bar(args.quiet)
     try:
-        photo = make(image, depth=depth, config=config, progress=bar)
+        photo = make(image, depth=depth, config=config, inpainter=backend, progress=bar)
         bar("mesh", 0.0)
         t = time.perf_counter()
         photo.save(args.out, overwrite=args.overwrite,
@@ -245,6 +296,11 @@ def _run_make(args: argparse.Namespace, image, depth, config: Config) -> int:
     if not args.quiet:
         _summary(photo, args.out)
     return 0
+
+
+def _inpainter_options(args: argparse.Namespace) -> dict:
+    weights = getattr(args, "weights", None)
+    return {"weights": weights} if weights is not None else {}
 
 
 def _summary(photo, out: Path) -> None:
@@ -308,8 +364,16 @@ def main(argv: list[str] | None = None) -> int:
     warnings.showwarning = show
     try:
         if args.command == "make":
-            cfg = _config(args, depth_kind=args.depth_kind)
-            return _run_make(args, args.image, args.depth, cfg)
+            from photo3d.depth.sources import load_photo
+
+            def depth():
+                est = _resolve_depth(args)
+                image = est.image if est.image is not None else load_photo(args.image)
+                return image, est.depth, est.kind
+
+            return _run_make(args, None, depth, _config(args))
+        if args.command == "depth":
+            return _run_depth(args)
         if args.command == "render":
             return _run_render(args)
         if args.command == "eval":

@@ -10,11 +10,14 @@ Steps of :func:`stereo_disparity`:
 
 1. :func:`check_pair`: ORB feature matches must lie on the same rows (rectified)
    and mostly have ``x_left > x_right`` (not swapped); they also give the search
-   range when ``max_disparity`` is not given.
+   range (both ends, with margins) when ``max_disparity`` is not given: a range
+   that starts at 0 when the scene's nearest far point is at 15 px lets a few
+   mismatches reach 0, which stretches the min-max normalised disparity.
 2. OpenCV ``StereoSGBM`` (3-way) on both views: the right view's disparity is
    computed by flipping both images horizontally and swapping them.
 3. Left-right consistency: a left disparity is valid only if the right view's
-   disparity at ``x - d`` agrees within 1 px (removes occlusions and mismatches).
+   disparity at ``x - d`` agrees within 1 px (removes occlusions and mismatches)
+   and it is not at an end of the search range.
 4. Invalid pixels are filled with the farther of their row neighbours
    (:func:`photo3d.depth.normalize.fill_unknown`), then a joint weighted median
    filter guided by the left image (``cv2.ximgproc.weightedMedianFilter``) aligns
@@ -25,6 +28,7 @@ Needs ``opencv-contrib-python-headless`` (extra ``photo3d[stereo]``).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -54,6 +58,7 @@ class PairCheck:
         swapped: fraction of same-row matches (with ``|dx| > 1``) having ``x_left < x_right``.
         max_disparity: 99th percentile of ``x_left - x_right`` over same-row matches,
             in pixels of the input (``nan`` without matches).
+        min_disparity: 1st percentile of the same (``nan`` without matches).
     """
 
     matches: int
@@ -61,6 +66,7 @@ class PairCheck:
     same_row: float
     swapped: float
     max_disparity: float
+    min_disparity: float = math.nan
 
     @property
     def reliable(self) -> bool:
@@ -76,7 +82,8 @@ class StereoResult:
         disparity: ``(H, W) float32`` in pixels of the left view, >= 0, every pixel
             filled (invalid ones from the background side) and edge-aware filtered.
         valid: ``(H, W) bool``, pixels whose matched disparity passed the left-right check.
-        max_disparity: the search range used, in pixels of the input.
+        max_disparity: upper end of the search range, in pixels of the input.
+        min_disparity: lower end of the search range, in pixels of the input.
         check: what the feature matches said (:class:`PairCheck`).
         warnings: human-readable notes (e.g. the pair could not be verified).
     """
@@ -84,6 +91,7 @@ class StereoResult:
     disparity: np.ndarray
     valid: np.ndarray
     max_disparity: int
+    min_disparity: int
     check: PairCheck
     warnings: tuple[str, ...] = ()
 
@@ -143,7 +151,7 @@ def check_pair(left: np.ndarray, right: np.ndarray) -> PairCheck:
         pairs = cv2.BFMatcher(cv2.NORM_HAMMING).knnMatch(dl, dr, k=2)
         good = [p[0] for p in pairs if len(p) == 2 and p[0].distance < 0.75 * p[1].distance]
     if not good:
-        return PairCheck(0, 0.0, 0.0, 0.0, math.nan)
+        return PairCheck(0, 0.0, 0.0, 0.0, math.nan, math.nan)
     pl = np.array([kl[m.queryIdx].pt for m in good])
     pr = np.array([kr[m.trainIdx].pt for m in good])
     dx, dy = pl[:, 0] - pr[:, 0], pl[:, 1] - pr[:, 1]
@@ -151,8 +159,8 @@ def check_pair(left: np.ndarray, right: np.ndarray) -> PairCheck:
     row = np.abs(dy - offset) <= ROW_TOLERANCE
     moving = row & (np.abs(dx) > 1.0)
     swapped = float((dx[moving] < 0).mean()) if moving.any() else 0.0
-    max_disp = float(np.percentile(dx[row], 99)) / scale if row.any() else math.nan
-    return PairCheck(len(good), offset / scale, float(row.mean()), swapped, max_disp)
+    lo, hi = np.percentile(dx[row], [1, 99]) / scale if row.any() else (math.nan, math.nan)
+    return PairCheck(len(good), offset / scale, float(row.mean()), swapped, float(hi), float(lo))
 
 
 def _refuse_unusable(check: PairCheck, side: int) -> None:
@@ -173,28 +181,36 @@ def _refuse_unusable(check: PairCheck, side: int) -> None:
         )
     if check.swapped > 0.7:
         raise InputError(
-            f"left and right seem swapped ({check.swapped:.0%} of feature matches have "
-            "x_left < x_right): try swapping them"
+            f"left and right seem swapped: try swapping them ({check.swapped:.0%} of feature "
+            "matches have x_left < x_right)"
         )
 
 
-def _search_range(check: PairCheck, width: int, given: int | None) -> int:
-    """Number of disparities to search, a multiple of 16, in working pixels."""
+def _search_range(check: PairCheck, width: int, given: float | None) -> tuple[int, int]:
+    """``(lowest disparity, number of disparities)`` to search, in working pixels.
+
+    The number is a multiple of 16 (OpenCV's rule). Without ``given``, the feature
+    matches set both ends with a margin (0.9 x 1st percentile - 8 px, 1.1 x 99th
+    percentile + 8 px); without reliable matches the range is ``0 .. width / 8``.
+    """
+    low = 0
     if given is not None:
-        wanted = float(given)
+        high = float(given)
     elif check.reliable and np.isfinite(check.max_disparity):
-        wanted = 1.1 * max(check.max_disparity, 0.0) + 8.0
+        low = max(0, math.floor(0.9 * check.min_disparity - 8.0))
+        high = 1.1 * max(check.max_disparity, 0.0) + 8.0
     else:
-        wanted = width / 8.0
-    return int(min(max(16, math.ceil(wanted / 16.0) * 16), max(16, (width // 2) // 16 * 16)))
+        high = width / 8.0
+    count = max(16, math.ceil((high - low) / 16.0) * 16)
+    return low, int(min(count, max(16, (width // 2) // 16 * 16)))
 
 
-def _sgbm(cv2, left: np.ndarray, right: np.ndarray, ndisp: int) -> np.ndarray:
-    """Left-view disparity in pixels (float32), negative where SGBM found none."""
+def _sgbm(cv2, left: np.ndarray, right: np.ndarray, low: int, ndisp: int) -> np.ndarray:
+    """Left-view disparity in pixels (float32), below ``low`` where SGBM found none."""
     side = max(left.shape[:2])
     block = 3 if side <= 1000 else 5
     matcher = cv2.StereoSGBM_create(
-        minDisparity=0, numDisparities=ndisp, blockSize=block,
+        minDisparity=low, numDisparities=ndisp, blockSize=block,
         P1=8 * 3 * block**2, P2=32 * 3 * block**2, disp12MaxDiff=-1, uniquenessRatio=10,
         speckleWindowSize=max(50, round(100 * (side / _REFERENCE_SIDE) ** 2)), speckleRange=2,
         preFilterCap=63, mode=cv2.STEREO_SGBM_MODE_SGBM_3WAY,
@@ -210,9 +226,10 @@ def stereo_disparity(
     Args:
         left: ``(H, W, 3)`` reference view (uint8, uint16 or float in [0, 1]).
         right: ``(H, W, 3)`` the other view, same shape, to the right of ``left``.
-        max_disparity: largest disparity to search, in pixels of the input; default
-            from the feature matches (1.1 x their 99th percentile + 8 px), or
-            ``W / 8`` when there are too few. Rounded up to a multiple of 16 at the
+        max_disparity: largest disparity to search, in pixels of the input (the
+            search then starts at 0); default from the feature matches (0.9 x their
+            1st percentile - 8 px to 1.1 x their 99th percentile + 8 px), or
+            ``0 .. W / 8`` when there are too few. Rounded up to a multiple of 16 at the
             working size (pairs larger than :data:`WORK_SIZE` are matched reduced).
         check: refuse pairs that feature matches show to be unrectified or swapped.
 
@@ -248,13 +265,16 @@ def stereo_disparity(
         a = cv2.resize(a, size, interpolation=cv2.INTER_AREA)
         b = cv2.resize(b, size, interpolation=cv2.INTER_AREA)
     given = None if max_disparity is None else max_disparity * scale
-    scaled = PairCheck(pair.matches, pair.row_offset, pair.same_row, pair.swapped,
-                       pair.max_disparity * scale)
-    ndisp = _search_range(scaled, a.shape[1], given)
+    scaled = dataclasses.replace(pair, max_disparity=pair.max_disparity * scale,
+                                 min_disparity=pair.min_disparity * scale)
+    low, ndisp = _search_range(scaled, a.shape[1], given)
 
-    disp_l = _sgbm(cv2, a, b, ndisp)
-    disp_r = _sgbm(cv2, b[:, ::-1].copy(), a[:, ::-1].copy(), ndisp)[:, ::-1]
-    valid = _left_right_consistent(disp_l, disp_r)
+    disp_l = _sgbm(cv2, a, b, low, ndisp)
+    disp_r = _sgbm(cv2, b[:, ::-1].copy(), a[:, ::-1].copy(), low, ndisp)[:, ::-1]
+    # A disparity at an end of the search range may really lie beyond it: not trusted
+    # (except 0, the disparity of far-away points, when the range starts there).
+    bottom = low + 0.5 if low > 0 else -0.5
+    valid = _left_right_consistent(disp_l, disp_r, bottom, low + ndisp - 1.5)
     if not valid.any():
         raise InputError("stereo matching found no reliable disparity: are the images a "
                          "rectified stereo pair of the same scene?")
@@ -266,14 +286,17 @@ def stereo_disparity(
         valid = cv2.resize(valid.astype(np.uint8), (w, h), interpolation=cv2.INTER_NEAREST) > 0
     return StereoResult(
         disparity=np.maximum(smooth, 0.0).astype(np.float32), valid=valid,
-        max_disparity=round(ndisp / scale), check=pair, warnings=tuple(notes),
+        max_disparity=round((low + ndisp) / scale), min_disparity=round(low / scale),
+        check=pair, warnings=tuple(notes),
     )
 
 
-def _left_right_consistent(disp_l: np.ndarray, disp_r: np.ndarray, tol: float = 1.0):
-    """``(H, W) bool``: left disparity d at x agrees with the right one at x - d."""
+def _left_right_consistent(disp_l: np.ndarray, disp_r: np.ndarray, low: float, high: float,
+                           tol: float = 1.0) -> np.ndarray:
+    """``(H, W) bool``: left disparity d at x lies strictly inside (low, high) and
+    agrees within ``tol`` with the right view's disparity at x - d."""
     h, w = disp_l.shape
     x_r = np.round(np.arange(w)[None, :] - disp_l).astype(np.int64)
-    inside = (disp_l >= 0) & (x_r >= 0) & (x_r < w)
+    inside = (disp_l > low) & (disp_l < high) & (x_r >= 0) & (x_r < w)
     back = disp_r[np.arange(h)[:, None], np.clip(x_r, 0, w - 1)]
-    return inside & (back >= 0) & (np.abs(disp_l - back) <= tol)
+    return inside & (back > low) & (np.abs(disp_l - back) <= tol)

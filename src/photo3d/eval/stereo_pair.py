@@ -54,7 +54,7 @@ def read_calib(path: str | Path) -> dict:
         ...                  "cam1=[100 0 60; 0 100 40; 0 0 1]\\ndoffs=10\\nbaseline=200\\n"
         ...                  "width=100\\nheight=80\\nndisp=64\\n")
         >>> c = read_calib(p)
-        >>> c["cam1"][0, 2], c["baseline"], c["width"]
+        >>> float(c["cam1"][0, 2]), c["baseline"], c["width"]
         (60.0, 200.0, 100)
     """
     path = Path(path)

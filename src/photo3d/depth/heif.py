@@ -1,0 +1,104 @@
+"""Depth images inside HEIF/HEIC photos (iPhone and Android portraits), via pillow-heif.
+
+A HEIF image item may carry an auxiliary *depth image* (``auxC`` type
+``urn:mpeg:hevc:2015:auxid:2``), optionally with MPEG depth representation info
+(representation type, ``z_near``/``z_far`` or ``d_min``/``d_max``). pillow-heif
+(extra ``photo3d[heif]``) exposes it as ``HeifImage.info["depth_images"]``; it
+cannot write depth images.
+
+Limits: HEIF rotation/mirror boxes are applied by libheif to the primary image but
+not necessarily to its depth image; photos with such boxes may need the depth map
+rotated by hand.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+
+from photo3d.depth.portrait import EmbeddedDepth
+from photo3d.errors import InputError
+from photo3d.io.images import to_float_image
+
+PathLike = str | os.PathLike[str]
+
+
+def read_heif_depth(path: PathLike) -> EmbeddedDepth | None:
+    """The auxiliary depth image of a HEIF/HEIC's primary image, or None.
+
+    Decoding follows the depth representation info when the file has one
+    (uniform inverse z / z with ``z_near``, ``z_far`` -> depth; uniform disparity
+    with ``d_min``, ``d_max`` -> disparity); otherwise the map is normalised
+    disparity in [0, 1] (bright = near, as iPhone portraits store it).
+
+    Example:
+        >>> read_heif_depth("missing.heic")  # doctest: +IGNORE_EXCEPTION_DETAIL
+        Traceback (most recent call last):
+        photo3d.errors.InputError: image file not found: missing.heic
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"image file not found: {path}")
+    heif = _pillow_heif()
+    try:
+        file = heif.open_heif(path, convert_hdr_to_8bit=False)
+        primary = file[file.primary_index]
+    except (ValueError, RuntimeError, OSError) as err:
+        raise InputError(f"cannot read HEIF {path}: {err}") from err
+    images = primary.info.get("depth_images") or []
+    if not images:
+        return None
+    depth_image = images[0]
+    arr = np.asarray(depth_image.to_pillow())
+    if arr.ndim == 3:
+        arr = arr[..., 0]
+    bits = 16 if arr.dtype == np.uint16 else 8
+    v = arr.astype(np.float64) / (2**bits - 1)
+    meta = depth_image.info.get("metadata") or {}
+    kind_code = meta.get("representation_type")
+    z_near, z_far = meta.get("z_near"), meta.get("z_far")
+    d_min, d_max = meta.get("d_min"), meta.get("d_max")
+    if kind_code == 0 and z_near and z_far:  # uniform inverse z
+        inv = 1.0 / z_far + v * (1.0 / z_near - 1.0 / z_far)
+        return EmbeddedDepth((1.0 / inv).astype(np.float32), "depth",
+                             f"embedded HEIF depth image (uniform inverse z, near {z_near:g}, "
+                             f"far {z_far:g})")
+    if kind_code == 2 and z_near and z_far:  # uniform z
+        return EmbeddedDepth((z_near + v * (z_far - z_near)).astype(np.float32), "depth",
+                             f"embedded HEIF depth image (uniform z, near {z_near:g}, "
+                             f"far {z_far:g})")
+    if kind_code == 1 and d_min is not None and d_max is not None:
+        return EmbeddedDepth((d_min + v * (d_max - d_min)).astype(np.float32), "disparity",
+                             f"embedded HEIF depth image (uniform disparity {d_min:g}..{d_max:g})")
+    return EmbeddedDepth(v.astype(np.float32), "disparity",
+                         f"embedded HEIF depth image ({bits}-bit, taken as disparity: bright = "
+                         "near)")
+
+
+def read_heif_image(path: PathLike) -> np.ndarray:
+    """The primary image of a HEIF/HEIC file as ``(H, W, 3) float32`` in [0, 1].
+
+    Example:
+        >>> read_heif_image("missing.heic")  # doctest: +IGNORE_EXCEPTION_DETAIL
+        Traceback (most recent call last):
+        photo3d.errors.InputError: image file not found: missing.heic
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"image file not found: {path}")
+    heif = _pillow_heif()
+    try:
+        im = heif.open_heif(path).to_pillow()  # the primary image
+    except (ValueError, RuntimeError, OSError) as err:
+        raise InputError(f"cannot read HEIF {path}: {err}") from err
+    return to_float_image(np.asarray(im.convert("RGB")))
+
+
+def _pillow_heif():
+    try:
+        import pillow_heif
+    except ImportError as err:
+        raise InputError("HEIF/HEIC photos need pillow-heif: pip install 'photo3d[heif]'") from err
+    return pillow_heif

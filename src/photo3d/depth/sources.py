@@ -1,0 +1,178 @@
+"""One entry point for every depth source: file, stereo pair, network, embedded map.
+
+:func:`resolve_depth` turns what the user gave (``--depth FILE``, ``--right IMAGE``,
+``--depth-model NAME``, or nothing: the photo's own embedded depth map) into a
+:class:`DepthEstimate` that :func:`photo3d.make` accepts as ``depth=estimate.depth``
+with ``depth_kind=estimate.kind``, plus a one-line description of the source and
+plausibility warnings (:func:`photo3d.depth.checks.check_depth`).
+"""
+
+from __future__ import annotations
+
+import os
+import warnings
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from PIL import Image
+
+from photo3d.depth.checks import check_depth
+from photo3d.depth.normalize import prepare_depth
+from photo3d.errors import InputError
+from photo3d.io.depth import read_depth
+from photo3d.io.images import read_image, to_float_image
+
+PathLike = str | os.PathLike[str]
+HEIF_SUFFIXES = (".heic", ".heif", ".hif")
+
+
+@dataclass(frozen=True, eq=False)
+class DepthEstimate:
+    """A depth map ready for the pipeline, with where it came from.
+
+    Attributes:
+        depth: ``(H, W) float32`` at the image size (a ``depth`` file of another
+            size is passed on as read; the pipeline resamples it). Unknown values
+            (NaN, inf, negative) may remain; the pipeline fills them.
+        kind: ``"disparity"`` (larger = nearer) or ``"depth"`` (camera z).
+        source: one line for humans, e.g. ``"embedded GDepth depth map (range
+            inverse, near 0.3, far 4.2)"``.
+        warnings: one-line warnings (doubtful pairs, inverted or flat maps, ...).
+        image: ``(H, W, 3) float32`` a better photo than the file's primary image
+            when the source carries one (the unblurred original of a Google
+            lens-blur JPEG), else None.
+    """
+
+    depth: np.ndarray
+    kind: str
+    source: str
+    warnings: tuple[str, ...] = ()
+    image: np.ndarray | None = None
+
+
+def load_photo(image: np.ndarray | PathLike) -> np.ndarray:
+    """A photo path (JPEG/PNG/TIFF/WebP, or HEIF/HEIC with pillow-heif) or array ->
+    ``(H, W, 3) float32`` in [0, 1].
+
+    Example:
+        >>> load_photo(np.zeros((8, 8), np.uint8)).shape
+        (8, 8, 3)
+    """
+    if isinstance(image, str | os.PathLike):
+        if Path(image).suffix.lower() in HEIF_SUFFIXES:
+            from photo3d.depth.heif import read_heif_image
+
+            return read_heif_image(image)
+        return read_image(image)
+    return to_float_image(image)
+
+
+def resolve_depth(
+    image: np.ndarray | PathLike,
+    *,
+    depth: np.ndarray | PathLike | None = None,
+    right: np.ndarray | PathLike | None = None,
+    depth_model: str | PathLike | None = None,
+    kind: str | None = None,
+) -> DepthEstimate:
+    """Get the depth for a photo from whichever source was given.
+
+    Exactly one of ``depth``, ``right`` and ``depth_model`` may be given; with none,
+    the depth map embedded in the image file (Google GDepth / Dynamic Depth JPEG,
+    HEIF depth image) is used.
+
+    Args:
+        image: the photo, a path or an ``(H, W, 3)`` array (embedded depth needs a path).
+        depth: a depth file (:func:`photo3d.io.depth.read_depth`) or ``(H, W)`` array.
+        right: the right view of a rectified stereo pair whose left view is ``image``
+            (:func:`photo3d.depth.stereo.stereo_disparity`).
+        depth_model: a monocular network (:func:`photo3d.depth.models.estimate_depth`).
+        kind: ``"disparity"`` or ``"depth"``. Default: ``"disparity"`` for ``depth``,
+            the model's own kind for ``depth_model`` (given, it overrides it);
+            ignored for stereo (always disparity) and embedded maps (decoded exactly).
+
+    Returns:
+        :class:`DepthEstimate`.
+
+    Raises:
+        InputError: several sources given, none given and none embedded, or any
+            error of the chosen source.
+
+    Example:
+        >>> est = resolve_depth(np.zeros((8, 8, 3)), depth=np.ones((8, 8)))
+        >>> est.kind, est.source
+        ('disparity', 'depth array (disparity)')
+        >>> est.warnings
+        ('depth has almost no range: the 3D photo will look flat',)
+    """
+    given = [n for n, v in (("depth", depth), ("right", right), ("depth_model", depth_model))
+             if v is not None]
+    if len(given) > 1:
+        raise InputError(f"give only one depth source, got {' and '.join(given)} "
+                         "(--depth, --right and --depth-model exclude each other)")
+    if kind not in (None, "disparity", "depth"):
+        raise InputError(f"depth kind must be 'disparity' or 'depth', got {kind!r}")
+    photo = load_photo(image)
+    notes: list[str] = []
+    better_image = None
+    if depth is not None:
+        kind = kind or "disparity"
+        if isinstance(depth, str | os.PathLike):
+            raw, source = read_depth(depth), f"depth file {depth} ({kind})"
+        else:
+            raw, source = np.asarray(depth, np.float32), f"depth array ({kind})"
+    elif right is not None:
+        from photo3d.depth.stereo import stereo_disparity
+
+        result = stereo_disparity(photo, load_photo(right))
+        raw, kind = result.disparity, "disparity"
+        notes += result.warnings
+        source = (f"stereo pair (SGBM, {result.valid.mean():.0%} of pixels matched, "
+                  f"disparities up to {result.max_disparity} px)")
+    elif depth_model is not None:
+        from photo3d.depth.models import run_model
+
+        out = run_model(photo, depth_model, kind=kind)
+        raw, kind = out.depth, out.kind
+        source = f"monocular depth model {depth_model} ({kind}: {out.reason})"
+        if out.reason.startswith("assumed"):
+            notes.append(f"the model's output kind is unknown; {kind} assumed "
+                         "(pass --depth-kind to change it)")
+    else:
+        raw, kind, source, found, better_image = _embedded(image, kind, photo.shape[:2])
+        notes += found
+    notes += _checks(raw, photo, kind)
+    return DepthEstimate(depth=raw.astype(np.float32), kind=kind, source=source,
+                         warnings=tuple(notes), image=better_image)
+
+
+def _embedded(image, kind, shape):
+    """The embedded depth map of an image file, resized to the image size."""
+    missing = ("no depth given: pass --depth FILE, --right IMAGE or --depth-model NAME; "
+               "{} has no embedded depth map")
+    if not isinstance(image, str | os.PathLike):
+        raise InputError(missing.format("an image array"))
+    from photo3d.depth.portrait import read_embedded_depth
+
+    found = read_embedded_depth(image)
+    if found is None:
+        raise InputError(missing.format(Path(image).name))
+    notes = list(found.warnings)
+    if kind is not None and kind != found.kind:
+        notes.append(f"--depth-kind {kind} ignored: the embedded map is decoded as {found.kind}")
+    h, w = shape
+    depth = found.depth
+    if depth.shape != (h, w) and abs(depth.shape[1] / depth.shape[0] / (w / h) - 1) <= 0.01:
+        depth = np.asarray(Image.fromarray(depth.astype(np.float32), "F").resize(
+            (w, h), Image.Resampling.BILINEAR))
+    return depth, found.kind, found.source, notes, found.image
+
+
+def _checks(raw: np.ndarray, photo: np.ndarray, kind: str) -> list[str]:
+    """Plausibility warnings, plus any warning the conversion itself raised."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        prepared = prepare_depth(raw, photo.shape[:2], kind=kind)
+    notes = [str(w.message) for w in caught]
+    return notes + check_depth(prepared.disparity, photo, kind=kind)
