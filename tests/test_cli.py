@@ -25,7 +25,7 @@ def test_make_writes_a_3d_photo_the_four_videos_and_a_timing_summary(files, caps
                  "-o", str(out), "--size", "128", "--frames", "6", "--video-size", "64x48"])
     assert code == 0
     assert sorted(p.name for p in out.iterdir()) == [
-        "config.json", "mesh.glb", "mesh.ply", "photo3d.npz", "video"]
+        "config.json", "mesh.glb", "mesh.ply", "photo3d.npz", "video", "viewer.html"]
     videos = sorted(p.name for p in (out / "video").iterdir())
     assert videos == ["circle.mp4", "dolly-zoom-in.mp4", "swing.mp4", "zoom-in.mp4"]
     info = probe(out / "video" / "circle.mp4")
@@ -128,3 +128,28 @@ def test_depth_command_and_make_from_a_stereo_pair(tmp_path, capsys):
     assert main(["make", str(tmp_path / "left.png"), "-o", str(tmp_path / "o2")]) == 2
     err = capsys.readouterr().err
     assert "no depth given" in err and not (tmp_path / "o2").exists()
+
+
+def test_view_serves_the_viewer_on_localhost(files):
+    import signal
+    import urllib.request
+
+    out = files / "out"
+    assert main(["make", str(files / "photo.png"), "--depth", str(files / "depth.png"),
+                 "-o", str(out), "--size", "64", "--no-video", "--no-viewer", "-q"]) == 0
+    assert not (out / "viewer.html").exists()
+    proc = subprocess.Popen([sys.executable, "-m", "photo3d", "view", str(out), "--no-browser"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        line = proc.stdout.readline()
+        url = line.split(" at ", 1)[1].split()[0]
+        assert url.startswith("http://127.0.0.1:")
+        with urllib.request.urlopen(url, timeout=10) as resp:
+            assert b"<html" in resp.read(2000).lower()
+    finally:
+        proc.send_signal(signal.SIGINT)
+        _, err = proc.communicate(timeout=10)
+        proc.stdout.close()
+        proc.stderr.close()
+    assert proc.returncode == 0 and "Traceback" not in err
+    assert (out / "viewer.html").is_file()  # written on demand

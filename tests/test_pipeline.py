@@ -17,7 +17,7 @@ def test_make_save_load_round_trip(tmp_path):
     photo = photo3d.make(img, depth=d, config=exact_config(border=4))
     out = photo.save(tmp_path / "out")
     assert sorted(p.name for p in out.iterdir()) == [
-        "config.json", "mesh.glb", "mesh.ply", "photo3d.npz"]
+        "config.json", "mesh.glb", "mesh.ply", "photo3d.npz", "viewer.html"]
     back = photo3d.load(out)
     np.testing.assert_array_equal(back.ldi.links, photo.ldi.links)
     np.testing.assert_array_equal(back.ldi.color, photo.ldi.color)
@@ -40,7 +40,7 @@ def test_existing_output_is_refused_and_overwrite_replaces_it(tmp_path):
     with pytest.raises(OutputError, match="exists and is not empty"):
         photo.save(out)
     assert (out / "keep.txt").read_text() == "mine"
-    photo.save(out, overwrite=True, glb=False, ply="ascii")
+    photo.save(out, overwrite=True, glb=False, ply="ascii", viewer=False)
     assert sorted(p.name for p in out.iterdir()) == ["config.json", "mesh.ply", "photo3d.npz"]
     assert (out / "mesh.ply").read_bytes().startswith(b"ply\nformat ascii 1.0\n")
 

@@ -79,6 +79,7 @@ def _add_make_options(p: argparse.ArgumentParser, *, out_required: bool) -> None
     p.add_argument("--ply", choices=["binary", "ascii", "none"], default="binary",
                    help="PLY mesh encoding (default: %(default)s)")
     p.add_argument("--no-glb", action="store_true", help="do not write mesh.glb")
+    p.add_argument("--no-viewer", action="store_true", help="do not write viewer.html")
     p.add_argument("--no-video", action="store_true",
                    help="do not render the four standard videos")
     p.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
@@ -147,6 +148,10 @@ def build_parser() -> argparse.ArgumentParser:
     rd = sub.add_parser("render", help="render videos of a saved 3D photo (no recomputing)")
     rd.add_argument("photo", type=Path, help="a 3D photo folder written by make")
     _add_video_options(rd, command="render")
+    vw = sub.add_parser("view", help="serve a 3D photo folder on 127.0.0.1 and open its viewer")
+    vw.add_argument("photo", type=Path, help="a 3D photo folder written by make")
+    vw.add_argument("--port", type=int, default=0, help="port (default: any free one)")
+    vw.add_argument("--no-browser", action="store_true", help="only print the URL")
     ev = sub.add_parser("eval", help="score novel views against a real second view")
     src = ev.add_mutually_exclusive_group()
     src.add_argument("--pair", nargs=4, metavar=("LEFT", "RIGHT", "DISP", "CALIB"),
@@ -288,7 +293,8 @@ def _run_make(args: argparse.Namespace, image, depth, config: Config) -> int:
         t = time.perf_counter()
         photo.save(args.out, overwrite=args.overwrite,
                    ply=None if args.ply == "none" else args.ply, glb=not args.no_glb,
-                   videos=videos, render_settings=settings, progress=bar)
+                   viewer=not args.no_viewer, videos=videos, render_settings=settings,
+                   progress=bar)
         photo.timings["save + video" if videos else "save"] = time.perf_counter() - t
         bar("video", 1.0)
     finally:
@@ -339,6 +345,23 @@ def _run_render(args: argparse.Namespace) -> int:
     return 0
 
 
+def _run_view(args: argparse.Namespace) -> int:
+    from photo3d.output import load_photo
+    from photo3d.viewer import VIEWER_FILE, serve, write_viewer
+
+    page = args.photo / VIEWER_FILE
+    if not page.is_file():  # made with --no-viewer: write it now
+        write_viewer(load_photo(args.photo).mesh(), page, title=args.photo.name)
+
+    def ready(url: str, opened: bool) -> None:
+        print(f"serving {args.photo}/ at {url}" + ("" if opened else "  (open it in a browser)"),
+              flush=True)
+        print("press Ctrl-C to stop", flush=True)
+
+    serve(args.photo, port=args.port, open_browser=not args.no_browser, on_ready=ready)
+    return 0
+
+
 def _run_still(args: argparse.Namespace, photo, spec) -> int:
     from photo3d.io.images import write_image
     from photo3d.render.animate import render_still
@@ -378,6 +401,8 @@ def main(argv: list[str] | None = None) -> int:
             return _run_render(args)
         if args.command == "eval":
             return _run_eval(args)
+        if args.command == "view":
+            return _run_view(args)
         if args.command == "demo":
             from photo3d.data import motorcycle
 

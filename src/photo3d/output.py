@@ -1,8 +1,9 @@
 """Saving and reloading 3D photos as a folder, atomically.
 
 A 3D photo folder holds ``photo3d.npz`` (the LDI, lossless), ``mesh.ply``
-(binary by default, the authors' header), ``mesh.glb`` and ``config.json`` (the
-resolved configuration plus stats and timings). Everything is written into a
+(binary by default, the authors' header), ``mesh.glb``, ``viewer.html`` (interactive,
+self-contained) and ``config.json`` (the resolved configuration plus stats and
+timings), and videos in ``video/``. Everything is written into a
 temporary sibling folder first and moved into place at the end, so an interrupted
 or failed run never leaves a half-written output folder.
 """
@@ -42,7 +43,7 @@ def check_output(out: str | Path, *, overwrite: bool) -> Path:
 
 
 def save_photo(photo: Photo3D, out: str | Path, *, overwrite: bool = False,
-               ply: str | None = "binary", glb: bool = True,
+               ply: str | None = "binary", glb: bool = True, viewer: bool = True,
                videos: Sequence[VideoSpec] = (), render_settings: RenderSettings | None = None,
                progress: Callable[[str, float], None] | None = None) -> Path:
     """Write a 3D photo folder atomically.
@@ -52,6 +53,7 @@ def save_photo(photo: Photo3D, out: str | Path, *, overwrite: bool = False,
         out: destination folder; must not exist or be empty unless ``overwrite``.
         ply: ``"binary"``, ``"ascii"`` or None (no PLY).
         glb: also write ``mesh.glb``.
+        viewer: also write ``viewer.html`` (the interactive, self-contained viewer).
         videos: videos to render into ``out/video/`` (see
             :class:`~photo3d.render.animate.VideoSpec`).
         render_settings: how videos are rendered.
@@ -66,7 +68,7 @@ def save_photo(photo: Photo3D, out: str | Path, *, overwrite: bool = False,
         ...                      config=photo3d.Config(size=None))
         >>> tmp = pathlib.Path(tempfile.mkdtemp()) / "out"
         >>> sorted(p.name for p in photo.save(tmp).iterdir())
-        ['config.json', 'mesh.glb', 'mesh.ply', 'photo3d.npz']
+        ['config.json', 'mesh.glb', 'mesh.ply', 'photo3d.npz', 'viewer.html']
     """
     if ply not in ("binary", "ascii", None):
         raise OutputError(f"ply must be 'binary', 'ascii' or None, got {ply!r}")
@@ -78,11 +80,15 @@ def save_photo(photo: Photo3D, out: str | Path, *, overwrite: bool = False,
                 "timings": photo.timings}
         save_npz(photo.ldi, tmp / LDI_FILE, meta=meta)
         (tmp / "config.json").write_text(json.dumps(meta, indent=2))
-        mesh = photo.mesh() if ply or glb or videos else None
+        mesh = photo.mesh() if ply or glb or viewer or videos else None
         if ply:
             write_ply(tmp / "mesh.ply", mesh, binary=ply == "binary")
         if glb:
             write_glb(tmp / "mesh.glb", mesh)
+        if viewer:
+            from photo3d.viewer import write_viewer
+
+            write_viewer(mesh, tmp / "viewer.html", title=out.name)
         if progress:
             progress("save", 1.0)
         if videos:

@@ -84,16 +84,18 @@ class Photo3D:
             return renderer.render(camera)
 
     def save(self, out: str | Path, *, overwrite: bool = False, ply: str | None = "binary",
-             glb: bool = True, videos=(), render_settings=None, progress=None) -> Path:
-        """Write ``photo3d.npz``, ``mesh.ply``, ``mesh.glb``, ``config.json`` and the
-        requested videos (``video/NAME.mp4``) to ``out``, atomically.
+             glb: bool = True, viewer: bool = True, videos=(), render_settings=None,
+             progress=None) -> Path:
+        """Write ``photo3d.npz``, ``mesh.ply``, ``mesh.glb``, ``viewer.html``,
+        ``config.json`` and the requested videos (``video/NAME.mp4``) to ``out``,
+        atomically.
 
         See :func:`photo3d.output.save_photo`.
         """
         from photo3d.output import save_photo
 
-        return save_photo(self, out, overwrite=overwrite, ply=ply, glb=glb, videos=videos,
-                          render_settings=render_settings, progress=progress)
+        return save_photo(self, out, overwrite=overwrite, ply=ply, glb=glb, viewer=viewer,
+                          videos=videos, render_settings=render_settings, progress=progress)
 
     @classmethod
     def load(cls, path: str | Path) -> Photo3D:

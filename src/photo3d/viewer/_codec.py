@@ -113,8 +113,8 @@ def decode_mesh(header: dict, payload: bytes) -> Mesh:
         ...          np.zeros((3, 3), np.uint8), np.ones(3, np.uint8),
         ...          np.array([[0, 2, 1]], np.int32), 4, 4, 1.0, 1.0)
         >>> back = decode_mesh(*encode_mesh(m))
-        >>> back.faces.tolist(), np.abs(back.vertices - m.vertices).max() < 1e-4
-        ([[0, 1, 2]], True)
+        >>> back.faces.tolist(), bool(np.abs(back.vertices - m.vertices).max() < 1e-4)
+        ([[1, 0, 2]], True)
     """
     if header.get("format") != "photo3d-viewer" or header.get("version") != VERSION:
         raise InputError(f"not a photo3d viewer payload of version {VERSION}")

@@ -1,0 +1,133 @@
+"""Write and read the self-contained interactive viewer page (``viewer.html``).
+
+One HTML file per 3D photo that opens anywhere, also from ``file://`` and offline:
+no server, no network, no external script or font (a Content-Security-Policy in the
+page forbids every load). It holds
+
+* ``<script id="photo3d-header" type="application/json">``: the header of
+  :func:`photo3d.viewer._codec.encode_mesh` (sizes, fields of view, quantisation
+  bounds, section offsets) plus ``animate``;
+* ``<script id="photo3d-data" type="application/octet-stream">``: the base64 of the
+  compressed mesh (positions quantised to uint16, colours uint8, faces as byte
+  planes of small deltas; about 1/12 of the GLB for the 1024 px sample);
+* the viewer (``viewer.js``, package data): a small WebGL2 renderer with the
+  projection of :mod:`photo3d.camera` (OpenCV axes, intrinsics from the mesh's
+  fields of view, principal point at the centre), so at a fixed camera the page
+  shows what :class:`photo3d.render.renderer.Renderer` renders. Pointer, touch,
+  wheel and device tilt move the camera by at most the shifts of the authors'
+  ``circle`` path, through a damped spring; until the user interacts the camera
+  follows that path.
+
+Test and link hooks: ``viewer.html#camera=x,y,z&static=1`` (camera position in the
+input camera's frame, no animation) and ``window.photo3dViewer`` (``ready``,
+``setCamera``, ``setAnimate``, ``pixels()``; see the top of ``viewer.js``).
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import json
+import os
+import re
+from importlib import resources
+from pathlib import Path
+
+from photo3d.errors import InputError, OutputError
+from photo3d.mesh import Mesh
+from photo3d.viewer._codec import decode_mesh, encode_mesh
+
+PathLike = str | os.PathLike[str]
+
+VIEWER_FILE = "viewer.html"
+_SCRIPT_RE = r'<script type="{kind}" id="{id}">(.*?)</script>'
+
+
+def write_viewer(mesh: Mesh, path: PathLike, *, title: str = "photo3d",
+                 animate: bool = True) -> Path:
+    """Write the interactive viewer page of ``mesh``.
+
+    Args:
+        mesh: vertices ``(N, 3) float32`` OpenCV camera frame of the input view with
+            ``z > 0``, colors ``(N, 3) uint8`` sRGB, labels ``(N,) uint8``, faces
+            ``(M, 3) int32``; ``width``, ``height``, ``hfov``, ``vfov`` give the
+            camera (principal point at the centre).
+        path: file to create (overwritten), usually ``OUT/viewer.html``.
+        title: page title (plain text; escaped).
+        animate: start with the camera moving along the authors' ``circle`` path
+            (until the user interacts); False keeps it still.
+
+    Returns:
+        ``path`` as a :class:`~pathlib.Path`.
+
+    Raises:
+        InputError: empty mesh, wrong shapes, non-finite vertices or ``z <= 0``.
+        OutputError: ``path`` cannot be written.
+
+    Example:
+        >>> import numpy as np, tempfile, pathlib
+        >>> mesh = Mesh(np.array([[0, 0, 1], [1, 0, 1], [0, 1, 1]], np.float32),
+        ...             np.zeros((3, 3), np.uint8), np.ones(3, np.uint8),
+        ...             np.array([[0, 2, 1]], np.int32), 4, 4, 1.0, 1.0)
+        >>> path = write_viewer(mesh, pathlib.Path(tempfile.mkdtemp()) / "viewer.html")
+        >>> read_viewer(path).faces.shape
+        (1, 3)
+    """
+    header, payload = encode_mesh(mesh)
+    header["animate"] = bool(animate)
+    before, after = _template().split("{{DATA}}")
+    header_json = json.dumps(header, separators=(",", ":")).replace("<", "\\u003c")
+    before = before.replace("{{TITLE}}", html.escape(title)).replace("{{HEADER}}", header_json)
+    after = after.replace("{{SCRIPT}}", _script())
+    path = Path(path)
+    try:
+        with open(path, "wb") as f:
+            f.write(before.encode("utf-8"))
+            f.write(base64.b64encode(payload))
+            f.write(after.encode("utf-8"))
+    except OSError as err:
+        raise OutputError(f"cannot write viewer {path}: {err.strerror or err}") from None
+    return path
+
+
+def read_viewer(path: PathLike) -> Mesh:
+    """Read the mesh back from a page written by :func:`write_viewer`.
+
+    Positions come back within the quantisation error (see
+    :mod:`photo3d.viewer._codec`), colours and labels exactly, faces rotated so
+    that their largest index is last (same winding).
+
+    Raises:
+        InputError: the file is missing or is not a photo3d viewer page.
+    """
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise InputError(f"viewer file not found: {path}") from None
+    except (OSError, UnicodeDecodeError) as err:
+        raise InputError(f"cannot read viewer {path}: {err}") from None
+    parts = [
+        re.search(_SCRIPT_RE.format(kind=kind, id=name), text, re.DOTALL)
+        for kind, name in (("application/json", "photo3d-header"),
+                           ("application/octet-stream", "photo3d-data"))
+    ]
+    if not all(parts):
+        raise InputError(f"{path} is not a photo3d viewer page (no embedded mesh)")
+    try:
+        header = json.loads(parts[0].group(1))
+        payload = base64.b64decode(parts[1].group(1), validate=True)
+    except ValueError as err:
+        raise InputError(f"{path}: damaged viewer data: {err}") from None
+    return decode_mesh(header, payload)
+
+
+def _template() -> str:
+    return resources.files(__package__).joinpath("template.html").read_text(encoding="utf-8")
+
+
+def _script() -> str:
+    script = resources.files(__package__).joinpath("viewer.js").read_text(encoding="utf-8")
+    if "</script" in script.lower() or "<!--" in script:  # would upset the HTML parser
+        raise RuntimeError("viewer.js must not contain '</script' or '<!--'")
+    return script

@@ -1,0 +1,117 @@
+"""viewer.html without a browser: self-contained, round trip of the embedded mesh, errors."""
+
+from __future__ import annotations
+
+import base64
+import json
+import math
+import re
+from dataclasses import replace
+
+import numpy as np
+import pytest
+from conftest import grid_mesh
+from viewer_scenes import box_photo, canonical_faces, shuffled
+
+from photo3d.errors import InputError, OutputError
+from photo3d.io.gltf import write_glb
+from photo3d.mesh import Mesh
+from photo3d.viewer import read_viewer, write_viewer
+from photo3d.viewer._codec import decode_mesh, encode_mesh
+
+
+def embedded(path) -> tuple[dict, str]:
+    text = path.read_text()
+    header = re.search(r'id="photo3d-header">(.*?)</script>', text, re.S).group(1)
+    return json.loads(header), text
+
+
+def assert_same_mesh(back: Mesh, mesh: Mesh, header: dict) -> None:
+    """Positions within half a quantisation step, everything else exact."""
+    lo, hi = np.array(header["position"]["lo"]), np.array(header["position"]["hi"])
+    step = (hi - lo) / 65535
+    v, w = mesh.vertices.astype(np.float64), back.vertices.astype(np.float64)
+    for axis in range(2):  # image-plane directions x / z, y / z
+        err = np.abs(w[:, axis] / w[:, 2] - v[:, axis] / v[:, 2])
+        assert err.max() <= 0.5 * step[axis] + 1e-6
+    assert np.abs(1 / w[:, 2] - 1 / v[:, 2]).max() <= 0.5 * step[2] + 1e-6
+    np.testing.assert_array_equal(back.colors, mesh.colors)
+    np.testing.assert_array_equal(back.labels, mesh.labels)
+    np.testing.assert_array_equal(canonical_faces(back.faces), canonical_faces(mesh.faces))
+    assert (back.width, back.height) == (mesh.width, mesh.height)
+    assert (back.hfov, back.vfov) == (mesh.hfov, mesh.vfov)
+
+
+def test_round_trip_of_a_3d_photo(tmp_path):
+    mesh = box_photo().mesh()
+    path = write_viewer(mesh, tmp_path / "viewer.html")
+    header, _ = embedded(path)
+    back = read_viewer(path)
+    assert_same_mesh(back, mesh, header)
+    # less than 1/50 px on screen at the input camera's focal length
+    fx = mesh.width / 2 / math.tan(mesh.hfov / 2)
+    step = (np.array(header["position"]["hi"]) - header["position"]["lo"]) / 65535
+    assert 0.5 * step[:2].max() * fx < 0.02
+
+
+def test_round_trip_with_any_face_order_and_large_indices():
+    mesh = grid_mesh(300, 300)  # 90,000 vertices: indices and deltas beyond 16 bits
+    mesh = shuffled(mesh, seed=1)
+    header, payload = encode_mesh(mesh)
+    assert_same_mesh(decode_mesh(header, payload), mesh, header)
+
+
+def test_page_is_self_contained(tmp_path):
+    path = write_viewer(box_photo().mesh(), tmp_path / "viewer.html", title="Box")
+    text = path.read_text()
+    assert not re.search(r"https?:|//[a-z0-9-]+\.[a-z]|@import|url\(|\bimport\(", text, re.I)
+    links = re.findall(r'\b(?:src|href|action)\s*=\s*"([^"]*)"', text, re.I)
+    assert links == ["data:,"]  # the empty favicon only: no file the browser would fetch
+    assert "default-src 'none'" in text  # the CSP forbids every load
+    assert "fetch(" not in text and "XMLHttpRequest" not in text and "WebSocket" not in text
+    assert text.count("<script") == 3 and "<title>Box</title>" in text
+
+
+def test_size_is_a_fraction_of_the_glb(tmp_path):
+    mesh = box_photo().mesh()
+    html = write_viewer(mesh, tmp_path / "viewer.html").stat().st_size
+    write_glb(tmp_path / "mesh.glb", mesh)
+    assert html < 0.5 * (tmp_path / "mesh.glb").stat().st_size
+
+
+def test_title_is_escaped_and_animate_recorded(tmp_path):
+    path = write_viewer(grid_mesh(), tmp_path / "v.html", title="</title><script>x()</script>",
+                        animate=False)
+    header, text = embedded(path)
+    assert "<script>x()" not in text and "&lt;/title&gt;" in text
+    assert header["animate"] is False
+    assert header["vertices"] == 9 and header["faces"] == 8
+
+
+def test_payload_is_plain_base64(tmp_path):
+    path = write_viewer(grid_mesh(), tmp_path / "v.html")
+    data = re.search(r'id="photo3d-data">(.*?)</script>', path.read_text(), re.S).group(1)
+    assert re.fullmatch(r"[A-Za-z0-9+/]*={0,2}", data)
+    assert base64.b64decode(data)[:1] == b"\x78"  # a zlib stream
+
+
+@pytest.mark.parametrize("change, message", [
+    (lambda m: replace(m, vertices=m.vertices * np.float32([1, 1, -1])), "z > 0"),
+    (lambda m: replace(m, faces=np.zeros((0, 3), np.int32)), "no vertices or no faces"),
+    (lambda m: replace(m, vertices=np.full_like(m.vertices, np.nan)), "NaN"),
+    (lambda m: replace(m, colors=m.colors[:2]), "colors"),
+])
+def test_bad_meshes_are_refused(tmp_path, change, message):
+    with pytest.raises(InputError, match=message):
+        write_viewer(change(grid_mesh()), tmp_path / "v.html")
+    assert not (tmp_path / "v.html").exists()
+
+
+def test_unwritable_path_and_foreign_files(tmp_path):
+    with pytest.raises(OutputError, match="cannot write viewer"):
+        write_viewer(grid_mesh(), tmp_path / "missing" / "v.html")
+    (tmp_path / "other.html").write_text("<html></html>")
+    with pytest.raises(InputError, match="not a photo3d viewer"):
+        read_viewer(tmp_path / "other.html")
+    with pytest.raises(InputError, match="not found"):
+        read_viewer(tmp_path / "nothing.html")
