@@ -113,6 +113,8 @@ def section_render() -> str:
 
 def section_speed() -> str:
     out = ["## Speed and memory vs image size (issue 6)", ""]
+    note = ("Peak memory at 2048 px exceeds 2 GB (the 2 GB target is for 1024 px); the "
+            "diffusion solve dominates at large sizes.")
     rec = load("speed.json")
     if rec is None:
         return "\n".join(out) + "\n" + missing("python benchmarks/bench_speed.py")
@@ -129,7 +131,7 @@ def section_speed() -> str:
                        f"{st.get('preprocess', 0):.2f} | {st.get('ldi', 0):.2f} | "
                        f"{st.get('inpaint', 0):.2f} | {st.get('mesh', 0):.2f} | "
                        f"{m['make_s']:.2f} | {m['peak_rss_mb']:.0f} |")
-    out += ["", "![time vs pixels](results/speed.png)", ""]
+    out += ["", note, "", "![time vs pixels](results/speed.png)", ""]
     return "\n".join(out)
 
 
@@ -154,6 +156,56 @@ def section_quality() -> str:
         "Synthetic: layered textured planes (photos from scikit-image) ray-cast from two "
         "cameras, independently of photo3d's renderer; exact depth.", "",
         synth, ""]
+    return "\n".join(out)
+
+
+def section_stereo() -> str:
+    out = ["## Stereo depth quality (issue 7)", ""]
+    rec = load("stereo.json")
+    if rec is None:
+        return "\n".join(out) + "\n" + missing("python benchmarks/bench_stereo.py")
+    a, v, m = rec["accuracy"], rec["views"], rec["median"]
+    out += [f"Command: `{rec['command']}`. Machine: {machine_line(rec)}.", "",
+            "`--right`: OpenCV semi-global matching with a left-right check, background-side "
+            "filling and a weighted median filter, on the Middlebury motorcycle pair against "
+            "its ground-truth disparity (all pixels with ground truth, occlusions included).", "",
+            "| measure | value |", "| --- | --- |",
+            f"| pixels off by more than 2 px (bad-2) | **{100 * a['bad2']:.1f} %** |",
+            f"| bad-1 | {100 * a['bad1']:.1f} % |",
+            f"| mean absolute error | {a['mae_px']:.2f} px |",
+            f"| pixels passing the left-right check | {100 * a['valid_fraction']:.1f} % "
+            f"(bad-2 there {100 * a['bad2_on_valid']:.1f} %) |",
+            f"| time, median | {m['stereo_s']:.2f} s, peak {m['peak_rss_mb']:.0f} MB |",
+            f"| right view rendered from the 3D photo, PSNR vs the real right image: "
+            f"ground-truth depth | {v['psnr_gt_depth_db']:.2f} dB |",
+            f"| same with stereo depth | {v['psnr_stereo_depth_db']:.2f} dB |",
+            f"| the left image as is (no view change) | {v['psnr_input_view_as_is_db']:.2f} dB |",
+            "", "(Camera for these renders: a shift and principal-point offset fitted to the "
+            "ground-truth photo and reused for the stereo one; the metric evaluation with the "
+            "calibrated camera is in the quality section.)", ""]
+    return "\n".join(out)
+
+
+def section_viewer() -> str:
+    out = ["## Interactive viewer size and first frame (issue 8)", ""]
+    rec = load("viewer.json")
+    if rec is None:
+        return "\n".join(out) + "\n" + missing("python benchmarks/bench_viewer.py")
+    sz, med = rec["sizes"], rec["median"]
+    out += [f"Command: `{rec['command']}`. Machine: {machine_line(rec)}.", "",
+            f"Motorcycle at {rec['size']} px ({rec['photo']['vertices']:,} vertices, "
+            f"{rec['photo']['faces']:,} faces); headless Chromium, {rec['gl_renderer']}.", "",
+            "| measure | value | target |", "| --- | --- | --- |",
+            f"| viewer.html | **{sz['html_bytes'] / 1e6:.2f} MB** ({sz['ratio']:.3f} x the GLB of "
+            f"{sz['glb_bytes'] / 1e6:.1f} MB) | <= 1.5 x GLB |",
+            f"| first frame (navigation start to first frame drawn), median | "
+            f"**{med['first_frame_ms'] / 1000:.2f} s** (of which software-rendered draw "
+            f"{med['stages_ms']['drawMs'] / 1000:.2f} s) | < 2 s on a laptop |",
+            f"| writing viewer.html | {med['write_viewer_s']:.2f} s | |", "",
+            "This machine has no GPU: Chromium draws with SwiftShader (CPU). Without the "
+            "software draw the page is ready in about "
+            f"{(med['first_frame_ms'] - med['stages_ms']['drawMs']) / 1000:.2f} s; the < 2 s "
+            "laptop target is an estimate from that, not a measurement.", ""]
     return "\n".join(out)
 
 
@@ -187,10 +239,7 @@ def main() -> None:
         section_make(), section_render(), section_speed(), section_quality(),
         section_json("learned.json", "Learned inpainter speed (issue 4)",
                      "python benchmarks/bench_learned.py"),
-        section_json("stereo.json", "Stereo depth quality (issue 7)",
-                     "python benchmarks/bench_stereo.py"),
-        section_json("viewer.json", "Interactive viewer size and first frame (issue 8)",
-                     "python benchmarks/bench_viewer.py"),
+        section_stereo(), section_viewer(),
     ]
     (HERE / "RESULTS.md").write_text("\n".join(parts).rstrip() + "\n")
     print(f"wrote {HERE / 'RESULTS.md'}")
