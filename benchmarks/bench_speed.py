@@ -32,7 +32,7 @@ s = motorcycle()
 inpainter = None
 if backend == "learned":
     from photo3d.inpaint.learned import LearnedInpainter
-    from photo3d.nets.weights import random_nets
+    from photo3d.eval.evaluate import random_nets
     inpainter = LearnedInpainter(nets=random_nets(seed=0))
 cfg = photo3d.Config(size=size, inpainter=backend)
 t = time.perf_counter()

@@ -153,3 +153,23 @@ def test_view_serves_the_viewer_on_localhost(files):
         proc.stderr.close()
     assert proc.returncode == 0 and "Traceback" not in err
     assert (out / "viewer.html").is_file()  # written on demand
+
+
+def test_make_with_the_learned_inpainter_and_authors_format_weights(files, capsys):
+    torch = pytest.importorskip("torch")
+    from photo3d.eval.evaluate import random_nets
+
+    weights = files / "weights"
+    weights.mkdir()
+    nets = random_nets(seed=1)
+    for kind in ("edge", "depth", "color"):
+        torch.save(getattr(nets, kind).state_dict(), weights / f"{kind}-model.pth")
+    out = files / "learned"
+    assert main(["make", str(files / "photo.png"), "--depth", str(files / "depth.png"),
+                 "-o", str(out), "--size", "96", "--no-video", "--no-viewer",
+                 "--inpainter", "learned", "--weights", str(weights), "-q"]) == 0
+    import json
+
+    meta = json.loads((out / "config.json").read_text())
+    assert meta["config"]["inpainter"] == "learned"
+    assert meta["stats"]["pixels_added"][0] > 0

@@ -59,6 +59,19 @@ def _photo3d_view(pair: StereoPair, config: Config, inpainter=None) -> np.ndarra
     return photo.render(pair.right_camera, settings=RenderSettings(ssaa=2)).color
 
 
+def random_nets(seed: int = 0):
+    """The three nets at the authors' size with random weights (timing, or a learned
+    run without weights, reported as such)."""
+    import torch
+
+    from photo3d.nets import InpaintingNets, build_net
+
+    torch.manual_seed(seed)
+    nets = {k: build_net(k).eval() for k in ("edge", "depth", "color")}
+    return InpaintingNets(**nets, device=torch.device("cpu"),
+                          sources={k: "random" for k in nets})
+
+
 def render_method(name: str, pair: StereoPair, *, config: Config | None = None,
                   weights=None) -> tuple[np.ndarray, str]:
     """The right view rendered by method ``name``, and a note."""
@@ -75,7 +88,6 @@ def render_method(name: str, pair: StereoPair, *, config: Config | None = None,
 
         if weights is None:
             from photo3d.inpaint.learned import LearnedInpainter
-            from photo3d.nets.weights import random_nets
 
             backend, note = LearnedInpainter(nets=random_nets(seed=0)), "random weights"
         else:
