@@ -7,7 +7,13 @@ is a fresh process; building the nets is not timed, the time is measured around
 ``photo3d.make`` only, and the backend reports the seconds spent inside each net.
 Prints a table and writes ``benchmarks/results/learned.json``.
 
+``--nets`` instead times each net alone on 256x256 and 512x512 inputs (batch 1, best
+of ``--repeats`` after one warm-up), in torch and, when ``onnxruntime`` is importable
+(extra path via ``--onnx-path``), exported to ONNX (opset 17) and run by
+onnxruntime's CPU provider; writes ``benchmarks/results/learned_nets.json``.
+
 Usage: python benchmarks/bench_learned.py [--runs 3] [--size 1024]
+       python benchmarks/bench_learned.py --nets [--repeats 8] [--onnx-path DIR]
 """
 
 from __future__ import annotations
@@ -49,8 +55,7 @@ class Recording(LearnedInpainter):
 
 torch.manual_seed(0)
 nets = {k: Counted(build_net(k).eval()) for k in ("edge", "depth", "color")}
-backend = Recording(nets=InpaintingNets(**nets, device=torch.device("cpu"), sources={}),
-                    runtime=sys.argv[2])
+backend = Recording(nets=InpaintingNets(**nets, device=torch.device("cpu"), sources={}))
 s = motorcycle()
 cfg = photo3d.Config(size=int(sys.argv[1]), inpainter="learned")
 t = time.perf_counter()
@@ -69,8 +74,71 @@ print(json.dumps({
 """
 
 
-def run_once(size: int, runtime: str) -> dict:
-    out = subprocess.run([sys.executable, "-c", CHILD, str(size), runtime],
+NETS = r"""
+import json, sys, tempfile, time, warnings
+from pathlib import Path
+import numpy as np, torch
+from photo3d.nets import build_net
+if sys.argv[2]:
+    sys.path.append(sys.argv[2])
+try:
+    import onnxruntime as ort
+except ImportError:
+    ort = None
+repeats, cin, out = int(sys.argv[1]), {"edge": 7, "depth": 4, "color": 6}, {}
+torch.manual_seed(0)
+tmp = Path(tempfile.mkdtemp())
+for kind in ("edge", "depth", "color"):
+    net = build_net(kind).eval()
+    for size in (256, 512):
+        x = torch.rand(1, cin[kind], size, size)
+        x[:, -2:] = (x[:, -2:] > 0.5).float()
+        runs = {"torch": lambda: net(x)}
+        if ort is not None:
+            path = tmp / f"{kind}{size}.onnx"
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                torch.onnx.export(net, (x,), str(path), dynamo=False, opset_version=17,
+                                  input_names=["x"], output_names=["y"])
+            opts = ort.SessionOptions()
+            opts.intra_op_num_threads = torch.get_num_threads()
+            sess = ort.InferenceSession(str(path), opts, providers=["CPUExecutionProvider"])
+            xn = x.numpy()
+            runs["onnx"] = lambda: sess.run(None, {"x": xn})[0]
+        best = {}
+        with torch.inference_mode():
+            for name, fn in runs.items():
+                fn()
+            for _ in range(repeats):  # interleaved, so both see the same machine load
+                for name, fn in runs.items():
+                    t = time.perf_counter()
+                    fn()
+                    best[name] = min(best.get(name, 1e9), time.perf_counter() - t)
+        out[f"{kind} {size}"] = best
+print(json.dumps({"best_s": out, "threads": torch.get_num_threads(),
+                  "onnxruntime": None if ort is None else ort.__version__}))
+"""
+
+
+def nets_only(repeats: int, onnx_path: str, out_path: Path) -> None:
+    out = subprocess.run([sys.executable, "-c", NETS, str(repeats), onnx_path],
+                         capture_output=True, text=True, check=True)
+    result = json.loads(out.stdout.strip().splitlines()[-1])
+    record = {"benchmark": "learned_nets", **result, "machine": machine_info(),
+              "command": " ".join(["python", "benchmarks/bench_learned.py", *sys.argv[1:]])}
+    out_path.parent.mkdir(parents=True, exist_ok=True)
+    out_path.write_text(json.dumps(record, indent=2))
+    print(f"best of {repeats}, batch 1, {result['threads']} threads, "
+          f"onnxruntime {result['onnxruntime']}")
+    print(f"{'net':12} {'torch s':>8} {'onnx s':>8} {'onnx gain':>9}")
+    for key, best in result["best_s"].items():
+        onnx = best.get("onnx")
+        gain = f"{1 - onnx / best['torch']:9.0%}" if onnx else f"{'-':>9}"
+        print(f"{key:12} {best['torch']:8.3f} {onnx or float('nan'):8.3f} {gain}")
+
+
+def run_once(size: int) -> dict:
+    out = subprocess.run([sys.executable, "-c", CHILD, str(size)],
                          capture_output=True, text=True, check=True)
     result = json.loads(out.stdout.strip().splitlines()[-1])
     result["peak_rss_mb"] = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024
@@ -81,16 +149,22 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--runs", type=int, default=3)
     parser.add_argument("--size", type=int, default=1024)
-    parser.add_argument("--runtime", default="torch", choices=["torch", "onnx"])
-    parser.add_argument("--out", type=Path,
-                        default=Path(__file__).parent / "results" / "learned.json")
+    parser.add_argument("--nets", action="store_true", help="time each net alone")
+    parser.add_argument("--repeats", type=int, default=8)
+    parser.add_argument("--onnx-path", default="", help="extra sys.path for onnxruntime")
+    parser.add_argument("--out", type=Path, default=None)
     args = parser.parse_args()
+    results = Path(__file__).parent / "results"
+    if args.nets:
+        nets_only(args.repeats, args.onnx_path, args.out or results / "learned_nets.json")
+        return
+    args.out = args.out or results / "learned.json"
 
     # Warm-up: numba's cache for the pipeline's own kernels (the nets need none).
     subprocess.run([sys.executable, "-c", "import numpy as np, photo3d; photo3d.make("
                     "np.random.rand(64, 64, 3), depth=np.random.rand(64, 64) + 1)"],
                    check=True, capture_output=True)
-    runs = [run_once(args.size, args.runtime) for _ in range(args.runs)]
+    runs = [run_once(args.size) for _ in range(args.runs)]
     med = {
         "make_s": statistics.median(r["make_s"] for r in runs),
         "stages": {k: statistics.median(r["stages"][k] for r in runs) for k in runs[0]["stages"]},
@@ -99,7 +173,7 @@ def main() -> None:
     }
     first = runs[0]
     patches = sum(first["patches_per_pass"])
-    record = {"benchmark": "make_learned", "size": args.size, "runtime": args.runtime,
+    record = {"benchmark": "make_learned", "size": args.size,
               "weights": "random, authors' architectures", "runs": runs, "median": med,
               "machine": machine_info(),
               "command": " ".join(["python", "benchmarks/bench_learned.py", *sys.argv[1:]])}
@@ -107,7 +181,7 @@ def main() -> None:
     args.out.write_text(json.dumps(record, indent=2))
 
     ws = first["stats"]["working_size"]
-    print(f"motorcycle {ws[0]}x{ws[1]}, learned inpainter ({args.runtime}), random weights, "
+    print(f"motorcycle {ws[0]}x{ws[1]}, learned inpainter, random weights, "
           f"{args.runs} runs (median), {record['machine']['cpu']}, "
           f"{record['machine']['cores']} cores, {first['threads']} torch threads")
     print(f"make: {med['make_s']:.1f} s  (" + ", ".join(

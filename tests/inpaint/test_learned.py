@@ -17,7 +17,7 @@ import photo3d.inpaint.learned  # noqa: E402,F401  (registers "learned")
 from photo3d.camera import DepthMapping  # noqa: E402
 from photo3d.errors import ConfigError  # noqa: E402
 from photo3d.inpaint import Patch, get_inpainter  # noqa: E402
-from photo3d.inpaint.learned import LearnedInpainter  # noqa: E402
+from photo3d.inpaint.learned import LearnedInpainter, close_gaps  # noqa: E402
 from photo3d.nets import InpaintingNets, build_net, save_safetensors  # noqa: E402
 
 SMALL = {"edge": dict(width=0.125, blocks=1), "depth": dict(levels=3, width=0.125),
@@ -144,8 +144,21 @@ def test_inputs_are_laid_out_like_the_authors():
     np.testing.assert_allclose(d[0][p.context], (logz - logz[p.context].mean())[p.context],
                                atol=1e-5)
     assert not d[0][~p.context].any()
+    np.testing.assert_array_equal(d[3], close_gaps(p.context, p.synthesis))
     c = nets.color.calls[0][0, :, y0:y0 + 40, x0:x0 + 56].numpy()
     assert c.shape[0] == 6 and not c[:3][:, p.synthesis].any()
+
+
+def test_close_gaps_fills_narrow_gaps_only():
+    ctx = np.zeros((30, 90), bool)
+    ctx[:, :20] = True
+    syn = np.zeros((30, 90), bool)
+    syn[5:25, 30:40] = True  # 10 px from the context: closed by a 41 px square
+    syn[5:25, 85:88] = True  # 45 px from the synthesis block: stays open
+    hole = close_gaps(ctx, syn)
+    assert hole[syn].all() and not hole[ctx].any()
+    assert hole[10:20, 20:30].all()  # the gap between context and synthesis
+    assert not hole[10:20, 45:80].any()
 
 
 def test_depth_round_trip_and_constant_colour():

@@ -94,6 +94,15 @@ def test_module_honours_a_non_ones_mask_kernel():
                                            padding=1)[0], expect)
 
 
+def test_unet_refuses_a_non_ones_mask_kernel():
+    net = PartialConvUNet(4, 1, levels=2, width=0.125).eval()
+    state = net.state_dict()
+    state["dec_1.conv.mask_conv.weight"] = 2 * state["dec_1.conv.mask_conv.weight"]
+    net.load_state_dict(state)
+    with pytest.raises(ValueError, match="must be all ones"):
+        net(torch.rand(1, 4, 8, 8))
+
+
 @pytest.mark.parametrize("layout", ["depth", "color"])
 def test_unet_ignores_pixels_outside_context_and_synthesis(layout):
     cin = 4 if layout == "depth" else 6

@@ -21,8 +21,10 @@ SMALL = {"edge": dict(width=0.125, blocks=1), "depth": dict(levels=3, width=0.12
 
 
 def _zeros_like_authors(kind: str) -> dict:
-    """A full-size state dict with the authors' keys and shapes (zeros: cheap)."""
-    return {k: torch.zeros_like(v) for k, v in build_net(kind).state_dict().items()}
+    """A full-size state dict with the authors' keys and shapes (zeros: cheap; the
+    fixed mask kernels are ones, as in the authors' files)."""
+    return {k: torch.ones_like(v) if k.endswith("mask_conv.weight") else torch.zeros_like(v)
+            for k, v in build_net(kind).state_dict().items()}
 
 
 @pytest.fixture(scope="module")
@@ -146,3 +148,11 @@ def test_device_defaults_to_cuda_only_when_available():
     expect = "cuda" if torch.cuda.is_available() else "cpu"
     assert W.resolve_device().type == expect
     assert W.resolve_device("cpu") == torch.device("cpu")
+
+
+def test_mask_kernels_must_be_ones(tmp_path):
+    state = {k: torch.ones_like(v) if k.endswith("mask_conv.weight") else v
+             for k, v in build_net("color", **SMALL["color"]).state_dict().items()}
+    state["dec_1A.conv.mask_conv.weight"][0, 0, 0, 0] = 0.5
+    with pytest.raises(InputError, match="key dec_1A.conv.mask_conv.weight must be all ones"):
+        W.check_state_dict(state, build_net("color", **SMALL["color"]), "color.safetensors")

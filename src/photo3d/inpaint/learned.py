@@ -16,14 +16,17 @@ Per patch, as the authors' inference does (their margin of 20 px is this backend
    net sees (log z minus its mean over the context, edges, context, synthesis) and
    predicts the zero-mean log depth; ``z' = exp(out + mean)`` maps back to
    ``d' = clip(1 / (3 z'), 0, 1)``, the inverse of that mapping.
+   Its synthesis channel (and the colour net's) is the synthesis region plus the
+   gaps a 41x41 closing of context | synthesis fills (:func:`close_gaps`, the
+   authors' ``open_small_mask``).
 4. **Colour**: the net sees (rgb, edges, context, synthesis). A patch with
    ``sqrt(h w)`` well above 512 is first shrunk (area averaging; factor chosen like
    the authors' so the longer side becomes a multiple of 128; masks re-thresholded;
    the edge channel zeroed, as the authors' code does) and the result is resized
    back bicubically.
 
-The authors' graph-based edge clean-up, small-mask opening and depth smoothing
-between context and synthesis are not part of this backend. Patches of the same
+The authors' graph-based edge clean-up and depth smoothing between context and
+synthesis are not part of this backend. Patches of the same
 padded shape run as one batch (at most ``batch_size`` patches and about
 ``batch_pixels`` pixels), under ``torch.inference_mode()``, on CUDA when available.
 """
@@ -34,13 +37,19 @@ import math
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-from scipy.ndimage import binary_dilation
+from scipy.ndimage import binary_dilation, maximum_filter, minimum_filter
 
 from photo3d.camera import DepthMapping
 from photo3d.errors import ConfigError
 from photo3d.inpaint.base import InpaintResult, Patch, Progress, register
+
+if TYPE_CHECKING:  # torch is imported lazily: photo3d works without it
+    import torch
+
+    from photo3d.nets.weights import InpaintingNets
 
 UNIT = 128
 """Net inputs are padded to multiples of this (the authors' ``unit_length``)."""
@@ -62,7 +71,34 @@ def color_scale(h: int, w: int, size: int = 512) -> float:
     return math.floor(max(h, w) * frac / 128) * 128 / max(h, w)
 
 
-def run_batched(net: Callable, inputs: Sequence[np.ndarray], *, device, batch_size: int = 8,
+def close_gaps(context: np.ndarray, synthesis: np.ndarray, *, size: int = 41,
+               iterations: int = 3) -> np.ndarray:
+    """The hole mask the depth and colour nets see (the authors' ``open_small_mask``).
+
+    ``context | synthesis`` is closed ``iterations`` times (dilation then erosion by a
+    ``size`` x ``size`` square; outside the patch counts as empty for the dilation and
+    as full for the erosion); the pixels this adds outside the context join the hole.
+
+    Args:
+        context, synthesis: ``(h, w) bool``.
+
+    Returns:
+        ``(h, w) bool``, a superset of ``synthesis`` disjoint from ``context``.
+
+    Example:
+        >>> ctx = np.zeros((1, 9), bool); ctx[0, :3] = True
+        >>> syn = np.zeros((1, 9), bool); syn[0, 5:] = True
+        >>> close_gaps(ctx, syn, size=3).astype(int).tolist()  # the 2-pixel gap closes
+        [[0, 0, 0, 1, 1, 1, 1, 1, 1]]
+    """
+    closed = (context | synthesis).astype(np.uint8)
+    for _ in range(iterations):
+        closed = maximum_filter(closed, size, mode="constant", cval=0)
+        closed = minimum_filter(closed, size, mode="constant", cval=1)
+    return synthesis | (closed.astype(bool) & ~context)
+
+
+def _run_batched(net: Callable, inputs: Sequence[np.ndarray], *, device, batch_size: int = 8,
                 batch_pixels: int = 8 * 256 * 256, unit: int = UNIT) -> list[np.ndarray]:
     """Run ``net`` on ``(C, h, w)`` arrays, zero-padded (centred) to multiples of
     ``unit``, batching equal padded shapes; returns ``(C_out, h, w) float32`` arrays."""
@@ -96,7 +132,9 @@ class _Inputs:
     def __init__(self, p: Patch, mapping: DepthMapping) -> None:
         ctx = p.context.astype(bool)
         self.ctx = ctx.astype(np.float32)
-        self.syn = (p.synthesis.astype(bool) & ~ctx).astype(np.float32)
+        syn = p.synthesis.astype(bool) & ~ctx
+        self.syn = syn.astype(np.float32)
+        self.hole = close_gaps(ctx, syn).astype(np.float32)  # depth and colour nets
         self.rgb = np.where(ctx[None], np.moveaxis(p.color, 2, 0), 0).astype(np.float32)
         self.edges = np.where(ctx, p.edges, 0).astype(np.float32)
         depth = mapping.depth(np.where(ctx, p.disparity, 0))
@@ -144,7 +182,8 @@ class LearnedInpainter:
     name = "learned"
     margin = 20
 
-    def __init__(self, *, weights: str | Path | None = None, device=None, nets=None,
+    def __init__(self, *, weights: str | Path | None = None,
+                 device: str | torch.device | None = None, nets: InpaintingNets | None = None,
                  edge_threshold: float = 0.002, edge_repeats: int = 2, color_size: int = 512,
                  batch_size: int = 8, batch_pixels: int = 8 * 256 * 256) -> None:
         if nets is None:
@@ -168,7 +207,7 @@ class LearnedInpainter:
         if not inputs:
             return []
         t = time.perf_counter()
-        out = run_batched(getattr(self.nets, kind), inputs, device=self.nets.device,
+        out = _run_batched(getattr(self.nets, kind), inputs, device=self.nets.device,
                           **self.batch)
         self.timings[kind] += time.perf_counter() - t
         return out
@@ -194,17 +233,17 @@ class LearnedInpainter:
             h, w = it.ctx.shape
             frac = color_scale(h, w, self.color_size)
             if frac >= 1:
-                inputs.append(np.concatenate([it.rgb, np.stack([e, it.ctx, it.syn])]))
+                inputs.append(np.concatenate([it.rgb, np.stack([e, it.ctx, it.hole])]))
                 scaled.append(None)
                 continue
             size = (int(h * frac), int(w * frac))
             masks = F.interpolate(torch.from_numpy(np.stack([it.syn, it.ctx]))[None], size,
                                   mode="area")[0]
-            syn = (masks[0] > 0).float()
-            ctx = ((masks[1] >= 1 - 1e-6) & (syn == 0)).float()
-            rgb = F.interpolate(torch.from_numpy(it.rgb)[None], size, mode="area")[0] * ctx
-            inputs.append(torch.cat([rgb, torch.zeros_like(ctx)[None], ctx[None], syn[None]])
-                          .numpy())
+            syn = (masks[0] > 0).numpy()
+            ctx = (masks[1] >= 1 - 1e-6).numpy() & ~syn
+            rgb = F.interpolate(torch.from_numpy(it.rgb)[None], size, mode="area")[0].numpy()
+            inputs.append(np.concatenate([rgb * ctx, np.stack(
+                [np.zeros(size, np.float32), ctx, close_gaps(ctx, syn)]).astype(np.float32)]))
             scaled.append((h, w))
         outs = self._run("color", inputs)
         result = []
@@ -218,7 +257,7 @@ class LearnedInpainter:
     def _chunk(self, patches: Sequence[Patch]) -> list[InpaintResult]:
         items = [_Inputs(p, self.mapping) for p in patches]
         edges = self._edges(items)
-        depth_out = self._run("depth", [np.stack([it.log_depth, e, it.ctx, it.syn])
+        depth_out = self._run("depth", [np.stack([it.log_depth, e, it.ctx, it.hole])
                                         for it, e in zip(items, edges, strict=True)])
         colors = self._colors(items, edges)
         results = []
@@ -246,7 +285,8 @@ class LearnedInpainter:
         return results  # type: ignore[return-value]
 
 
-def _factory(*, weights: str | Path | None = None, device=None, nets=None) -> LearnedInpainter:
+def _factory(*, weights: str | Path | None = None, device: str | torch.device | None = None,
+             nets: InpaintingNets | None = None) -> LearnedInpainter:
     return LearnedInpainter(weights=weights, device=device, nets=nets)
 
 

@@ -134,11 +134,11 @@ class PartialConv(nn.Module):
                             stride=self.stride, padding=self.padding, mask_weight=mw)
 
     def masked_forward(self, xm: Tensor, count: Tensor) -> tuple[Tensor, Tensor]:
-        """Fast path: ``xm`` already zero where invalid, ``count (B, 1, H, W)`` valid
-        channels per pixel. Falls back to :meth:`forward` for a non-ones mask kernel."""
+        """Fast path for the U-Net: ``xm`` already zero where invalid, ``count
+        (B, 1, H, W)`` the number of valid channels per pixel. Needs the all-ones mask
+        kernel (a general kernel needs per-channel masks: use :meth:`forward`)."""
         if not self.mask_conv.is_ones:
-            c = xm.shape[1]
-            return self.forward(xm, (count / c).expand(-1, c, -1, -1))
+            raise ValueError("mask_conv.weight must be all ones in a U-Net layer")
         return _renormalised_conv(xm, count, self.input_conv.weight, self.input_conv.bias,
                                   self.stride, self.padding)
 

@@ -130,7 +130,8 @@ def _fmt(shape) -> str:
 
 
 def check_state_dict(state: dict[str, Tensor], module: nn.Module, filename: str) -> None:
-    """Raise :class:`InputError` unless ``state`` has exactly ``module``'s keys and shapes.
+    """Raise :class:`InputError` unless ``state`` has exactly ``module``'s keys and shapes
+    (and all-ones partial-conv mask kernels).
 
     The message names ``filename``, the first offending key, and expected vs actual
     shape (with a count of further problems).
@@ -142,6 +143,10 @@ def check_state_dict(state: dict[str, Tensor], module: nn.Module, filename: str)
                  f"{_fmt(v.shape)}" for k, v in expected.items()
                  if k in state and tuple(state[k].shape) != tuple(v.shape)]
     problems += [f"{filename}: unexpected key {k}" for k in state if k not in expected]
+    problems += [f"{filename}: key {k} must be all ones (the fixed partial-conv mask kernel)"
+                 for k in expected if k.endswith("mask_conv.weight") and k in state
+                 and tuple(state[k].shape) == tuple(expected[k].shape)
+                 and not bool((state[k] == 1).all())]
     if problems:
         more = f" (and {len(problems) - 1} more problems)" if len(problems) > 1 else ""
         raise InputError(problems[0] + more)
