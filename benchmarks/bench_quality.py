@@ -34,15 +34,19 @@ def main() -> None:
     methods = args.methods.split(",")
     real = run({"motorcycle": motorcycle_pair}, args.out / "quality" / "real",
                methods=methods, weights=args.weights, progress=print)
-    synth = run({f"synthetic{i}": partial(synthetic_pair, i) for i in range(args.synthetic)},
-                args.out / "quality" / "synthetic", methods=methods, weights=args.weights,
-                progress=print)
+    synth = None
+    if args.synthetic:
+        synth = run({f"synthetic{i}": partial(synthetic_pair, i)
+                     for i in range(args.synthetic)},
+                    args.out / "quality" / "synthetic", methods=methods, weights=args.weights,
+                    progress=print)
     record = {"benchmark": "quality", "machine": machine_info(), "real": real,
               "synthetic": synth,
               "command": " ".join(["python", "benchmarks/bench_quality.py", *sys.argv[1:]])}
     (args.out / "quality.json").write_text(json.dumps(record, indent=2))
     print((args.out / "quality" / "real" / "results.md").read_text())
-    print((args.out / "quality" / "synthetic" / "results.md").read_text())
+    if synth is not None:
+        print((args.out / "quality" / "synthetic" / "results.md").read_text())
 
 
 if __name__ == "__main__":
