@@ -60,15 +60,22 @@ def main() -> None:
     parser.add_argument("--runs", type=int, default=3)
     parser.add_argument("--sizes", default="512,1024,2048")
     parser.add_argument("--backends", default="diffusion")
+    parser.add_argument("--merge", action="store_true",
+                        help="add to an existing results file instead of replacing it")
     parser.add_argument("--out", type=Path,
                         default=Path(__file__).parent / "results" / "speed.json")
     args = parser.parse_args()
     sizes = [int(s) for s in args.sizes.split(",")]
     backends = args.backends.split(",")
+    command = " ".join(["python", "benchmarks/bench_speed.py", *sys.argv[1:]])
     record = {"benchmark": "speed", "machine": machine_info(), "results": {},
-              "command": " ".join(["python", "benchmarks/bench_speed.py", *sys.argv[1:]])}
+              "command": command}
+    if args.merge and args.out.is_file():  # keep the other backends' results
+        record = json.loads(args.out.read_text())
+        record["command"] = f"{record['command']}; {command}"
     for backend in backends:
-        run_once(sizes[0], backend)  # warm-up (numba cache, page cache)
+        if args.runs > 1:
+            run_once(sizes[0], backend)  # warm-up (numba cache, page cache)
         for size in sizes:
             runs = [run_once(size, backend) for _ in range(args.runs)]
             med = {
@@ -86,7 +93,7 @@ def main() -> None:
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps(record, indent=2))
     series = {b: [(v["median"]["pixels"] / 1e6, v["median"]["make_s"])
-                  for v in record["results"][b].values()] for b in backends}
+                  for v in record["results"][b].values()] for b in record["results"]}
     line_plot(series, args.out.with_suffix(".png"), x_label="megapixels (working size)",
               y_label="make time (s)", title="photo3d make: time vs image size")
 

@@ -114,7 +114,9 @@ def section_render() -> str:
 def section_speed() -> str:
     out = ["## Speed and memory vs image size (issue 6)", ""]
     note = ("Peak memory at 2048 px exceeds 2 GB (the 2 GB target is for 1024 px); the "
-            "diffusion solve dominates at large sizes.")
+            "diffusion solve dominates at large sizes. The learned backend (random weights, "
+            "authors' sizes) was measured at 512 px only, one run, for lack of time (1024 px: "
+            "see the learned section, ~13 min; 2048 px would take about an hour here).")
     rec = load("speed.json")
     if rec is None:
         return "\n".join(out) + "\n" + missing("python benchmarks/bench_speed.py")
