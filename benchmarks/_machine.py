@@ -40,3 +40,21 @@ def machine_info() -> dict:
         "platform": platform.platform(),
         "versions": versions,
     }
+
+
+def run_child(code: str, *args) -> dict:
+    """Run ``python -c code args`` in a fresh process and return the JSON object it
+    prints last. Unless the child reports its own ``peak_rss_mb``, that is the peak
+    resident set size of the children so far (``RUSAGE_CHILDREN``: the largest of the
+    runs, which is what the benchmarks report)."""
+    import json
+    import resource
+    import subprocess
+    import sys
+
+    out = subprocess.run([sys.executable, "-c", code, *map(str, args)],
+                         capture_output=True, text=True, check=True)
+    result = json.loads(out.stdout.strip().splitlines()[-1])
+    result.setdefault("peak_rss_mb",
+                      resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024)
+    return result

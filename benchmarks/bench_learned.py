@@ -20,14 +20,13 @@ from __future__ import annotations
 
 import argparse
 import json
-import resource
 import statistics
 import subprocess
 import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).parent))
-from _machine import machine_info  # noqa: E402
+from _machine import machine_info, run_child  # noqa: E402
 
 CHILD = r"""
 import json, sys, time
@@ -138,11 +137,7 @@ def nets_only(repeats: int, onnx_path: str, out_path: Path) -> None:
 
 
 def run_once(size: int) -> dict:
-    out = subprocess.run([sys.executable, "-c", CHILD, str(size)],
-                         capture_output=True, text=True, check=True)
-    result = json.loads(out.stdout.strip().splitlines()[-1])
-    result["peak_rss_mb"] = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024
-    return result
+    return run_child(CHILD, size)
 
 
 def main() -> None:

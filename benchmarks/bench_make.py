@@ -12,14 +12,12 @@ from __future__ import annotations
 
 import argparse
 import json
-import resource
 import statistics
-import subprocess
 import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).parent))
-from _machine import machine_info  # noqa: E402
+from _machine import machine_info, run_child  # noqa: E402
 
 CHILD = r"""
 import json, resource, sys, time
@@ -41,15 +39,7 @@ print(json.dumps({"make_s": wall, "mesh_s": mesh_time, "stages": photo.timings,
 
 
 def run_once(size: int, inpainter: str) -> dict:
-    before = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
-    out = subprocess.run([sys.executable, "-c", CHILD, str(size), inpainter],
-                         capture_output=True, text=True, check=True)
-    peak_kb = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
-    result = json.loads(out.stdout.strip().splitlines()[-1])
-    # ru_maxrss of children is the max over all children so far: runs are ordered
-    # so that this is the current child's peak unless an earlier child was larger.
-    result["peak_rss_mb"] = max(peak_kb, before) / 1024
-    return result
+    return run_child(CHILD, size, inpainter)
 
 
 def main() -> None:

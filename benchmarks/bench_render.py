@@ -12,14 +12,12 @@ from __future__ import annotations
 
 import argparse
 import json
-import resource
 import statistics
-import subprocess
 import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).parent))
-from _machine import machine_info  # noqa: E402
+from _machine import machine_info, run_child  # noqa: E402
 
 CHILD = r"""
 import json, sys, tempfile, time
@@ -49,12 +47,7 @@ print(json.dumps({"render_s": wall, "faces": int(mesh.faces.shape[0]), "sizes": 
 
 def run_once(args) -> dict:
     w, h = args.size
-    out = subprocess.run([sys.executable, "-c", CHILD, str(args.frames), str(w), str(h),
-                          str(args.ssaa), args.backend], capture_output=True, text=True,
-                         check=True)
-    result = json.loads(out.stdout.strip().splitlines()[-1])
-    result["peak_rss_mb"] = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024
-    return result
+    return run_child(CHILD, args.frames, w, h, args.ssaa, args.backend)
 
 
 def main() -> None:

@@ -14,12 +14,11 @@ from __future__ import annotations
 import argparse
 import json
 import statistics
-import subprocess
 import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).parent))
-from _machine import machine_info  # noqa: E402
+from _machine import machine_info, run_child  # noqa: E402
 from _plot import line_plot  # noqa: E402
 
 CHILD = r"""
@@ -50,9 +49,7 @@ print(json.dumps({"make_s": total, "stages": photo.timings, "peak_rss_mb": peak,
 
 
 def run_once(size: int, backend: str) -> dict:
-    out = subprocess.run([sys.executable, "-c", CHILD, str(size), backend],
-                         capture_output=True, text=True, check=True)
-    return json.loads(out.stdout.strip().splitlines()[-1])
+    return run_child(CHILD, size, backend)
 
 
 def main() -> None:

@@ -59,3 +59,19 @@ def grid_mesh(rows: int = 3, cols: int = 3) -> Mesh:
     return Mesh(
         vertices, colors, (i % 5 + 1).astype(np.uint8), faces.astype(np.int32), 640, 480, 1.1, 0.85
     )
+
+
+def quad(x0, y0, x1, y1, z, color):
+    """Two triangles of the rectangle ``[x0, x1] x [y0, y1]`` at depth ``z``."""
+    v = np.array([[x0, y0, z], [x1, y0, z], [x1, y1, z], [x0, y1, z]], np.float32)
+    return v, np.tile(np.float32(color), (4, 1)), np.array([[0, 1, 2], [0, 2, 3]], np.int32)
+
+
+def merge(*meshes):
+    verts, cols, faces, n = [], [], [], 0
+    for v, c, f in meshes:
+        verts.append(v)
+        cols.append(c)
+        faces.append(f + n)
+        n += len(v)
+    return np.concatenate(verts), np.concatenate(cols), np.concatenate(faces)

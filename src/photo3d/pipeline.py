@@ -18,6 +18,7 @@ from photo3d.errors import InputError
 from photo3d.inpaint import get_inpainter
 from photo3d.inpaint.base import Inpainter
 from photo3d.inpaint.patches import extract_patches
+from photo3d.io.depth import read_depth
 from photo3d.io.images import MIN_SIDE, read_image, to_float_image
 from photo3d.ldi import LDI, cut, from_image
 from photo3d.merge import merge
@@ -160,8 +161,6 @@ def make(
         timings[stage] = now - t
         t = now
         report(stage, 1.0)
-
-    from photo3d.io.depth import read_depth
 
     img = read_image(image) if isinstance(image, str | Path) else to_float_image(image)
     raw = read_depth(depth) if isinstance(depth, str | Path) else np.asarray(depth)

@@ -6,6 +6,7 @@ import sys
 
 import numpy as np
 import pytest
+from conftest import merge, quad
 
 pytest.importorskip("moderngl")
 
@@ -41,22 +42,6 @@ def look_pose(rx: float, ry: float, t: tuple[float, float, float]) -> np.ndarray
     pose[:3, :3] = rot_x @ rot_y
     pose[:3, 3] = t
     return pose
-
-
-def quad(x0, y0, x1, y1, z, color):
-    """Two triangles of the rectangle ``[x0, x1] x [y0, y1]`` at depth ``z``."""
-    v = np.array([[x0, y0, z], [x1, y0, z], [x1, y1, z], [x0, y1, z]], np.float32)
-    return v, np.tile(np.float32(color), (4, 1)), np.array([[0, 1, 2], [0, 2, 3]], np.int32)
-
-
-def merge(*meshes):
-    verts, cols, faces, n = [], [], [], 0
-    for v, c, f in meshes:
-        verts.append(v)
-        cols.append(c)
-        faces.append(f + n)
-        n += len(v)
-    return np.concatenate(verts), np.concatenate(cols), np.concatenate(faces)
 
 
 def textured_grid(margin: int = 1, seed: int = 0):

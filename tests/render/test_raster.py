@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import merge, quad
 from scipy.spatial import ConvexHull
 
 from photo3d.camera import Intrinsics, unproject
@@ -100,22 +101,6 @@ def test_input_view_covers_exactly_the_vertices_of_kept_faces():
     np.testing.assert_allclose(out.depth.ravel()[used], depth.ravel()[used], rtol=1e-6)
     assert np.all(out.color.reshape(-1, 3)[~used] == [1.0, 0.0, 1.0])
     assert np.all(np.isinf(out.depth.ravel()[~used]))
-
-
-def quad(x0, y0, x1, y1, z, color):
-    """Two triangles of the rectangle ``[x0, x1] x [y0, y1]`` at depth ``z``."""
-    v = np.array([[x0, y0, z], [x1, y0, z], [x1, y1, z], [x0, y1, z]], np.float32)
-    return v, np.tile(np.float32(color), (4, 1)), np.array([[0, 1, 2], [0, 2, 3]], np.int32)
-
-
-def merge(*meshes):
-    verts, cols, faces, n = [], [], [], 0
-    for v, c, f in meshes:
-        verts.append(v)
-        cols.append(c)
-        faces.append(f + n)
-        n += len(v)
-    return np.concatenate(verts), np.concatenate(cols), np.concatenate(faces)
 
 
 @pytest.mark.parametrize("near_first", [True, False])

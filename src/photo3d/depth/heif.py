@@ -38,12 +38,8 @@ def read_heif_depth(path: PathLike) -> EmbeddedDepth | None:
         Traceback (most recent call last):
         photo3d.errors.InputError: image file not found: missing.heic
     """
-    path = Path(path)
-    if not path.is_file():
-        raise InputError(f"image file not found: {path}")
-    heif = _pillow_heif()
+    file = _open(path, convert_hdr_to_8bit=False)
     try:
-        file = heif.open_heif(path, convert_hdr_to_8bit=False)
         primary = file[file.primary_index]
     except (ValueError, RuntimeError, OSError) as err:
         raise InputError(f"cannot read HEIF {path}: {err}") from err
@@ -85,15 +81,23 @@ def read_heif_image(path: PathLike) -> np.ndarray:
         Traceback (most recent call last):
         photo3d.errors.InputError: image file not found: missing.heic
     """
-    path = Path(path)
-    if not path.is_file():
-        raise InputError(f"image file not found: {path}")
-    heif = _pillow_heif()
+    file = _open(path)
     try:
-        im = heif.open_heif(path).to_pillow()  # the primary image
+        im = file.to_pillow()  # the primary image
     except (ValueError, RuntimeError, OSError) as err:
         raise InputError(f"cannot read HEIF {path}: {err}") from err
     return to_float_image(np.asarray(im.convert("RGB")))
+
+
+def _open(path: PathLike, **options):
+    """``pillow_heif.open_heif(path)`` with photo3d's errors for missing or bad files."""
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"image file not found: {path}")
+    try:
+        return _pillow_heif().open_heif(path, **options)
+    except (ValueError, RuntimeError, OSError) as err:
+        raise InputError(f"cannot read HEIF {path}: {err}") from err
 
 
 def _pillow_heif():
