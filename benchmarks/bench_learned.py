@@ -12,7 +12,11 @@ of ``--repeats`` after one warm-up), in torch and, when ``onnxruntime`` is impor
 (extra path via ``--onnx-path``), exported to ONNX (opset 17) and run by
 onnxruntime's CPU provider; writes ``benchmarks/results/learned_nets.json``.
 
-Usage: python benchmarks/bench_learned.py [--runs 3] [--size 1024]
+``--edge-unit 8 --precision bf16`` measures the backend's opt-in speed-ups
+(results in ``learned_fast.json``).
+
+Usage: python benchmarks/bench_learned.py [--runs 3] [--size 1024] [--edge-unit 8]
+           [--precision bf16]
        python benchmarks/bench_learned.py --nets [--repeats 8] [--onnx-path DIR]
 """
 
@@ -48,13 +52,14 @@ class Counted(torch.nn.Module):
 
 class Recording(LearnedInpainter):
     passes = []
-    def inpaint(self, patches, *, progress=None):
+    def inpaint(self, patches, *, progress=None, pass_index=0):
         self.passes.append([padded_shape(*p.shape) for p in patches])
-        return super().inpaint(patches, progress=progress)
+        return super().inpaint(patches, progress=progress, pass_index=pass_index)
 
 torch.manual_seed(0)
 nets = {k: Counted(build_net(k).eval()) for k in ("edge", "depth", "color")}
-backend = Recording(nets=InpaintingNets(**nets, device=torch.device("cpu"), sources={}))
+backend = Recording(nets=InpaintingNets(**nets, device=torch.device("cpu"), sources={}),
+                    edge_unit=int(sys.argv[2]), precision=sys.argv[3])
 s = motorcycle()
 cfg = photo3d.Config(size=int(sys.argv[1]), inpainter="learned")
 t = time.perf_counter()
@@ -136,8 +141,8 @@ def nets_only(repeats: int, onnx_path: str, out_path: Path) -> None:
         print(f"{key:12} {best['torch']:8.3f} {onnx or float('nan'):8.3f} {gain}")
 
 
-def run_once(size: int) -> dict:
-    return run_child(CHILD, size)
+def run_once(size: int, edge_unit: int, precision: str) -> dict:
+    return run_child(CHILD, size, edge_unit, precision)
 
 
 def main() -> None:
@@ -147,19 +152,23 @@ def main() -> None:
     parser.add_argument("--nets", action="store_true", help="time each net alone")
     parser.add_argument("--repeats", type=int, default=8)
     parser.add_argument("--onnx-path", default="", help="extra sys.path for onnxruntime")
+    parser.add_argument("--edge-unit", type=int, default=128,
+                        help="edge-net padding unit (authors: 128; opt-in speed-up: 8)")
+    parser.add_argument("--precision", default="fp32", choices=("fp32", "bf16"))
     parser.add_argument("--out", type=Path, default=None)
     args = parser.parse_args()
     results = Path(__file__).parent / "results"
     if args.nets:
         nets_only(args.repeats, args.onnx_path, args.out or results / "learned_nets.json")
         return
-    args.out = args.out or results / "learned.json"
+    fast = args.edge_unit != 128 or args.precision != "fp32"
+    args.out = args.out or results / ("learned_fast.json" if fast else "learned.json")
 
     # Warm-up: numba's cache for the pipeline's own kernels (the nets need none).
     subprocess.run([sys.executable, "-c", "import numpy as np, photo3d; photo3d.make("
                     "np.random.rand(64, 64, 3), depth=np.random.rand(64, 64) + 1)"],
                    check=True, capture_output=True)
-    runs = [run_once(args.size) for _ in range(args.runs)]
+    runs = [run_once(args.size, args.edge_unit, args.precision) for _ in range(args.runs)]
     med = {
         "make_s": statistics.median(r["make_s"] for r in runs),
         "stages": {k: statistics.median(r["stages"][k] for r in runs) for k in runs[0]["stages"]},
@@ -169,6 +178,7 @@ def main() -> None:
     first = runs[0]
     patches = sum(first["patches_per_pass"])
     record = {"benchmark": "make_learned", "size": args.size,
+              "options": {"edge_unit": args.edge_unit, "precision": args.precision},
               "weights": "random, authors' architectures", "runs": runs, "median": med,
               "machine": machine_info(),
               "command": " ".join(["python", "benchmarks/bench_learned.py", *sys.argv[1:]])}

@@ -211,7 +211,7 @@ def make(
         def on_patch(i: int, n: int, k: int = k) -> None:
             report("inpaint", (k + i / max(n, 1)) / reg.max_passes)
 
-        results = backend.inpaint([j.patch for j in jobs], progress=on_patch)
+        results = backend.inpaint([j.patch for j in jobs], progress=on_patch, pass_index=k)
         merged = merge(ldi, jobs, results, label=min(k + 2, 3), threshold=thr,
                        min_edge_length=px(config.preprocess.min_edge_length),
                        overwrite_band=reg.overwrite_dilation)

@@ -200,3 +200,39 @@ def test_make_with_the_learned_backend():
                          inpainter=LearnedInpainter(nets=random_nets()))
     assert photo.stats["pixels_added"][0] > 0
     assert np.isfinite(photo.ldi.color).all() and np.isfinite(photo.ldi.disparity).all()
+
+
+def test_edge_net_runs_in_the_first_pass_only():
+    nets = stub_nets(edge=0.9)
+    inp = LearnedInpainter(nets=nets)
+    first = inp.inpaint([make_patch()], pass_index=0)[0]
+    runs = len(nets.edge.calls)
+    assert runs == 3  # one run + the authors' two repeats
+    later = inp.inpaint([make_patch()], pass_index=1)[0]
+    assert len(nets.edge.calls) == runs  # no edge net in pass 1
+    assert len(nets.depth.calls) == 2 and len(nets.color.calls) == 2
+    syn = make_patch().synthesis
+    assert first.edges[syn].all() and not later.edges[syn].any()
+    LearnedInpainter(nets=nets, edge_passes=2).inpaint([make_patch()], pass_index=1)
+    assert len(nets.edge.calls) == runs + 3
+
+
+def test_edge_unit_sets_the_edge_padding_only():
+    nets = stub_nets()
+    LearnedInpainter(nets=nets, edge_unit=8).inpaint([make_patch(h=40, w=56)])
+    assert tuple(nets.edge.calls[0].shape[2:]) == (40, 56)
+    assert tuple(nets.depth.calls[0].shape[2:]) == (128, 128)
+    with pytest.raises(ConfigError, match="multiple of 4"):
+        LearnedInpainter(nets=nets, edge_unit=6)
+
+
+def test_bf16_stays_close_to_fp32():
+    nets = random_nets(5)
+    p = make_patch(seed=2)
+    a = LearnedInpainter(nets=nets, edge_threshold=0.5).inpaint([p])[0]
+    b = LearnedInpainter(nets=nets, edge_threshold=0.5, precision="bf16").inpaint([p])[0]
+    diff = np.abs(a.color - b.color)[p.synthesis]
+    assert 0 < diff.mean() < 0.01 and diff.max() < 0.1
+    assert np.abs(a.disparity - b.disparity)[p.synthesis].mean() < 0.01
+    with pytest.raises(ConfigError, match="precision"):
+        LearnedInpainter(nets=nets, precision="fp8")

@@ -72,9 +72,16 @@ class Inpainter(Protocol):
     """Pixels of context-free margin the backend wants around each patch."""
 
     def inpaint(
-        self, patches: Sequence[Patch], *, progress: Progress | None = None
+        self, patches: Sequence[Patch], *, progress: Progress | None = None,
+        pass_index: int = 0,
     ) -> list[InpaintResult]:
-        """Fill every patch's synthesis region; one result per patch, same order."""
+        """Fill every patch's synthesis region; one result per patch, same order.
+
+        ``pass_index`` is the pipeline's inpainting pass (0 = regions of the input
+        image's depth edges, 1+ = edges the previous pass created); a backend may
+        treat passes differently (the learned backend runs its edge net in pass 0
+        only, as the authors do).
+        """
         ...
 
 

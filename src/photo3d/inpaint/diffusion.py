@@ -168,8 +168,11 @@ class DiffusionInpainter:
         self.workers = workers or os.cpu_count() or 1
 
     def inpaint(
-        self, patches: Sequence[Patch], *, progress: Progress | None = None
+        self, patches: Sequence[Patch], *, progress: Progress | None = None,
+        pass_index: int = 0,
     ) -> list[InpaintResult]:
+        """Fill every patch's synthesis region (every pass alike)."""
+
         def one(p: Patch) -> InpaintResult:
             stacked = np.concatenate([p.color, p.disparity[..., None]], axis=2)
             out = diffuse(stacked, p.context, p.synthesis, iterations=self.iterations,
