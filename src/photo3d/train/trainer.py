@@ -1,0 +1,267 @@
+"""One net, its optimiser(s), one optimisation step, and checkpoints.
+
+:class:`TrainConfig` holds every option that changes what training computes;
+:class:`Trainer` owns the net (plus the EdgeConnect discriminator for the edge net)
+and Adam (lr 1e-4, betas (0.9, 0.999); the discriminator at a tenth of the
+learning rate, EdgeConnect's ratio). A checkpoint is a folder: the net as
+``<kind>.safetensors`` (:func:`photo3d.nets.save_safetensors`, loadable by the
+learned inpainter as is), the discriminator as ``discriminator.safetensors``, the
+optimiser states as ``optimizer.pt`` (tensors, numbers and lists only: read back with
+``torch.load(weights_only=True)``) and ``state.json`` (step, config).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import torch
+from torch import Tensor, nn
+
+from photo3d.errors import ConfigError, InputError
+from photo3d.nets.edge import EdgeDiscriminator
+from photo3d.nets.weights import (
+    build_net,
+    check_state_dict,
+    read_safetensors,
+    resolve_device,
+    save_safetensors,
+)
+from photo3d.train import losses
+from photo3d.train.data import KINDS
+from photo3d.train.samples import Sample
+
+ARCHITECTURE = ("kind", "width", "levels", "blocks", "gan")
+"""Fields a resumed run must share with its checkpoint."""
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    """Everything that changes what training computes (saved as ``config.json``)."""
+
+    kind: str
+    """Which net: ``"edge"``, ``"depth"`` or ``"color"``."""
+    width: float = 1.0
+    """Channel multiplier (1.0 = the authors' nets)."""
+    levels: int = 7
+    """U-Net levels of the depth and colour nets (authors: 7)."""
+    blocks: int = 8
+    """Residual blocks of the edge net (authors: 8)."""
+    size: int = 256
+    """Crop side in pixels (a multiple of ``2**levels``, and of 4 for the edge net)."""
+    batch: int = 8
+    """Samples per optimisation step (paper: 8)."""
+    steps: int = 1000
+    """Stop after this many optimisation steps in total (a resumed run continues)."""
+    lr: float = 1e-4
+    """Adam learning rate (paper: 1e-4)."""
+    betas: tuple[float, float] = (0.9, 0.999)
+    """Adam betas (paper: beta1 0.9)."""
+    seed: int = 0
+    """Seeds the initial weights, the data choices and the region-pair choice."""
+    region_size: int | None = None
+    """Working size (longer side) at which regions are grown and targets cropped
+    (None: 4 x ``size``, so a 256 crop sees the paper's 1024 px region sizes)."""
+    depth_kind: str = "disparity"
+    """What the depth maps hold: ``"disparity"`` or ``"depth"``."""
+    gan: str = "nsgan"
+    """Edge net adversarial loss: ``"nsgan"`` (BCE) or ``"hinge"``."""
+    d_lr_ratio: float = 0.1
+    """Discriminator learning rate / generator learning rate (EdgeConnect: 0.1)."""
+    checkpoint_every: int = 500
+    """Save a checkpoint every this many steps (and at the end)."""
+    sample_every: int = 500
+    """Write a sample grid every this many steps (and at the end)."""
+
+    def __post_init__(self) -> None:
+        if self.kind not in KINDS:
+            raise ConfigError(f"unknown net {self.kind!r}; expected one of {', '.join(KINDS)}")
+        unit = 4 if self.kind == "edge" else 2**self.levels
+        if self.size <= 0 or self.size % unit:
+            raise ConfigError(f"--size {self.size} must be a positive multiple of {unit} for "
+                              f"the {self.kind} net" + ("" if self.kind == "edge" else
+                                                        f" with {self.levels} levels"))
+        for name in ("batch", "steps", "checkpoint_every", "sample_every", "levels", "blocks"):
+            if getattr(self, name) < (0 if name == "steps" else 1):
+                raise ConfigError(f"{name} must be positive, got {getattr(self, name)}")
+        if not self.width > 0 or not self.lr > 0:
+            raise ConfigError(f"width and lr must be positive, got {self.width} and {self.lr}")
+        if self.gan not in losses.GANS:
+            raise ConfigError(f"gan must be one of {', '.join(losses.GANS)}, got {self.gan!r}")
+        if self.depth_kind not in ("disparity", "depth"):
+            raise ConfigError(f"depth kind must be disparity or depth, got {self.depth_kind!r}")
+        if self.region_size is not None and self.region_size < self.size:
+            raise ConfigError(f"region size {self.region_size} is smaller than the crop "
+                              f"{self.size}")
+
+    @property
+    def working_size(self) -> int:
+        """The region size actually used."""
+        return self.region_size if self.region_size is not None else 4 * self.size
+
+    def net_config(self) -> dict:
+        """Keyword arguments of :func:`photo3d.nets.build_net` for this net."""
+        if self.kind == "edge":
+            return dict(width=self.width, blocks=self.blocks)
+        return dict(levels=self.levels, width=self.width)
+
+    def to_dict(self) -> dict:
+        return dataclasses.asdict(self)
+
+    @classmethod
+    def from_dict(cls, data: dict) -> TrainConfig:
+        """Inverse of :meth:`to_dict`."""
+        data = dict(data)
+        if "betas" in data:
+            data["betas"] = tuple(data["betas"])
+        try:
+            return cls(**data)
+        except TypeError as err:
+            raise ConfigError(f"bad training configuration: {err}") from None
+
+
+def to_tensors(samples: list[Sample], device: torch.device) -> dict[str, Tensor]:
+    """Stack samples into ``(B, C, S, S)`` float32 tensors on ``device``: ``inputs``,
+    ``target``, and ``(B, 1, S, S)`` ``context``, ``synthesis``, ``hole``, ``gray``.
+
+    Example:
+        >>> s = Sample(np.zeros((6, 4, 4), np.float32), np.zeros((3, 4, 4), np.float32),
+        ...            *(np.zeros((4, 4), bool),) * 3, np.zeros((4, 4), np.float32), 0, 1, False)
+        >>> {k: tuple(v.shape) for k, v in to_tensors([s, s], torch.device("cpu")).items()}["hole"]
+        (2, 1, 4, 4)
+    """
+    def stack(name: str, channel: bool) -> Tensor:
+        arr = np.stack([getattr(s, name) for s in samples]).astype(np.float32)
+        return torch.from_numpy(arr[:, None] if channel else arr).to(device)
+
+    out = {"inputs": stack("inputs", False), "target": stack("target", False)}
+    out.update({name: stack(name, True) for name in ("context", "synthesis", "hole", "gray")})
+    return out
+
+
+class Trainer:
+    """The net being trained, its optimiser(s) and one step.
+
+    Args:
+        config: :class:`TrainConfig`.
+        device: torch device (default CUDA when available).
+        features: VGG-16 feature extractor for the colour loss (default
+            :func:`photo3d.nets.vgg.load_vgg16`).
+
+    Example:
+        >>> t = Trainer(TrainConfig("depth", levels=3, width=0.125, size=32), device="cpu")
+        >>> type(t.net).__name__, t.discriminator is None
+        ('PartialConvUNet', True)
+    """
+
+    def __init__(self, config: TrainConfig, *, device: str | torch.device | None = None,
+                 features: nn.Module | None = None) -> None:
+        self.config = config
+        self.device = resolve_device(device)
+        torch.manual_seed(config.seed)
+        self.net = build_net(config.kind, **config.net_config()).to(self.device).train()
+        adam = dict(lr=config.lr, betas=config.betas)
+        self.optimizer = torch.optim.Adam(self.net.parameters(), **adam)
+        self.discriminator = None
+        self.d_optimizer = None
+        if config.kind == "edge":
+            self.discriminator = EdgeDiscriminator(
+                2, width=config.width, use_sigmoid=config.gan == "nsgan").to(self.device).train()
+            self.d_optimizer = torch.optim.Adam(self.discriminator.parameters(),
+                                                **{**adam, "lr": config.lr * config.d_lr_ratio})
+        self.features = None
+        if config.kind == "color":
+            if features is None:
+                from photo3d.nets.vgg import load_vgg16
+
+                features = load_vgg16()
+            self.features = features.to(self.device).eval()
+
+    def step(self, batch: dict[str, Tensor]) -> tuple[dict[str, float], Tensor]:
+        """One optimisation step on a batch from :func:`to_tensors`.
+
+        Returns:
+            ``(losses, output)``: the loss terms (``"total"`` is the one minimised;
+            the edge net also reports the discriminator's ``d_*`` terms) and the net
+            output ``(B, C, S, S)`` (detached).
+        """
+        kind = self.config.kind
+        out = self.net(batch["inputs"])
+        if kind == "edge":
+            fake = losses.composite_edges(out, batch["target"], batch["synthesis"])
+            d_terms = losses.edge_discriminator_loss(self.discriminator, batch["gray"], fake,
+                                                     batch["target"], gan=self.config.gan)
+            self.d_optimizer.zero_grad(set_to_none=True)
+            d_terms["total"].backward()
+            self.d_optimizer.step()
+            terms = losses.edge_generator_loss(self.discriminator, batch["gray"], fake,
+                                               batch["target"], gan=self.config.gan)
+            terms.update({f"d_{k}" if k == "total" else k: v for k, v in d_terms.items()})
+        elif kind == "depth":
+            terms = losses.depth_loss(out, batch["target"], batch["context"], batch["hole"])
+        else:
+            terms = losses.color_loss(out, batch["target"], batch["context"], batch["hole"],
+                                      self.features)
+        self.optimizer.zero_grad(set_to_none=True)
+        terms["total"].backward()
+        self.optimizer.step()
+        return {k: float(v.detach()) for k, v in terms.items()}, out.detach()
+
+    def save(self, folder: str | Path, step: int) -> Path:
+        """Write a checkpoint folder (see the module docstring)."""
+        from safetensors.torch import save_file
+
+        folder = Path(folder)
+        folder.mkdir(parents=True, exist_ok=True)
+        save_safetensors(self.net, folder / f"{self.config.kind}.safetensors")
+        optim = {"generator": self.optimizer.state_dict()}
+        if self.discriminator is not None:
+            save_file({k: v.detach().cpu().contiguous() for k, v in
+                       self.discriminator.state_dict().items()},
+                      str(folder / "discriminator.safetensors"))
+            optim["discriminator"] = self.d_optimizer.state_dict()
+        torch.save(optim, folder / "optimizer.pt")
+        (folder / "state.json").write_text(json.dumps(
+            {"step": int(step), "config": self.config.to_dict()}, indent=2))
+        return folder
+
+    def load(self, folder: str | Path) -> int:
+        """Restore a checkpoint written by :meth:`save`; returns its step."""
+        folder = Path(folder)
+        state = json.loads((folder / "state.json").read_text())
+        _load_module(self.net, folder / f"{self.config.kind}.safetensors")
+        try:
+            optim = torch.load(folder / "optimizer.pt", map_location=self.device,
+                               weights_only=True)
+        except Exception as err:  # torch.load raises many types on malformed input
+            raise InputError(f"cannot read {folder / 'optimizer.pt'}: {err}") from err
+        self.optimizer.load_state_dict(optim["generator"])
+        if self.discriminator is not None:
+            _load_module(self.discriminator, folder / "discriminator.safetensors")
+            self.d_optimizer.load_state_dict(optim["discriminator"])
+        return int(state["step"])
+
+    def export(self, path: str | Path) -> Path:
+        """Write the net as ``.safetensors`` for ``photo3d make --inpainter learned``."""
+        return save_safetensors(self.net, path)
+
+
+def _load_module(module: nn.Module, path: Path) -> None:
+    if not path.is_file():
+        raise InputError(f"checkpoint file missing: {path}")
+    state, _ = read_safetensors(path)
+    check_state_dict(state, module, path.name)
+    module.load_state_dict(state, strict=True)
+
+
+def parameter_count(module: nn.Module) -> int:
+    """Number of trainable parameters.
+
+    Example:
+        >>> parameter_count(nn.Linear(3, 2))
+        8
+    """
+    return sum(p.numel() for p in module.parameters() if p.requires_grad)
