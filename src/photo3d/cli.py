@@ -1,4 +1,4 @@
-"""Command line: ``photo3d make`` and ``photo3d demo``.
+"""Command line: ``photo3d make``, ``depth``, ``demo``, ``render``, ``view``, ``eval``, ``train``.
 
 Thin layer over the library: parses arguments, shows a progress bar and a timing
 summary, and turns :class:`~photo3d.errors.Photo3DError` into a one-line message
@@ -22,6 +22,7 @@ from photo3d.cli_commands import (
     _run_depth,
     _run_eval,
     _run_render,
+    _run_train,
     _run_view,
 )
 from photo3d.config import PRESETS, Config
@@ -158,7 +159,51 @@ def build_parser() -> argparse.ArgumentParser:
                     help="write one image of the input view (stereo with --stereo) to "
                          "PHOTO/still[_MODE].png instead of videos")
     rd.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
+    _add_train_parser(sub)
     return parser
+
+
+def _add_train_parser(sub) -> None:
+    tr = sub.add_parser(
+        "train", help="train one of the learned inpainter's nets on photos with depth",
+        description="Train the edge, depth or colour net (paper Sec. 3.3): region pairs "
+                    "from photos with depth are pasted onto other photos. Running again "
+                    "with the same --out resumes from the last checkpoint.")
+    tr.add_argument("kind", choices=["edge", "depth", "color"], help="which net")
+    data = tr.add_argument_group("data")
+    data.add_argument("--images", required=True, metavar="DIR|builtin",
+                      help="folder of photos, or 'builtin' (scikit-image photos and "
+                           "synthetic scenes with exact depth, written to RUN_DIR/builtin)")
+    data.add_argument("--depth", type=Path, metavar="DIR",
+                      help="depth maps named like the photos (PNG, NPY, PFM, TIFF)")
+    data.add_argument("--shapes", type=Path, metavar="DIR",
+                      help="depth maps used for region shapes only, never as training pixels")
+    data.add_argument("--depth-kind", choices=["disparity", "depth"],
+                      help="what the depth maps hold (default disparity: near = large)")
+    data.add_argument("--region-size", type=int, metavar="PX",
+                      help="working size (longer side) of region growth (default 4 x --size)")
+    data.add_argument("--builtin-scenes", type=int, default=48, metavar="N",
+                      help="synthetic scenes in --images builtin (default 48)")
+    tr.add_argument("-o", "--out", type=Path, required=True, metavar="RUN_DIR",
+                    help="run folder: checkpoints, losses.csv, samples/, <kind>.safetensors")
+    tr.add_argument("--steps", type=int, help="optimisation steps in total (default 1000)")
+    tr.add_argument("--batch", type=int, help="samples per step (default 8, the paper's)")
+    tr.add_argument("--size", type=int, help="crop side in pixels (default 256)")
+    net = tr.add_argument_group("architecture (compact variants)")
+    net.add_argument("--width", type=float, help="channel multiplier (default 1.0 = authors')")
+    net.add_argument("--levels", type=int, help="U-Net levels, depth/color (default 7)")
+    net.add_argument("--blocks", type=int, help="residual blocks, edge (default 8)")
+    opt = tr.add_argument_group("optimisation")
+    opt.add_argument("--lr", type=float, help="Adam learning rate (default 1e-4)")
+    opt.add_argument("--seed", type=int, help="random seed (default 0)")
+    opt.add_argument("--gan", choices=["nsgan", "hinge"],
+                     help="edge net adversarial loss (default nsgan)")
+    opt.add_argument("--checkpoint-every", type=int, metavar="K",
+                     help="checkpoint every K steps (default 500)")
+    opt.add_argument("--sample-every", type=int, metavar="K",
+                     help="sample grid every K steps (default 500)")
+    tr.add_argument("--device", help="torch device, e.g. cpu or cuda (default: CUDA if any)")
+    tr.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
 
 
 def _config(args: argparse.Namespace, **changes) -> Config:
@@ -296,6 +341,8 @@ def main(argv: list[str] | None = None) -> int:
             return _run_eval(args)
         if args.command == "view":
             return _run_view(args)
+        if args.command == "train":
+            return _run_train(args)
         if args.command == "demo":
             from photo3d.data import motorcycle
 

@@ -129,3 +129,94 @@ def _run_view(args: argparse.Namespace) -> int:
 def _list_files(out: Path) -> None:
     for path in sorted(p for p in out.rglob("*") if p.is_file()):
         print(f"  {str(path.relative_to(out)):<24} {path.stat().st_size / 1e6:8.2f} MB")
+
+
+_TRAIN_OPTIONS = ("width", "levels", "blocks", "size", "batch", "steps", "lr", "seed",
+                  "region_size", "depth_kind", "gan", "checkpoint_every", "sample_every")
+
+
+def _run_train(args: argparse.Namespace) -> int:
+    try:
+        import torch
+    except ImportError:
+        raise Photo3DError("photo3d train needs PyTorch: pip install 'photo3d[learned]'") from None
+    from tqdm import tqdm
+
+    from photo3d.errors import ConfigError
+    from photo3d.train import (
+        TrainConfig,
+        find_training_files,
+        parameter_count,
+        prepare_data,
+        train,
+        write_builtin,
+    )
+    from photo3d.train.run import check_resumable, checkpoints
+
+    options = {k: getattr(args, k) for k in _TRAIN_OPTIONS if getattr(args, k) is not None}
+    config = TrainConfig(args.kind, **options)
+    try:
+        device = torch.device(args.device) if args.device else None
+    except RuntimeError:
+        raise ConfigError(f"unknown torch device {args.device!r} (try cpu or cuda)") from None
+    if device is not None and device.type == "cuda" and not torch.cuda.is_available():
+        raise ConfigError("--device cuda: no CUDA device is available")
+    run = args.out
+    if run.exists() and not run.is_dir():
+        raise ConfigError(f"--out {run} exists and is not a folder")
+    check_resumable(run, config)
+    say = (lambda msg: None) if args.quiet else (lambda msg: print(msg, flush=True))
+
+    def bar(total: int, desc: str, initial: int = 0):
+        return tqdm(total=total, initial=initial, desc=desc, file=sys.stderr, leave=False,
+                    disable=True if args.quiet else None, dynamic_ncols=True)
+
+    if args.images == "builtin":
+        if args.depth is not None or args.shapes is not None:
+            raise ConfigError("--images builtin brings its own depth: drop --depth/--shapes")
+        folder = run / "builtin"
+        if not (folder / "images").is_dir():
+            side = config.working_size
+            with bar(100, "builtin data") as b:
+                write_builtin(folder, scenes=args.builtin_scenes, width=side,
+                              height=side * 3 // 4,
+                              progress=lambda _, f: b.update(round(100 * f) - b.n))
+        images, depth, shapes = folder / "images", folder / "depth", folder / "shapes"
+    else:
+        images, depth, shapes = Path(args.images), args.depth, args.shapes
+    files = find_training_files(images, depth=depth, shapes=shapes)
+    with bar(100, "prepare") as b:
+        data = prepare_data(files, crop=config.size, region_size=config.working_size,
+                            depth_kind=config.depth_kind, seed=config.seed,
+                            cache=run / "data",
+                            progress=lambda _, f: b.update(round(100 * f) - b.n))
+    data.check(config.kind)
+    sources = len({p.source for p in data.pool})
+    say(f"data: {len(data)} photos ({int(data.has_depth.sum())} with depth), "
+        f"{len(data.pool)} region pairs from {sources} depth maps")
+    saved = checkpoints(run)
+    start = saved[-1][0] if saved else 0
+    from photo3d.nets import build_net
+
+    params = parameter_count(build_net(config.kind, **config.net_config()))
+    arch = ", ".join(f"{k} {v}" for k, v in config.net_config().items())
+    say(f"net: {config.kind} ({arch}), {params / 1e6:.2f} M parameters; crop {config.size}, "
+        f"batch {config.batch}, steps {start} -> {config.steps}"
+        + (f" (resuming from {saved[-1][1].name})" if saved else ""))
+    with bar(config.steps, "train", initial=min(start, config.steps)) as b:
+        def progress(step: int, total: int, losses: dict) -> None:
+            b.set_postfix_str(f"loss {losses['total']:.4g}", refresh=False)
+            b.update(step - b.n)
+
+        result = train(data, run, config, device=device, progress=progress)
+    steps_run = result.step - result.start_step
+    if steps_run:
+        terms = ", ".join(f"{k} {v:.4g}" for k, v in result.losses.items())
+        say(f"trained {steps_run} steps in {result.seconds:.1f}s "
+            f"({result.seconds / steps_run:.2f} s/step); step {result.step}: {terms}")
+    else:
+        say(f"nothing to do: {run} is already at step {result.step}")
+    size = result.weights.stat().st_size / 1e6
+    say(f"weights: {result.weights} ({size:.2f} MB); log: {run / 'losses.csv'}; "
+        f"samples: {run / 'samples'}/")
+    return 0
