@@ -203,6 +203,9 @@ def _add_train_parser(sub) -> None:
     opt.add_argument("--sample-every", type=int, metavar="K",
                      help="sample grid every K steps (default 500)")
     tr.add_argument("--device", help="torch device, e.g. cpu or cuda (default: CUDA if any)")
+    tr.add_argument("--threads", type=int, metavar="N",
+                    help="CPU threads of torch (default: torch's choice; 1 is much faster for "
+                         "compact nets when another process keeps the other cores busy)")
     tr.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
 
 

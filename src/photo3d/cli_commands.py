@@ -161,6 +161,10 @@ def _run_train(args: argparse.Namespace) -> int:
         raise ConfigError(f"unknown torch device {args.device!r} (try cpu or cuda)") from None
     if device is not None and device.type == "cuda" and not torch.cuda.is_available():
         raise ConfigError("--device cuda: no CUDA device is available")
+    if args.threads is not None:
+        if args.threads < 1:
+            raise ConfigError(f"--threads must be at least 1, got {args.threads}")
+        torch.set_num_threads(args.threads)
     run = args.out
     if run.exists() and not run.is_dir():
         raise ConfigError(f"--out {run} exists and is not a folder")

@@ -13,7 +13,7 @@ torch = pytest.importorskip("torch")
 from photo3d.cli import main  # noqa: E402
 
 TINY = ["--size", str(CROP), "--region-size", str(REGION_SIZE), "--batch", "2", "--width",
-        "0.125", "--levels", "3", "--blocks", "1", "--device", "cpu"]
+        "0.125", "--levels", "3", "--blocks", "1", "--device", "cpu", "--threads", "1"]
 
 
 @pytest.fixture(autouse=True)
@@ -57,13 +57,13 @@ def test_two_steps_then_resume(folder, tmp_path, kind, capsys):
 def test_errors_are_one_line(folder, tmp_path, capsys):
     base = ["train", "depth", "--out", str(tmp_path / "run"), *TINY, "--steps", "1"]
     cases = [
-        (["--images", str(folder / "images")], "needs training photos with depth"
-         if False else "no region pairs"),
+        (["--images", str(folder / "images")], "no region pairs"),
         (["--images", str(tmp_path / "nope")], "does not exist"),
         (["--images", str(folder / "images"), "--depth", str(folder / "depth"),
           "--size", "60"], "multiple of 8"),
         (["--images", "builtin", "--depth", str(folder / "depth")], "brings its own depth"),
         (["--images", str(folder / "images"), "--device", "tpu9"], "unknown torch device"),
+        (["--images", str(folder / "images"), "--threads", "0"], "at least 1"),
     ]
     for extra, message in cases:
         assert main([*base, *extra]) == 2

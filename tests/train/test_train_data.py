@@ -193,3 +193,24 @@ def test_edge_inputs_are_what_the_learned_backend_feeds_its_edge_net(folder):
         assert t.edges is not None
         checked += 1
     assert checked >= 3
+
+
+def test_regions_are_never_pasted_onto_their_own_image():
+    from photo3d.train import Target, TrainingData
+
+    ctx = np.zeros((24, 24), bool)
+    ctx[:, :10] = True
+    photo = Target(np.zeros((32, 32, 3), np.float32), np.zeros((32, 32), np.float32),
+                   np.zeros((32, 32), bool))
+    plain = Target(np.zeros((32, 32, 3), np.float32), None, None)
+    pool = [RegionPair(ctx, ~ctx, 0)] * 3
+    alone = TrainingData(["a"], np.array([True]), pool, [photo])
+    with pytest.raises(InputError, match="other than the one image whose depth"):
+        alone.check("color")
+    two = TrainingData(["a", "b"], np.array([True, False]), pool, [photo, plain])
+    two.check("color")
+    with pytest.raises(InputError, match="needs a photo with depth other than"):
+        two.check("depth")
+    for seed in range(10):
+        s = make_sample(two, "color", size=32, rng=np.random.default_rng(seed))
+        assert (s.target_index, s.source_index) == (1, 0)

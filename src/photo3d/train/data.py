@@ -177,7 +177,8 @@ class TrainingData:
         self.has_depth = np.asarray(has_depth, bool)
         self.pool = pool
         self._targets = targets
-        self._sources = np.array([p.source for p in pool], np.int64)
+        self._sources = np.unique([p.source for p in pool]).astype(np.int64)
+        self._eligible: dict[str, np.ndarray] = {}
 
     def __len__(self) -> int:
         return len(self.names)
@@ -192,16 +193,23 @@ class TrainingData:
                           f["disparity"] if "disparity" in f else None,
                           f["edges"] if "edges" in f else None)
 
-    def pairs_for(self, target: int) -> np.ndarray:
-        """Indices into :attr:`pool` of the pairs from images other than ``target``."""
-        return np.flatnonzero(self._sources != target)
+    def random_pair(self, target: int, rng: np.random.Generator) -> RegionPair:
+        """A pair drawn uniformly from those of images other than ``target`` (one must
+        exist: see :meth:`eligible`)."""
+        while True:
+            pair = self.pool[int(rng.integers(len(self.pool)))]
+            if pair.source != target:
+                return pair
 
     def eligible(self, kind: str) -> np.ndarray:
         """Targets usable for ``kind``: with depth for the edge and depth nets, any for
         colour; and with at least one region pair from another image."""
-        ok = self.has_depth.copy() if kind in ("edge", "depth") else np.ones(len(self), bool)
-        others = np.array([(self._sources != t).any() for t in range(len(self))], bool)
-        return np.flatnonzero(ok & others)
+        if kind not in self._eligible:
+            ok = self.has_depth.copy() if kind in ("edge", "depth") else np.ones(len(self), bool)
+            if self._sources.size == 1 and self._sources[0] < len(self):
+                ok[self._sources[0]] = False  # its own pairs are the only ones
+            self._eligible[kind] = np.flatnonzero(ok if self._sources.size else ok & False)
+        return self._eligible[kind]
 
     def check(self, kind: str) -> None:
         """Raise :class:`InputError` (one line) unless ``kind`` can be trained."""

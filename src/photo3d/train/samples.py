@@ -155,10 +155,9 @@ def make_sample(data: TrainingData, kind: str, *, size: int, rng: np.random.Gene
         ((6, 32, 32), (3, 32, 32), False)
     """
     t = int(rng.choice(data.eligible(kind)))
-    candidates = data.pairs_for(t)
     target = data.target(t)
     for _ in range(tries):
-        pair = data.pool[int(rng.choice(candidates))]
+        pair = data.random_pair(t, rng)
         ctx, syn, swapped = place_pair(pair, size, rng)
         if ctx.sum() >= MIN_PIXELS and syn.sum() >= MIN_PIXELS:
             break
