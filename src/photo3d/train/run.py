@@ -79,10 +79,9 @@ def check_resumable(run_dir: Path, config: TrainConfig) -> None:
     if not path.is_file():
         return
     old = json.loads(path.read_text())
+    unused = ("levels",) if config.kind == "edge" else ("blocks", "gan")
     for name in ARCHITECTURE:
-        if name == "levels" and config.kind == "edge" or name == "blocks" and config.kind != "edge":
-            continue
-        if name == "gan" and config.kind != "edge":
+        if name in unused:
             continue
         if old.get(name) != getattr(config, name):
             raise ConfigError(f"{run_dir} holds a {old.get('kind')} run with {name} "

@@ -145,6 +145,9 @@ def to_tensors(samples: list[Sample], device: torch.device) -> dict[str, Tensor]
 class Trainer:
     """The net being trained, its optimiser(s) and one step.
 
+    Construction seeds torch's global random generator with ``config.seed`` (the
+    initial weights depend on it and on nothing else).
+
     Args:
         config: :class:`TrainConfig`.
         device: torch device (default CUDA when available).
