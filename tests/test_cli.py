@@ -173,3 +173,37 @@ def test_make_with_the_learned_inpainter_and_authors_format_weights(files, capsy
     meta = json.loads((out / "config.json").read_text())
     assert meta["config"]["inpainter"] == "learned"
     assert meta["stats"]["pixels_added"][0] > 0
+
+
+def test_fast_nets_reach_the_learned_backend(files, monkeypatch):
+    pytest.importorskip("torch")
+    from photo3d.inpaint import learned
+    from photo3d.nets import build_net, save_safetensors
+
+    weights = files / "small"
+    weights.mkdir()
+    small = {"edge": dict(width=0.125, blocks=1), "depth": dict(levels=3, width=0.125),
+             "color": dict(levels=3, width=0.125)}
+    for kind, cfg in small.items():
+        save_safetensors(build_net(kind, **cfg), weights / f"{kind}.safetensors")
+    seen = {}
+    original = learned.LearnedInpainter.__init__
+
+    def spy(self, **kw):
+        seen.update(kw)
+        original(self, **kw)
+
+    monkeypatch.setattr(learned.LearnedInpainter, "__init__", spy)
+    assert main(["make", str(files / "photo.png"), "--depth", str(files / "depth.png"),
+                 "-o", str(files / "fast"), "--size", "96", "--no-video", "--no-viewer",
+                 "--inpainter", "learned", "--weights", str(weights), "--fast-nets",
+                 "-q"]) == 0
+    assert seen["edge_unit"] == 8 and seen["precision"] == "bf16"
+
+
+def test_learned_only_flags_are_refused_for_diffusion(files, capsys):
+    code = main(["make", str(files / "photo.png"), "--depth", str(files / "depth.png"),
+                 "-o", str(files / "nope"), "--fast-nets", "-q"])
+    err = capsys.readouterr().err
+    assert code == 2 and "--fast-nets only apply to --inpainter learned" in err
+    assert not (files / "nope").exists()

@@ -26,7 +26,7 @@ from photo3d.cli_commands import (
     _run_view,
 )
 from photo3d.config import PRESETS, Config
-from photo3d.errors import Photo3DError
+from photo3d.errors import ConfigError, Photo3DError
 
 STAGE_LABELS = {
     "load": "load",
@@ -65,6 +65,10 @@ def _add_make_options(p: argparse.ArgumentParser, *, out_required: bool) -> None
     p.add_argument("--weights", type=Path, metavar="DIR",
                    help="weights of the learned inpainter: the authors' edge-model.pth, "
                         "depth-model.pth, color-model.pth or photo3d *.safetensors")
+    p.add_argument("--fast-nets", action="store_true",
+                   help="learned inpainter: pad the edge net's input to multiples of 8 "
+                        "(not 128) and run the nets in bfloat16; about 3x faster on CPU, "
+                        "slightly different results")
     p.add_argument("--ply", choices=["binary", "ascii", "none"], default="binary",
                    help="PLY mesh encoding (default: %(default)s)")
     p.add_argument("--no-glb", action="store_true", help="do not write mesh.glb")
@@ -280,7 +284,7 @@ def _run_make(args: argparse.Namespace, image, depth, config: Config) -> int:
     check_output(args.out, overwrite=args.overwrite)
     videos = [] if args.no_video else _videos(args)
     settings = _render_settings(args)
-    backend = get_inpainter(config.inpainter, **_inpainter_options(args))
+    backend = get_inpainter(config.inpainter, **_inpainter_options(args, config.inpainter))
     if callable(depth):
         image, depth, kind = depth()
         config = config.with_(depth_kind=kind)
@@ -302,9 +306,18 @@ def _run_make(args: argparse.Namespace, image, depth, config: Config) -> int:
     return 0
 
 
-def _inpainter_options(args: argparse.Namespace) -> dict:
-    weights = getattr(args, "weights", None)
-    return {"weights": weights} if weights is not None else {}
+def _inpainter_options(args: argparse.Namespace, inpainter: str) -> dict:
+    options = {}
+    if getattr(args, "weights", None) is not None:
+        options["weights"] = args.weights
+    if getattr(args, "fast_nets", False):
+        options.update(edge_unit=8, precision="bf16")
+    if options and inpainter != "learned":
+        flags = " and ".join(f for f, on in (("--weights", "weights" in options),
+                                             ("--fast-nets", "precision" in options)) if on)
+        raise ConfigError(f"{flags} only apply to --inpainter learned (this run uses "
+                          f"{inpainter})")
+    return options
 
 
 def _summary(photo, out: Path) -> None:
