@@ -5,8 +5,14 @@ size). Each run is a fresh process (numba cache warm); median of N runs per size
 backend; peak memory is the child's peak RSS. Writes ``results/speed.json`` and a
 plot of total time vs pixels, ``results/speed.png``.
 
+Backends: ``diffusion``; ``learned`` = the authors' architectures with random
+weights (inference time does not depend on the values); ``learned-compact`` = the
+learned backend with the weights in ``--weights DIR`` (e.g. the compact nets shipped
+with photo3d).
+
 Usage: python benchmarks/bench_speed.py [--runs 3] [--sizes 512,1024,2048]
-                                        [--backends diffusion,learned]
+                                        [--backends diffusion,learned,learned-compact]
+                                        [--weights DIR]
 """
 
 from __future__ import annotations
@@ -26,14 +32,17 @@ import json, resource, sys, time
 import numpy as np
 import photo3d
 from photo3d.data import motorcycle
-size, backend = int(sys.argv[1]), sys.argv[2]
+size, backend, weights = int(sys.argv[1]), sys.argv[2], sys.argv[3]
 s = motorcycle()
 inpainter = None
 if backend == "learned":
     from photo3d.inpaint.learned import LearnedInpainter
     from photo3d.eval.evaluate import random_nets
     inpainter = LearnedInpainter(nets=random_nets(seed=0))
-cfg = photo3d.Config(size=size, inpainter=backend)
+if backend == "learned-compact":
+    from photo3d.inpaint.learned import LearnedInpainter
+    inpainter = LearnedInpainter(weights=weights)
+cfg = photo3d.Config(size=size, inpainter=backend.split("-")[0])
 t = time.perf_counter()
 photo = photo3d.make(s.left, depth=np.asarray(s.disparity), config=cfg, inpainter=inpainter)
 total = time.perf_counter() - t
@@ -48,8 +57,8 @@ print(json.dumps({"make_s": total, "stages": photo.timings, "peak_rss_mb": peak,
 """
 
 
-def run_once(size: int, backend: str) -> dict:
-    return run_child(CHILD, size, backend)
+def run_once(size: int, backend: str, weights: str = "") -> dict:
+    return run_child(CHILD, size, backend, weights)
 
 
 def main() -> None:
@@ -57,6 +66,7 @@ def main() -> None:
     parser.add_argument("--runs", type=int, default=3)
     parser.add_argument("--sizes", default="512,1024,2048")
     parser.add_argument("--backends", default="diffusion")
+    parser.add_argument("--weights", default="", help="weights of learned-compact")
     parser.add_argument("--merge", action="store_true",
                         help="add to an existing results file instead of replacing it")
     parser.add_argument("--out", type=Path,
@@ -72,9 +82,9 @@ def main() -> None:
         record["command"] = f"{record['command']}; {command}"
     for backend in backends:
         if args.runs > 1:
-            run_once(sizes[0], backend)  # warm-up (numba cache, page cache)
+            run_once(sizes[0], backend, args.weights)  # warm-up (numba cache, page cache)
         for size in sizes:
-            runs = [run_once(size, backend) for _ in range(args.runs)]
+            runs = [run_once(size, backend, args.weights) for _ in range(args.runs)]
             med = {
                 "make_s": statistics.median(r["make_s"] for r in runs),
                 "stages": {k: statistics.median(r["stages"][k] for r in runs)

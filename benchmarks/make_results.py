@@ -115,9 +115,13 @@ def section_render() -> str:
 def section_speed() -> str:
     out = ["## Speed and memory vs image size (issue 6)", ""]
     note = ("Peak memory at 2048 px exceeds 2 GB (the 2 GB target is for 1024 px); the "
-            "diffusion solve dominates at large sizes. The learned backend (random weights, "
-            "authors' sizes) was measured at 512 px only, one run, for lack of time (1024 px: "
-            "see the learned section, ~13 min; 2048 px would take about an hour here).")
+            "diffusion solve dominates at large sizes. `learned` = the authors' "
+            "architectures with random weights, measured at 512 px here (one run) and at "
+            "1024 px in the learned section (510 s, one run); at 2048 px it would take "
+            "about 40 minutes and was not run. `learned-compact` = the compact nets "
+            "shipped with photo3d (`--inpainter learned` without `--weights`). Its later "
+            "passes find more new depth edges than diffusion's (the compact depth net "
+            "leaves steps), so it runs more patches.")
     rec = load("speed.json")
     if rec is None:
         return "\n".join(out) + "\n" + missing("python benchmarks/bench_speed.py")

@@ -64,7 +64,8 @@ def _add_make_options(p: argparse.ArgumentParser, *, out_required: bool) -> None
     p.add_argument("--inpainter", help="inpainting backend: diffusion (default) or learned")
     p.add_argument("--weights", type=Path, metavar="DIR",
                    help="weights of the learned inpainter: the authors' edge-model.pth, "
-                        "depth-model.pth, color-model.pth or photo3d *.safetensors")
+                        "depth-model.pth, color-model.pth or photo3d *.safetensors "
+                        "(default: the compact nets shipped with photo3d)")
     p.add_argument("--fast-nets", action="store_true",
                    help="learned inpainter: pad the edge net's input to multiples of 8 "
                         "(not 128) and run the nets in bfloat16; about 3x faster on CPU, "
@@ -154,7 +155,9 @@ def build_parser() -> argparse.ArgumentParser:
                      help="N synthetic layered scenes with exact ground truth (seeds 0..N-1)")
     ev.add_argument("--methods", default=",".join(_eval_methods()),
                     help="comma-separated methods (default: all)")
-    ev.add_argument("--weights", type=Path, help="learned inpainter weights folder")
+    ev.add_argument("--weights", type=Path, help="learned inpainter weights folder "
+                    "(default: the compact nets shipped with photo3d; 'random': the "
+                    "authors' architectures with random weights)")
     ev.add_argument("--no-lpips", action="store_true", help="skip LPIPS (needs torch)")
     ev.add_argument("-o", "--out", type=Path, default=Path("out/eval"),
                     help="results folder (default out/eval)")

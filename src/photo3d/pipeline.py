@@ -106,7 +106,22 @@ class Photo3D:
         return load_photo(path)
 
 
-def _edges_csr(labels: np.ndarray, count: int) -> tuple[np.ndarray, np.ndarray]:
+def edges_csr(labels: np.ndarray, count: int) -> tuple[np.ndarray, np.ndarray]:
+    """Pixels of each labelled edge, as CSR arrays (also used by the training data).
+
+    Args:
+        labels: ``(H, W) int`` edge label per pixel, 0 = none, 1..count = edges.
+        count: number of edges.
+
+    Returns:
+        ``(edge_ptr (count + 1,) int64, pixels (K,) int64)``: edge ``e`` (0-based) owns
+        the flat pixel indices ``pixels[edge_ptr[e]:edge_ptr[e + 1]]``.
+
+    Example:
+        >>> ptr, pix = edges_csr(np.array([[0, 2], [1, 2]]), 2)
+        >>> ptr.tolist(), pix.tolist()
+        ([0, 1, 3], [2, 1, 3])
+    """
     flat = labels.reshape(-1)
     pix = np.nonzero(flat)[0]
     order = np.argsort(flat[pix], kind="stable")
@@ -192,7 +207,7 @@ def make(
     ldi = from_image(pre.image, pre.disparity, intrinsics=intrinsics, mapping=mapping)
     ldi = cut(ldi, pre.edges.cuts)
     ldi = extend_border(ldi, px(reg.border))
-    edge_ptr, edge_pixels = _edges_csr(pre.edges.labels, pre.edges.count)
+    edge_ptr, edge_pixels = edges_csr(pre.edges.labels, pre.edges.count)
     done("ldi")
 
     edges_per_pass, added_per_pass = [], []

@@ -63,9 +63,24 @@ def make_patch(h=40, w=56, seed=0, split=24, edge_col=True) -> Patch:
     return Patch(color, disp, edges, ctx, syn, (0, 0))
 
 
-def test_needs_weights():
+def test_needs_weights_when_none_are_bundled(monkeypatch, tmp_path):
+    monkeypatch.setattr(photo3d.inpaint.learned, "bundled_weights", lambda: tmp_path / "none")
     with pytest.raises(ConfigError, match="--weights DIR"):
         get_inpainter("learned")
+
+
+def test_bundled_compact_weights_load_and_fit_the_size_limit():
+    folder = photo3d.inpaint.learned.bundled_weights()
+    files = sorted(folder.glob("*.safetensors"))
+    assert [f.name for f in files] == ["color.safetensors", "depth.safetensors",
+                                       "edge.safetensors"]
+    assert sum(f.stat().st_size for f in files) <= 20 * 2**20
+    inp = get_inpainter("learned", device="cpu")
+    assert inp.nets.sources == {k: "safetensors" for k in SMALL}
+    assert inp.nets.edge.config["width"] < 1 and inp.nets.color.config["width"] < 1
+    r = inp.inpaint([make_patch()])[0]
+    syn = make_patch().synthesis
+    assert np.isfinite(r.color).all() and 0 <= r.disparity[syn].min()
 
 
 def test_registered_and_loads_weights(tmp_path):

@@ -5,8 +5,9 @@ Methods (all from the same left image and ground-truth depth):
 * ``forward-warp``: the left view splatted into the right view, holes left black;
 * ``stretch``: photo3d's mesh without cutting at discontinuities (no inpainting);
 * ``diffusion``: photo3d with the diffusion inpainter (the default);
-* ``learned``: photo3d with the learned inpainter (the given weights; random
-  weights when none are given, reported as such);
+* ``learned``: photo3d with the learned inpainter (the given weights; when none
+  are given the compact weights shipped with photo3d; ``weights="random"``: the
+  authors' architectures with random weights, reported as such);
 * ``opencv-telea``, ``opencv-ns``: OpenCV's Telea and Navier-Stokes hole filling of
   the forward warp (a classical reference; needs OpenCV).
 
@@ -85,10 +86,11 @@ def render_method(name: str, pair: StereoPair, *, config: Config | None = None,
         return _photo3d_view(pair, config.with_(inpainter="diffusion")), ""
     if name == "learned":
         from photo3d.inpaint import get_inpainter
+        from photo3d.inpaint.learned import LearnedInpainter, bundled_weights
 
-        if weights is None:
-            from photo3d.inpaint.learned import LearnedInpainter
-
+        if weights is None and bundled_weights().is_dir():
+            backend, note = LearnedInpainter(), "compact weights shipped with photo3d"
+        elif weights is None or str(weights) == "random":
             backend, note = LearnedInpainter(nets=random_nets(seed=0)), "random weights"
         else:
             backend, note = get_inpainter("learned", weights=weights), f"weights {weights}"

@@ -65,6 +65,18 @@ UNIT = 128
 PRECISIONS = ("fp32", "bf16")
 
 
+def bundled_weights() -> Path:
+    """The folder of the compact nets trained for and shipped with photo3d (used when
+    no ``weights`` are given; see the README's training section for how they were
+    trained and how they score).
+
+    Example:
+        >>> sorted(p.name for p in bundled_weights().glob("*.safetensors"))
+        ['color.safetensors', 'depth.safetensors', 'edge.safetensors']
+    """
+    return Path(__file__).resolve().parents[1] / "nets" / "compact"
+
+
 def padded_shape(h: int, w: int, unit: int = UNIT) -> tuple[int, int]:
     """``(h, w)`` rounded up to multiples of ``unit``."""
     return -(-h // unit) * unit, -(-w // unit) * unit
@@ -142,8 +154,25 @@ def _run_batched(net: Callable, inputs: Sequence[np.ndarray], *, device, batch_s
     return out  # type: ignore[return-value]
 
 
-class _Inputs:
-    """Per-patch net inputs, everything zero outside the context."""
+class NetInputs:
+    """Per-patch net inputs, everything zero outside the context (the training data
+    builds its inputs with this class too, so they match inference).
+
+    Attributes (all ``(h, w) float32`` unless noted): ``ctx``, ``syn`` masks;
+    ``hole`` (:func:`close_gaps`, depth and colour nets); ``rgb`` ``(3, h, w)``;
+    ``edges``; ``disp`` (inverse depth / its maximum, edge net); ``log_depth`` (log
+    depth minus ``log_mean``, its mean over the context); ``needs_edges`` (bool: a
+    context edge touches the synthesis region).
+
+    Example:
+        >>> ctx = np.zeros((4, 6), bool); ctx[:, :3] = True
+        >>> p = Patch(np.full((4, 6, 3), 0.5, np.float32) * ctx[..., None],
+        ...           np.full((4, 6), 0.25, np.float32) * ctx, np.zeros((4, 6), np.float32),
+        ...           ctx, ~ctx, (0, 0))
+        >>> it = NetInputs(p, DepthMapping())
+        >>> it.edge_input(it.edges).shape, float(it.disp.max()), it.needs_edges
+        ((7, 4, 6), 1.0, False)
+    """
 
     def __init__(self, p: Patch, mapping: DepthMapping) -> None:
         ctx = p.context.astype(bool)
@@ -163,6 +192,7 @@ class _Inputs:
         self.needs_edges = bool((self.edges[dilated] > 0).any())
 
     def edge_input(self, edges: np.ndarray) -> np.ndarray:
+        """``(7, h, w)`` edge-net input: rgb, disparity, ``edges``, context, synthesis."""
         return np.concatenate([self.rgb, np.stack([self.disp, edges, self.ctx, self.syn])])
 
 
@@ -171,7 +201,8 @@ class LearnedInpainter:
 
     Args:
         weights: folder with the authors' ``*-model.pth`` or our ``*.safetensors``
-            (see :func:`photo3d.nets.load_inpainting_nets`).
+            (see :func:`photo3d.nets.load_inpainting_nets`); default: the compact nets
+            shipped with photo3d (:func:`bundled_weights`).
         device: torch device (default CUDA when available, else CPU).
         nets: :class:`photo3d.nets.InpaintingNets` already in memory (instead of
             ``weights``).
@@ -214,10 +245,11 @@ class LearnedInpainter:
             raise ConfigError(f"precision must be one of {', '.join(PRECISIONS)}, "
                               f"not {precision!r}")
         if nets is None:
-            if weights is None:
+            if weights is None and not bundled_weights().is_dir():
                 raise ConfigError("the learned inpainter needs its network weights: pass "
                                   "--weights DIR (a folder with edge-model.pth, "
                                   "depth-model.pth, color-model.pth)")
+            weights = bundled_weights() if weights is None else weights
             from photo3d.nets.weights import load_inpainting_nets
 
             nets = load_inpainting_nets(weights, device=device)
@@ -246,7 +278,7 @@ class LearnedInpainter:
         self.timings[kind] += time.perf_counter() - t
         return out
 
-    def _edges(self, items: list[_Inputs], *, run: bool) -> list[np.ndarray]:
+    def _edges(self, items: list[NetInputs], *, run: bool) -> list[np.ndarray]:
         edges = [it.edges for it in items]
         todo = [i for i, it in enumerate(items) if it.needs_edges and run]
         for r in range(1 + self.edge_repeats):
@@ -258,7 +290,7 @@ class LearnedInpainter:
             todo = [i for i in todo if new[i].any()] if r == 0 else todo
         return edges
 
-    def _colors(self, items: list[_Inputs], edges: list[np.ndarray]) -> list[np.ndarray]:
+    def _colors(self, items: list[NetInputs], edges: list[np.ndarray]) -> list[np.ndarray]:
         import torch
         import torch.nn.functional as F
 
@@ -289,7 +321,7 @@ class LearnedInpainter:
         return result
 
     def _chunk(self, patches: Sequence[Patch], *, run_edges: bool) -> list[InpaintResult]:
-        items = [_Inputs(p, self.mapping) for p in patches]
+        items = [NetInputs(p, self.mapping) for p in patches]
         edges = self._edges(items, run=run_edges)
         depth_out = self._run("depth", [np.stack([it.log_depth, e, it.ctx, it.hole])
                                         for it, e in zip(items, edges, strict=True)])

@@ -21,7 +21,7 @@ from photo3d.config import Config
 from photo3d.inpaint.learned import LearnedInpainter
 from photo3d.inpaint.patches import extract_patches
 from photo3d.ldi import cut, from_image
-from photo3d.pipeline import _edges_csr
+from photo3d.pipeline import edges_csr
 from photo3d.preprocess import Preprocessed
 from photo3d.regions import find_regions
 
@@ -68,7 +68,7 @@ def extract_region_pairs(pre: Preprocessed, *, config: Config, source: int = 0,
         (1, False)
     """
     rng = rng if rng is not None else np.random.default_rng(source)
-    edge_ptr, edge_pixels = _edges_csr(pre.edges.labels, pre.edges.count)
+    edge_ptr, edge_pixels = edges_csr(pre.edges.labels, pre.edges.count)
     if edge_pixels.size == 0:
         return []
     ldi = cut(from_image(pre.image, pre.disparity), pre.edges.cuts)

@@ -9,7 +9,7 @@ Under the pasted context the target's pixels are known; under the synthesis regi
 they are the ground truth of the simulated occlusion.
 
 Net inputs are built by the learned backend's own code
-(:class:`photo3d.inpaint.learned._Inputs` on a :class:`~photo3d.inpaint.base.Patch`
+(:class:`photo3d.inpaint.learned.NetInputs` on a :class:`~photo3d.inpaint.base.Patch`
 whose colour, disparity and edges are zero outside the context), so they match
 inference exactly: zeros under synthesis, disparity / max for the edge net,
 zero-mean log depth for the depth net, the :func:`~photo3d.inpaint.learned.close_gaps`
@@ -28,7 +28,7 @@ import numpy as np
 from photo3d.camera import DepthMapping
 from photo3d.errors import InputError
 from photo3d.inpaint.base import Patch
-from photo3d.inpaint.learned import _Inputs
+from photo3d.inpaint.learned import NetInputs
 from photo3d.train.data import TrainingData
 from photo3d.train.pairs import RegionPair
 
@@ -177,7 +177,7 @@ def make_sample(data: TrainingData, kind: str, *, size: int, rng: np.random.Gene
         edges = np.zeros((size, size), bool)
     patch = Patch(image * ctx[..., None], disparity * ctx, (edges & ctx).astype(np.float32),
                   ctx, syn, (0, 0))
-    it = _Inputs(patch, _MAPPING)
+    it = NetInputs(patch, _MAPPING)
     known_edges = (edges & (ctx | syn)).astype(np.float32)
     if kind == "edge":
         inputs = it.edge_input(it.edges)
