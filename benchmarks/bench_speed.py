@@ -35,13 +35,11 @@ from photo3d.data import motorcycle
 size, backend, weights = int(sys.argv[1]), sys.argv[2], sys.argv[3]
 s = motorcycle()
 inpainter = None
-if backend == "learned":
+if backend.startswith("learned"):
     from photo3d.inpaint.learned import LearnedInpainter
     from photo3d.eval.evaluate import random_nets
-    inpainter = LearnedInpainter(nets=random_nets(seed=0))
-if backend == "learned-compact":
-    from photo3d.inpaint.learned import LearnedInpainter
-    inpainter = LearnedInpainter(weights=weights)
+    inpainter = (LearnedInpainter(weights=weights) if backend == "learned-compact"
+                 else LearnedInpainter(nets=random_nets(seed=0)))
 cfg = photo3d.Config(size=size, inpainter=backend.split("-")[0])
 t = time.perf_counter()
 photo = photo3d.make(s.left, depth=np.asarray(s.disparity), config=cfg, inpainter=inpainter)

@@ -310,17 +310,13 @@ def _run_make(args: argparse.Namespace, image, depth, config: Config) -> int:
 
 
 def _inpainter_options(args: argparse.Namespace, inpainter: str) -> dict:
-    options = {}
-    if getattr(args, "weights", None) is not None:
-        options["weights"] = args.weights
-    if getattr(args, "fast_nets", False):
-        options.update(edge_unit=8, precision="bf16")
-    if options and inpainter != "learned":
-        flags = " and ".join(f for f, on in (("--weights", "weights" in options),
-                                             ("--fast-nets", "precision" in options)) if on)
-        raise ConfigError(f"{flags} only apply to --inpainter learned (this run uses "
-                          f"{inpainter})")
-    return options
+    weights, fast = getattr(args, "weights", None), getattr(args, "fast_nets", False)
+    flags = [f for f, on in (("--weights", weights is not None), ("--fast-nets", fast)) if on]
+    if flags and inpainter != "learned":
+        raise ConfigError(f"{' and '.join(flags)} only apply to --inpainter learned (this "
+                          f"run uses {inpainter})")
+    options = {} if weights is None else {"weights": weights}
+    return {**options, **(dict(edge_unit=8, precision="bf16") if fast else {})}
 
 
 def _summary(photo, out: Path) -> None:

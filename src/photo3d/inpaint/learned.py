@@ -280,7 +280,9 @@ class LearnedInpainter:
 
     def _edges(self, items: list[NetInputs], *, run: bool) -> list[np.ndarray]:
         edges = [it.edges for it in items]
-        todo = [i for i, it in enumerate(items) if it.needs_edges and run]
+        if not run:
+            return edges
+        todo = [i for i, it in enumerate(items) if it.needs_edges]
         for r in range(1 + self.edge_repeats):
             outs = self._run("edge", [items[i].edge_input(edges[i]) for i in todo])
             new = {i: ((o[0] > self.edge_threshold) & (items[i].syn > 0)).astype(np.float32)
