@@ -257,3 +257,40 @@ def test_missing_pyav_names_the_install_command(tmp_path, monkeypatch):
     monkeypatch.setitem(sys.modules, "av", None)
     with pytest.raises(ImportError, match="pip install av"):
         VideoWriter(tmp_path / "clip.mp4", size=(W, H))
+
+
+def _swscale_yuv420(rgb: np.ndarray) -> np.ndarray:
+    import av
+
+    frame = av.VideoFrame.from_ndarray(rgb, format="rgb24")
+    return frame.reformat(format="yuv420p", src_color_range="JPEG", dst_color_range="MPEG",
+                          dst_colorspace="ITU709").to_ndarray()  # fmt: skip
+
+
+def test_yuv_luma_and_flat_chroma_agree_with_swscale():
+    from photo3d.io._yuv import rgb_to_yuv420
+
+    rgb = (np.random.default_rng(3).random((32, 48, 3)) * 256).astype(np.uint8)
+    ours, ref = rgb_to_yuv420(rgb).astype(int), _swscale_yuv420(rgb).astype(int)
+    assert ours.shape == ref.shape == (48, 48)
+    assert np.abs(ours[:32] - ref[:32]).max() <= 1
+    for colour in ([230, 20, 20], [20, 200, 40], [30, 40, 220], [0, 0, 0], [255, 255, 255]):
+        flat = np.broadcast_to(np.array(colour, np.uint8), (8, 12, 3)).copy()
+        ours, ref = rgb_to_yuv420(flat).astype(int), _swscale_yuv420(flat).astype(int)
+        assert np.abs(ours - ref).max() <= 1, colour
+
+
+def test_yuv_is_bt709_limited_range_with_2x2_mean_chroma():
+    from photo3d.io._yuv import rgb_to_yuv420
+
+    rgb = (np.random.default_rng(4).random((6, 10, 3)) * 256).astype(np.uint8)
+    r, g, b = (rgb[..., k].astype(np.float64) for k in range(3))
+    luma = 0.2126 * r + 0.7152 * g + 0.0722 * b
+    expected = [np.floor(16 + 219 / 255 * luma + 0.5)]
+    for diff, scale in ((b - luma, 1.8556), (r - luma, 1.5748)):
+        mean = diff.reshape(3, 2, 5, 2).mean(axis=(1, 3))
+        expected.append(np.floor(128 + 224 / 255 / scale * mean + 0.5))
+    yuv = rgb_to_yuv420(rgb).astype(np.float64)
+    np.testing.assert_array_equal(yuv[:6], expected[0])
+    chroma = np.concatenate([e.ravel() for e in expected[1:]])
+    np.testing.assert_array_equal(yuv[6:].ravel(), chroma)

@@ -342,3 +342,57 @@ def test_invalid_inputs_raise_input_error():
         rasterize(np.where(v == 1, np.nan, v), c, f, K)
     with pytest.raises(InputError, match="near"):
         rasterize(v, c, f, K, near=0.0)
+
+
+def test_reused_buffers_give_the_same_frames_without_new_arrays():
+    rng = np.random.default_rng(5)
+    vertices = input_view_grid(rng.uniform(1, 3, (48, 64)))
+    colours = rng.integers(0, 256, (48 * 64, 3), dtype=np.uint8)
+    faces = grid_faces(48, 64)
+    poses = [look_pose(0.02 * i, -0.03 * i, (0.04 * i, 0.0, 0.05)) for i in range(3)]
+    fresh = raster.CPURasterizer(vertices, colours, faces)
+    reused = raster.CPURasterizer(vertices, colours, faces, reuse=True)
+    frames = [fresh.render(K, pose=p) for p in poses]
+    assert frames[0].color is not frames[1].color
+    previous = None
+    for pose, expected in zip(poses, frames, strict=True):
+        got = reused.render(K, pose=pose)
+        if previous is not None:
+            assert got.color is previous.color and got.depth is previous.depth
+        for name in ("color", "depth", "mask"):
+            np.testing.assert_array_equal(getattr(got, name), getattr(expected, name))
+        previous = got
+    # another size gets its own arrays
+    small = Intrinsics.default(32, 24)
+    got = reused.render(small, pose=poses[0])
+    assert got.color.shape == (24, 32, 3)
+    np.testing.assert_array_equal(got.mask, fresh.render(small, pose=poses[0]).mask)
+
+
+@pytest.mark.parametrize("factor", [1, 2, 3])
+def test_fused_resolve_equals_rendering_then_averaging(factor):
+    from photo3d.render._kernels import resolve
+
+    rng = np.random.default_rng(6)
+    vertices = input_view_grid(rng.uniform(1, 3, (48, 64)))
+    colours = rng.integers(0, 256, (48 * 64, 3), dtype=np.uint8)
+    faces = grid_faces(48, 64)[::3]  # holes: partly covered blocks
+    pose = look_pose(0.03, -0.05, (0.05, 0.01, 0.1))
+    k = Intrinsics(64.0 * factor, 64.0 * factor, 32.0 * factor, 24.0 * factor,
+                   64 * factor, 48 * factor)
+    r = raster.CPURasterizer(vertices, colours, faces, reuse=True)
+    fused = r.render_resolved(k, factor, pose=pose)
+    frag = r.render(k, pose=pose)
+    separate = resolve(frag.color, frag.depth, factor)
+    for got, expected in zip(fused, separate, strict=True):
+        np.testing.assert_array_equal(got, expected)
+    coverage = fused[1]
+    assert np.any(coverage == 0) and np.any(coverage == 1)
+    assert factor == 1 or np.any((coverage > 0) & (coverage < 1))
+    # the mean of the covered samples, their fraction and the nearest depth
+    blocks = frag.mask.reshape(48, factor, 64, factor)
+    np.testing.assert_allclose(coverage, blocks.mean(axis=(1, 3)), atol=1e-6)
+    near = np.where(frag.mask, frag.depth, np.inf).reshape(48, factor, 64, factor).min((1, 3))
+    np.testing.assert_array_equal(fused[2], near.astype(np.float32))
+    with pytest.raises(InputError, match="not a multiple"):
+        r.render_resolved(Intrinsics.default(65, 48), 2)

@@ -10,7 +10,8 @@ libx264 and libvpx, so no system ffmpeg is needed. The format follows the extens
 * ``.gif``: 256 colours from one global palette (median cut over the first
   ``PALETTE_FRAMES`` frames), Floyd-Steinberg dithering, loops forever.
 
-MP4 and WebM store limited-range BT.709 YUV and tag it so. ``yuv420p`` halves the
+MP4 and WebM store limited-range BT.709 YUV (converted by
+:func:`photo3d.io._yuv.rgb_to_yuv420`) and tag it so. ``yuv420p`` halves the
 colour resolution, so they need an even width and height (the renderer produces even
 sizes); GIF takes any size. The video goes to a hidden ``.part`` file beside the
 target, renamed over it only when :meth:`VideoWriter.close` succeeds: an error never
@@ -182,10 +183,11 @@ class VideoWriter:
             if self._palette is not None or len(self._pending) == PALETTE_FRAMES:
                 self._flush_pending()
             return
-        rgb = _require_av().VideoFrame.from_ndarray(pixels, format="rgb24")
-        yuv = rgb.reformat(format="yuv420p", src_color_range="JPEG", dst_color_range="MPEG",
-                           dst_colorspace="ITU709")  # fmt: skip
-        self._encode(yuv, self.count - 1)
+        from photo3d.io._yuv import rgb_to_yuv420
+
+        planes = rgb_to_yuv420(pixels)
+        self._encode(_require_av().VideoFrame.from_ndarray(planes, format="yuv420p"),
+                     self.count - 1)
 
     def close(self) -> None:
         """Finish the file and move it to ``path``; on failure remove it. Idempotent.

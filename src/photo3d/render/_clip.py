@@ -46,8 +46,8 @@ def _emit(out, j, x, y, z, k):
     out[j, 2] = iz
 
 
-@njit(parallel=True, cache=True, error_model="numpy")
-def project_vertices(vertices, rot, trans, k, near):
+@njit(parallel=True, cache=True, error_model="numpy", nogil=True)
+def project_vertices(vertices, rot, trans, k, near, sv):
     """Screen vertices of all world vertices.
 
     Args:
@@ -55,13 +55,13 @@ def project_vertices(vertices, rot, trans, k, near):
         rot, trans: ``(3, 3)``, ``(3,)`` float64 camera-from-world rotation, translation.
         k: ``(4,) float64`` ``fx, fy, cx, cy``.
         near: near-plane depth, > 0.
+        sv: ``(N, 3) float32`` output, overwritten.
 
     Returns:
         ``(sv, n_behind, n_bad)``: ``(N, 3) float32`` screen vertices, the number of
         vertices behind the near plane and the number with non-finite coordinates.
     """
     n = vertices.shape[0]
-    sv = np.empty((n, 3), np.float32)
     n_behind = 0
     n_bad = 0
     for i in prange(n):
@@ -80,7 +80,7 @@ def project_vertices(vertices, rot, trans, k, near):
     return sv, n_behind, n_bad
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", nogil=True)
 def clip_near(sv, faces, vertices, colors, scale, rot, trans, k, near):
     """Clip the triangles that cross the near plane (Sutherland-Hodgman).
 

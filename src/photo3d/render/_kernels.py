@@ -114,6 +114,10 @@ def _draw(sv, col, scale, i0, i1, i2, y_lo, y_hi, width, color, depth, count):
     tl2 = dy2 < 0 or (dy2 == 0 and dx2 > 0)
     px0 = np.int64(c0) * 256 + 128
     farea = np.float64(area)
+    counting = count.shape[0] > 0
+    r0c, g0c, b0c = col[i0, 0] * scale, col[i0, 1] * scale, col[i0, 2] * scale
+    r1c, g1c, b1c = col[i1, 0] * scale, col[i1, 1] * scale, col[i1, 2] * scale
+    r2c, g2c, b2c = col[i2, 0] * scale, col[i2, 1] * scale, col[i2, 2] * scale
     for y in range(r0, r1 + 1):
         py = np.int64(y) * 256 + 128
         w0 = dx0 * (py - Y1) - dy0 * (px0 - X1)
@@ -127,17 +131,19 @@ def _draw(sv, col, scale, i0, i1, i2, y_lo, y_hi, width, color, depth, count):
                     if (w0 == 0) + (w1 == 0) + (w2 == 0) < 2:
                         ok = False
                 if ok:
-                    if count.shape[0] > 0:
+                    if counting:
                         count[y, x] += 1
                     a0, a1, a2 = w0 * iz0, w1 * iz1, w2 * iz2
                     inv = 1.0 / (a0 + a1 + a2)
                     z = np.float32(farea * inv)
                     if z < depth[y, x]:
                         depth[y, x] = z
-                        inv *= scale
-                        for ch in range(3):
-                            v = (a0 * col[i0, ch] + a1 * col[i1, ch] + a2 * col[i2, ch]) * inv
-                            color[y, x, ch] = min(max(v, 0.0), 1.0)
+                        r = (a0 * r0c + a1 * r1c + a2 * r2c) * inv
+                        g = (a0 * g0c + a1 * g1c + a2 * g2c) * inv
+                        b = (a0 * b0c + a1 * b1c + a2 * b2c) * inv
+                        color[y, x, 0] = min(max(r, 0.0), 1.0)
+                        color[y, x, 1] = min(max(g, 0.0), 1.0)
+                        color[y, x, 2] = min(max(b, 0.0), 1.0)
             w0 -= s0
             w1 -= s1
             w2 -= s2
@@ -169,25 +175,52 @@ BLOCK = 64
 """Faces per culling block: consecutive faces of photo3d meshes are neighbours."""
 
 
-@njit(parallel=True, cache=True, error_model="numpy")
-def _block_bounds(sv, faces, block):
-    """Per block of ``block`` consecutive faces: screen ``ymin, ymax, xmin, xmax`` and
-    the largest inverse depth; ``ymin = +inf`` marks a block with a vertex behind the
-    near plane (never culled)."""
+@njit(parallel=True, cache=True, error_model="numpy", nogil=True)
+def block_vertices(faces, block):
+    """The distinct vertices of each block of ``block`` consecutive faces, as CSR:
+    ``(offsets (nb + 1,) int64, ids int32)``. A block of a grid layer uses about a
+    third as many vertices as it has corners, so bounds read a third of the data."""
     nb = (faces.shape[0] + block - 1) // block
+    counts = np.zeros(nb + 1, np.int64)
+    for b in prange(nb):
+        t0, t1 = b * block, min((b + 1) * block, faces.shape[0])
+        corners = np.sort(faces[t0:t1].ravel())
+        n = 1
+        for i in range(1, corners.size):
+            n += corners[i] != corners[i - 1]
+        counts[b + 1] = n
+    offsets = np.cumsum(counts)
+    ids = np.empty(offsets[-1], np.int32)
+    for b in prange(nb):
+        t0, t1 = b * block, min((b + 1) * block, faces.shape[0])
+        corners = np.sort(faces[t0:t1].ravel())
+        k = offsets[b]
+        ids[k] = corners[0]
+        for i in range(1, corners.size):
+            if corners[i] != corners[i - 1]:
+                k += 1
+                ids[k] = corners[i]
+    return offsets, ids
+
+
+@njit(parallel=True, cache=True, error_model="numpy", nogil=True)
+def _block_bounds(sv, offsets, ids):
+    """Per block (CSR from :func:`block_vertices`): screen ``ymin, ymax, xmin, xmax``
+    and the largest inverse depth; ``ymin = +inf`` marks a block with a vertex behind
+    the near plane (never culled)."""
+    nb = offsets.shape[0] - 1
     out = np.empty((nb, 5), np.float64)
     for b in prange(nb):
         y0, y1, x0, x1, izmax = np.inf, -np.inf, np.inf, -np.inf, 0.0
         behind = False
-        for t in range(b * block, min((b + 1) * block, faces.shape[0])):
-            for j in range(3):
-                v = faces[t, j]
-                iz = sv[v, 2]
-                if iz < 0:
-                    behind = True
-                y0, y1 = min(y0, sv[v, 1]), max(y1, sv[v, 1])
-                x0, x1 = min(x0, sv[v, 0]), max(x1, sv[v, 0])
-                izmax = max(izmax, iz)
+        for k in range(offsets[b], offsets[b + 1]):
+            v = ids[k]
+            iz = sv[v, 2]
+            if iz < 0:
+                behind = True
+            y0, y1 = min(y0, sv[v, 1]), max(y1, sv[v, 1])
+            x0, x1 = min(x0, sv[v, 0]), max(x1, sv[v, 0])
+            izmax = max(izmax, iz)
         out[b, 0] = np.inf if behind else y0
         out[b, 1], out[b, 2], out[b, 3], out[b, 4] = y1, x0, x1, izmax
     return out
@@ -214,30 +247,85 @@ def _block_skipped(bounds, b, y_lo, y_hi, width, tile_max, tile, use_tiles):
     return True
 
 
-@njit(parallel=True, cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
+def _resolve_rows(color, depth, factor, r0, r1, out_color, out_cov, out_depth):
+    """Supersampling resolve of output rows ``r0..r1-1``: the mean colour of the covered
+    samples (``depth < inf``) of each ``factor x factor`` block, the covered fraction
+    and the nearest depth (0, 0 and inf where nothing is covered)."""
+    inv = 1.0 / (factor * factor)
+    for oy in range(r0, r1):
+        for ox in range(out_cov.shape[1]):
+            n = 0
+            r = 0.0
+            g = 0.0
+            b = 0.0
+            d = np.inf
+            for y in range(oy * factor, oy * factor + factor):
+                for x in range(ox * factor, ox * factor + factor):
+                    z = depth[y, x]
+                    if z < np.inf:
+                        n += 1
+                        r += color[y, x, 0]
+                        g += color[y, x, 1]
+                        b += color[y, x, 2]
+                        d = min(d, z)
+            if n > 0:
+                out_color[oy, ox, 0] = r / n
+                out_color[oy, ox, 1] = g / n
+                out_color[oy, ox, 2] = b / n
+            else:
+                out_color[oy, ox, 0] = 0.0
+                out_color[oy, ox, 1] = 0.0
+                out_color[oy, ox, 2] = 0.0
+            out_cov[oy, ox] = n * inv
+            out_depth[oy, ox] = d
+
+
+@njit(parallel=True, cache=True, error_model="numpy", nogil=True)
+def resolve(color, depth, factor):
+    """Supersampling resolve of a whole ``(H, W)`` frame (H, W multiples of
+    ``factor``): ``(color (H/f, W/f, 3), coverage (H/f, W/f), depth (H/f, W/f))``,
+    see :func:`_resolve_rows`. :func:`_raster` does the same per band, fused."""
+    h, w = depth.shape[0] // factor, depth.shape[1] // factor
+    out_color = np.empty((h, w, 3), np.float32)
+    out_cov = np.empty((h, w), np.float32)
+    out_depth = np.empty((h, w), np.float32)
+    rows = 8
+    for i in prange((h + rows - 1) // rows):
+        _resolve_rows(color, depth, factor, i * rows, min(h, (i + 1) * rows), out_color,
+                      out_cov, out_depth)
+    return out_color, out_cov, out_depth
+
+
+@njit(parallel=True, cache=True, error_model="numpy", nogil=True)
 def _raster(sv, col, scale, faces, n_first, bounds, block, xsv, xcol, xfaces, height, width,
-            bands, background, count):
+            bands, background, count, color, depth, mask, factor, out_color, out_cov, out_depth):
     """Z-buffer render of ``faces`` over ``sv`` and ``xfaces`` over ``xsv``.
 
     ``col``: ``(N, 3)`` vertex colours (times ``scale`` in [0, 1]); ``xcol``:
     ``(K, 3) float32`` colours of ``xsv``. ``count``: ``(H, W) int32`` coverage
-    counter (tests), or ``(0, 0)`` for none. ``faces[:n_first]`` are drawn first;
-    later faces and blocks
-    (``bounds`` from :func:`_block_bounds`) are skipped when they lie behind the
-    farthest depth drawn so far in every 8x8 tile they touch (hierarchical z: the
-    image is the same, only work is saved). Blocks outside a band are skipped whole.
+    counter (tests), or ``(0, 0)`` for none. ``color (H, W, 3) float32``,
+    ``depth (H, W) float32`` and ``mask (H, W) bool`` receive the image (every
+    element is written; callers reuse them across frames). With ``factor > 0`` each
+    band is resolved as it finishes (:func:`_resolve_rows`, bands aligned to
+    ``factor``) into ``out_color``, ``out_cov`` and ``out_depth`` at ``1 / factor``
+    the size, while the samples are still in cache, and ``mask`` and the background
+    are left unwritten; ``factor = 0``: no resolve.
+
+    ``faces[:n_first]`` are drawn first; later faces and blocks (``bounds`` from
+    :func:`_block_bounds`) are skipped when they lie behind the farthest depth drawn
+    so far in every 8x8 tile they touch (hierarchical z: the image is the same, only
+    work is saved). Blocks outside a band are skipped whole.
     """
     tile = 8
-    color = np.empty((height, width, 3), np.float32)
-    depth = np.empty((height, width), np.float32)
-    mask = np.empty((height, width), np.bool_)
     cull = count.shape[0] == 0  # the coverage counter must see every face
+    unit = max(factor, 1)  # band boundaries on multiples of the resolve factor
     for i in prange(bands):
         # interleave so each thread gets bands from all over the image (prange hands
         # out contiguous index ranges; scenes are often busier at the top or bottom)
         band = (i % 2) * ((bands + 1) // 2) + i // 2
-        y_lo = band * height // bands
-        y_hi = (band + 1) * height // bands
+        y_lo = band * (height // unit) // bands * unit
+        y_hi = (band + 1) * (height // unit) // bands * unit if band < bands - 1 else height
         for y in range(y_lo, y_hi):
             for x in range(width):
                 depth[y, x] = np.inf
@@ -268,13 +356,17 @@ def _raster(sv, col, scale, faces, n_first, bounds, block, xsv, xcol, xfaces, he
         for t in range(xfaces.shape[0]):
             i0, i1, i2 = xfaces[t, 0], xfaces[t, 1], xfaces[t, 2]
             _draw(xsv, xcol, 1.0, i0, i1, i2, y_lo, y_hi, width, color, depth, count)
-        for y in range(y_lo, y_hi):
-            for x in range(width):
-                hit = depth[y, x] < np.inf
-                mask[y, x] = hit
-                if not hit:  # colour is only written where a triangle wins
-                    for ch in range(3):
-                        color[y, x, ch] = background[ch]
+        if factor > 0:
+            _resolve_rows(color, depth, factor, y_lo // factor, y_hi // factor, out_color,
+                          out_cov, out_depth)
+        else:
+            for y in range(y_lo, y_hi):
+                for x in range(width):
+                    hit = depth[y, x] < np.inf
+                    mask[y, x] = hit
+                    if not hit:  # colour is only written where a triangle wins
+                        for ch in range(3):
+                            color[y, x, ch] = background[ch]
     return color, depth, mask
 
 

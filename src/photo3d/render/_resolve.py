@@ -1,4 +1,5 @@
-"""Supersampling resolve and hole filling (numba kernels of :mod:`renderer`)."""
+"""Hole filling and 8-bit output (numba kernels of :mod:`renderer`); the supersampling
+resolve is fused into the rasterizer (:func:`photo3d.render._kernels.resolve`)."""
 
 from __future__ import annotations
 
@@ -7,45 +8,7 @@ import numpy as np
 from numba import prange
 
 
-@numba.njit(cache=True, parallel=True)
-def resolve(color, mask, depth, factor):  # pragma: no cover - jit
-    """Average the covered samples of each ``factor x factor`` block.
-
-    Returns ``color (H, W, 3)`` (mean of the covered samples, 0 where none),
-    ``coverage (H, W)`` (fraction of covered samples) and ``depth (H, W)`` (nearest
-    covered sample, inf where none).
-    """
-    h, w = mask.shape[0] // factor, mask.shape[1] // factor
-    out = np.zeros((h, w, 3), np.float32)
-    cov = np.zeros((h, w), np.float32)
-    dep = np.full((h, w), np.inf, np.float32)
-    inv = 1.0 / (factor * factor)
-    for y in prange(h):
-        for x in range(w):
-            n = 0
-            r = 0.0
-            g = 0.0
-            b = 0.0
-            d = np.inf
-            for dy in range(factor):
-                for dx in range(factor):
-                    yy, xx = y * factor + dy, x * factor + dx
-                    if mask[yy, xx]:
-                        n += 1
-                        r += color[yy, xx, 0]
-                        g += color[yy, xx, 1]
-                        b += color[yy, xx, 2]
-                        d = min(d, depth[yy, xx])
-            if n > 0:
-                out[y, x, 0] = r / n
-                out[y, x, 1] = g / n
-                out[y, x, 2] = b / n
-                cov[y, x] = n * inv
-                dep[y, x] = d
-    return out, cov, dep
-
-
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def grow_fill(color, coverage, iterations):  # pragma: no cover - jit
     """Fill pixels with coverage < 1 from fully known 8-neighbours, ring by ring.
 
@@ -102,3 +65,16 @@ def grow_fill(color, coverage, iterations):  # pragma: no cover - jit
                 k += 1
         m = k
     return m
+
+
+@numba.njit(cache=True, parallel=True, nogil=True)
+def to_rgb8(color):  # pragma: no cover - jit
+    """``(H, W, 3)`` float in [0, 1] -> ``uint8`` (clipped, rounded half up)."""
+    h, w = color.shape[0], color.shape[1]
+    out = np.empty((h, w, 3), np.uint8)
+    for y in prange(h):
+        for x in range(w):
+            for ch in range(3):
+                v = min(max(color[y, x, ch], 0.0), 1.0)
+                out[y, x, ch] = np.uint8(v * 255.0 + 0.5)
+    return out

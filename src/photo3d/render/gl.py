@@ -284,6 +284,15 @@ class GLRasterizer:
         depth = np.where(mask, depth, np.float32(np.inf))
         return Fragments(color=np.ascontiguousarray(out[:, :, :3]), depth=depth, mask=mask)
 
+    def render_resolved(self, intrinsics: Intrinsics, factor: int, *, pose=None,
+                        near: float = 1e-3) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`render` then the supersampling resolve; as
+        :meth:`photo3d.render.raster.CPURasterizer.render_resolved`."""
+        from photo3d.render._kernels import resolve
+
+        frag = self.render(intrinsics, pose=pose, near=near)
+        return resolve(frag.color, frag.depth, int(factor))
+
     def _release_fbo(self) -> None:
         if self._fbo is not None:
             for attachment in (*self._fbo.color_attachments, self._fbo.depth_attachment):

@@ -34,7 +34,7 @@ import numpy as np
 from photo3d.camera import Intrinsics
 from photo3d.errors import InputError
 from photo3d.render._clip import clip_near, project_vertices
-from photo3d.render._kernels import BLOCK, _block_bounds, _raster
+from photo3d.render._kernels import BLOCK, _block_bounds, _raster, block_vertices
 
 __all__ = ["CPURasterizer", "Fragments", "rasterize"]
 
@@ -166,11 +166,33 @@ def rasterize(
     return Fragments(color=color, depth=depth, mask=mask)
 
 
+class _Buffers:
+    """Output arrays kept from one frame to the next (None: fresh arrays each call).
+
+    A 2560x1440 frame is ~63 MB of colour, depth and mask; allocating it per frame
+    costs page faults (the kernel zeroes every page) worth ~18 % of the render."""
+
+    def __init__(self) -> None:
+        self._arrays: dict[str, np.ndarray] = {}
+
+    def get(self, name: str, shape: tuple[int, ...], dtype) -> np.ndarray:
+        array = self._arrays.get(name)
+        if array is None or array.shape != shape or array.dtype != dtype:
+            array = self._arrays[name] = np.empty(shape, dtype)
+        return array
+
+
 def _render(vertices, colors, scale, faces, rot, trans, k, near, height, width, bands, bg, count,
-            n_first=None):
-    """Vertex stage, clipping and rasterization on validated inputs."""
+            n_first=None, buffers: _Buffers | None = None, blocks=None, factor: int = 0):
+    """Vertex stage, clipping and rasterization on validated inputs (``blocks``:
+    :func:`block_vertices` of ``faces``, computed when None). ``factor > 0``: return
+    the supersampling resolve ``(color, coverage, depth)`` at ``1 / factor`` the size
+    (fresh arrays) instead of the samples."""
     n_first = len(faces) if n_first is None else n_first
-    sv, n_behind, n_bad = project_vertices(vertices, rot, trans, k, near)
+    blocks = block_vertices(faces, BLOCK) if blocks is None else blocks
+    buffers = buffers or _Buffers()
+    sv = buffers.get("sv", (len(vertices), 3), np.float32)
+    sv, n_behind, n_bad = project_vertices(vertices, rot, trans, k, near, sv)
     if n_bad:
         raise InputError(f"{n_bad} vertices have non-finite coordinates")
     if n_behind:
@@ -179,8 +201,16 @@ def _render(vertices, colors, scale, faces, rot, trans, k, near, height, width, 
         xsv, xcol = np.empty((0, 3), np.float32), np.empty((0, 3), np.float32)
         xfaces = np.empty((0, 3), np.int32)
     image = (height, width, bands, bg, count)
-    bounds = _block_bounds(sv, faces, BLOCK)
-    return _raster(sv, colors, scale, faces, n_first, bounds, BLOCK, xsv, xcol, xfaces, *image)
+    bounds = _block_bounds(sv, *blocks)
+    out = (buffers.get("color", (height, width, 3), np.float32),
+           buffers.get("depth", (height, width), np.float32),
+           buffers.get("mask", (height, width), np.bool_))
+    small = (height // max(factor, 1), width // max(factor, 1)) if factor else (0, 0)
+    resolved = (np.empty((*small, 3), np.float32), np.empty(small, np.float32),
+                np.empty(small, np.float32))
+    frame = _raster(sv, colors, scale, faces, n_first, bounds, BLOCK, xsv, xcol, xfaces, *image,
+                    *out, factor, *resolved)
+    return resolved if factor else frame
 
 
 class CPURasterizer:
@@ -197,10 +227,16 @@ class CPURasterizer:
 
     renderer = "numba (CPU)"
 
-    def __init__(self, vertices, colors, faces, *, first: int | None = None) -> None:
+    def __init__(self, vertices, colors, faces, *, first: int | None = None,
+                 reuse: bool = False) -> None:
+        """``first``: see :func:`rasterize`. ``reuse``: return the same arrays from every
+        :meth:`render` call (each call overwrites the previous result): no
+        allocation per frame, for callers that consume a frame before the next."""
         self._prepared = _prepare(vertices, colors, faces, None)[:4]
         n = len(self._prepared[3])
         self._first = n if first is None else int(np.clip(first, 0, n))
+        self._buffers = _Buffers() if reuse else None
+        self._blocks = block_vertices(self._prepared[3], BLOCK)
 
     def render(self, intrinsics: Intrinsics, *, pose=None, near: float = 1e-3,
                background=(0.0, 0.0, 0.0)) -> Fragments:
@@ -214,8 +250,40 @@ class CPURasterizer:
         color, depth, mask = _render(
             *self._prepared[:3], self._prepared[3], rot, trans, k, float(near), height, width,
             min(default_bands(), height), bg, _NO_COUNT, n_first=self._first,
+            buffers=self._buffers, blocks=self._blocks,
         )
         return Fragments(color=color, depth=depth, mask=mask)
+
+    def render_resolved(self, intrinsics: Intrinsics, factor: int, *, pose=None,
+                        near: float = 1e-3) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Render at ``intrinsics`` (size a multiple of ``factor``) and average each
+        ``factor x factor`` block of samples, fused into the rasterizer's bands.
+
+        Returns:
+            ``(color (h, w, 3), coverage (h, w), depth (h, w))`` float32 at ``1 /
+            factor`` the size: the mean colour of the covered samples (0 where none),
+            the covered fraction and the nearest depth (inf where none).
+
+        Example:
+            >>> v = np.array([[-9, -9, 1], [9, -9, 1], [0, 9, 1]], np.float32)
+            >>> r = CPURasterizer(v, np.ones((3, 3), np.float32), np.array([[0, 1, 2]]))
+            >>> color, coverage, depth = r.render_resolved(Intrinsics.default(8, 8), 2)
+            >>> color.shape, float(coverage.min()), float(depth.max())
+            ((4, 4, 3), 1.0, 1.0)
+        """
+        rot, trans = _check_pose(pose)
+        if not near > 0:
+            raise InputError(f"near must be > 0, got {near}")
+        factor = int(factor)
+        height, width = int(intrinsics.height), int(intrinsics.width)
+        if factor < 1 or height % factor or width % factor:
+            raise InputError(f"size {width}x{height} is not a multiple of factor {factor}")
+        k = np.array([intrinsics.fx, intrinsics.fy, intrinsics.cx, intrinsics.cy], np.float64)
+        return _render(
+            *self._prepared[:3], self._prepared[3], rot, trans, k, float(near), height, width,
+            min(default_bands(), height // factor), np.zeros(3, np.float32), _NO_COUNT,
+            n_first=self._first, buffers=self._buffers, blocks=self._blocks, factor=factor,
+        )
 
     def release(self) -> None:
         """Nothing to release (symmetry with the OpenGL rasterizer)."""

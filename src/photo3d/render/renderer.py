@@ -22,7 +22,7 @@ import numpy as np
 from photo3d.camera import Camera, Intrinsics
 from photo3d.errors import ConfigError
 from photo3d.mesh import Mesh
-from photo3d.render._resolve import grow_fill, resolve
+from photo3d.render._resolve import grow_fill
 
 AUTHORS_CROP = (0.03, 0.03, 0.05, 0.03)
 """Border crop of the authors' videos: top, left, bottom, right fractions."""
@@ -165,7 +165,8 @@ class Renderer:
             # drawing those first lets hidden layers be culled cheaply.
             n_input = mesh.width * mesh.height
             first = int(np.count_nonzero(self._faces.max(axis=1) < n_input))
-            self._raster = CPURasterizer(self._vertices, self._colors, self._faces, first=first)
+            self._raster = CPURasterizer(self._vertices, self._colors, self._faces, first=first,
+                                         reuse=True)  # frames are resolved into new arrays
 
     @staticmethod
     def _select(name: str) -> str:
@@ -201,8 +202,8 @@ class Renderer:
         k = cropped(camera.intrinsics, s.crop) if any(s.crop) else camera.intrinsics
         f = s.ssaa
         big = Intrinsics(k.fx * f, k.fy * f, k.cx * f, k.cy * f, k.width * f, k.height * f)
-        frag = self._raster.render(big, pose=camera.pose, near=s.near, background=s.background)
-        color, coverage, depth = resolve(frag.color, frag.mask, frag.depth, f)
+        color, coverage, depth = self._raster.render_resolved(big, f, pose=camera.pose,
+                                                              near=s.near)
         mask = coverage >= 1.0
         if s.fill_holes:
             if grow_fill(color, coverage, 8):  # large holes left: smooth pyramid fill
