@@ -4,7 +4,9 @@ The encoders come from PyAV (``pip install av``), whose wheels bundle FFmpeg wit
 libx264 and libvpx, so no system ffmpeg is needed. The format follows the extension:
 
 * ``.mp4``: H.264 (``libx264``), ``yuv420p`` so every player opens it, ``+faststart``
-  so browsers stream it, CRF 18 by default, preset ``veryfast``.
+  so browsers stream it, CRF 18 by default, preset ``veryfast`` (``superfast`` encodes
+  rendered 3D-photo frames about a quarter faster at the same PSNR, but its files are
+  1.4-3.3 times larger; ``benchmarks/bench_encode.py``).
 * ``.webm``: VP9 (``libvpx-vp9``), ``yuv420p``, constant quality CRF 32 by default,
   real-time speed settings.
 * ``.gif``: 256 colours from one global palette (median cut over the first

@@ -241,18 +241,22 @@ class CPURasterizer:
     def render(self, intrinsics: Intrinsics, *, pose=None, near: float = 1e-3,
                background=(0.0, 0.0, 0.0)) -> Fragments:
         """Render one view; see :func:`rasterize` for the arguments."""
-        rot, trans = _check_pose(pose)
-        if not near > 0:
-            raise InputError(f"near must be > 0, got {near}")
-        height, width = int(intrinsics.height), int(intrinsics.width)
-        k = np.array([intrinsics.fx, intrinsics.fy, intrinsics.cx, intrinsics.cy], np.float64)
-        bg = np.asarray(background, np.float32)
+        view = self._view(intrinsics, pose, near)
         color, depth, mask = _render(
-            *self._prepared[:3], self._prepared[3], rot, trans, k, float(near), height, width,
-            min(default_bands(), height), bg, _NO_COUNT, n_first=self._first,
+            *self._prepared, *view, min(default_bands(), view[-2]),
+            np.asarray(background, np.float32), _NO_COUNT, n_first=self._first,
             buffers=self._buffers, blocks=self._blocks,
         )
         return Fragments(color=color, depth=depth, mask=mask)
+
+    @staticmethod
+    def _view(intrinsics: Intrinsics, pose, near: float) -> tuple:
+        """``(rot, trans, k, near, height, width)`` of a checked view."""
+        rot, trans = _check_pose(pose)
+        if not near > 0:
+            raise InputError(f"near must be > 0, got {near}")
+        k = np.array([intrinsics.fx, intrinsics.fy, intrinsics.cx, intrinsics.cy], np.float64)
+        return rot, trans, k, float(near), int(intrinsics.height), int(intrinsics.width)
 
     def render_resolved(self, intrinsics: Intrinsics, factor: int, *, pose=None,
                         near: float = 1e-3) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -271,18 +275,14 @@ class CPURasterizer:
             >>> color.shape, float(coverage.min()), float(depth.max())
             ((4, 4, 3), 1.0, 1.0)
         """
-        rot, trans = _check_pose(pose)
-        if not near > 0:
-            raise InputError(f"near must be > 0, got {near}")
-        factor = int(factor)
-        height, width = int(intrinsics.height), int(intrinsics.width)
+        view = self._view(intrinsics, pose, near)
+        factor, height, width = int(factor), view[-2], view[-1]
         if factor < 1 or height % factor or width % factor:
             raise InputError(f"size {width}x{height} is not a multiple of factor {factor}")
-        k = np.array([intrinsics.fx, intrinsics.fy, intrinsics.cx, intrinsics.cy], np.float64)
         return _render(
-            *self._prepared[:3], self._prepared[3], rot, trans, k, float(near), height, width,
-            min(default_bands(), height // factor), np.zeros(3, np.float32), _NO_COUNT,
-            n_first=self._first, buffers=self._buffers, blocks=self._blocks, factor=factor,
+            *self._prepared, *view, min(default_bands(), height // factor),
+            np.zeros(3, np.float32), _NO_COUNT, n_first=self._first, buffers=self._buffers,
+            blocks=self._blocks, factor=factor,
         )
 
     def release(self) -> None:
