@@ -138,8 +138,11 @@ def test_view_serves_the_viewer_on_localhost(files):
     assert main(["make", str(files / "photo.png"), "--depth", str(files / "depth.png"),
                  "-o", str(out), "--size", "64", "--no-video", "--no-viewer", "-q"]) == 0
     assert not (out / "viewer.html").exists()
+    # default SIGINT in the child even if we were started with it ignored (a background
+    # job of a non-interactive shell): Python then turns it into KeyboardInterrupt
     proc = subprocess.Popen([sys.executable, "-m", "photo3d", "view", str(out), "--no-browser"],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     try:
         line = proc.stdout.readline()
         url = line.split(" at ", 1)[1].split()[0]

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import _thread
 import importlib
+import signal
 import socket
 import threading
 import urllib.error
@@ -62,7 +63,13 @@ def test_serve_runs_until_ctrl_c(folder):
         seen["thread"] = threading.Thread(target=visit_then_interrupt)
         seen["thread"].start()
 
-    serve(folder, open_browser=False, on_ready=on_ready)  # returns after "Ctrl-C"
+    # A shell that starts us in the background may have set SIGINT to "ignore", which
+    # would make interrupt_main() do nothing: use Python's Ctrl-C handler for this test.
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        serve(folder, open_browser=False, on_ready=on_ready)  # returns after "Ctrl-C"
+    finally:
+        signal.signal(signal.SIGINT, previous)
     seen["thread"].join()
     assert seen["opened"] is False
     assert seen["page"][0] == 200 and seen["url"].startswith("http://127.0.0.1:")
