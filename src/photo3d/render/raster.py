@@ -167,7 +167,7 @@ def rasterize(
 
 
 class _Buffers:
-    """Output arrays kept from one frame to the next (None: fresh arrays each call).
+    """Output arrays kept from one frame to the next, by name.
 
     A 2560x1440 frame is ~63 MB of colour, depth and mask; allocating it per frame
     costs page faults (the kernel zeroes every page) worth ~18 % of the render."""
@@ -204,7 +204,7 @@ def _render(vertices, colors, scale, faces, rot, trans, k, near, height, width, 
     bounds = _block_bounds(sv, *blocks)
     out = (buffers.get("color", (height, width, 3), np.float32),
            buffers.get("depth", (height, width), np.float32),
-           buffers.get("mask", (height, width), np.bool_))
+           buffers.get("mask", (0, 0) if factor else (height, width), np.bool_))
     small = (height // max(factor, 1), width // max(factor, 1)) if factor else (0, 0)
     resolved = (np.empty((*small, 3), np.float32), np.empty(small, np.float32),
                 np.empty(small, np.float32))
