@@ -58,3 +58,19 @@ def run_child(code: str, *args) -> dict:
     result.setdefault("peak_rss_mb",
                       resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024)
     return result
+
+
+def save_record(record: dict, out, benchmark: str, script: str) -> dict:
+    """Add the benchmark name, :func:`machine_info` and the command line (``python
+    benchmarks/<script> <this process's arguments>``) to ``record``, write it as JSON
+    to ``out`` (folders made as needed) and return it."""
+    import json
+    import sys
+    from pathlib import Path
+
+    record.update(benchmark=benchmark, machine=machine_info(),
+                  command=" ".join(["python", f"benchmarks/{script}", *sys.argv[1:]]))
+    out = Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps(record, indent=2))
+    return record

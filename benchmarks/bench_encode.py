@@ -12,12 +12,11 @@ Usage: python benchmarks/bench_encode.py [--presets ultrafast,superfast,veryfast
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).parent))
-from _machine import machine_info, run_child  # noqa: E402
+from _machine import run_child, save_record  # noqa: E402
 
 CHILD = r"""
 import json, os, sys, tempfile, time
@@ -71,10 +70,7 @@ def main() -> None:
                         default=Path(__file__).parent / "results" / "encode.json")
     args = parser.parse_args()
     rec = run_child(CHILD, args.presets)
-    rec.update(benchmark="encode", machine=machine_info(),
-               command=" ".join(["python", "benchmarks/bench_encode.py", *sys.argv[1:]]))
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(rec, indent=2))
+    save_record(rec, args.out, "encode", "bench_encode.py")
     print(f"{rec['frames']} rendered frames, 1280x720, libx264 CRF 18")
     for preset, r in rec["presets"].items():
         print(f"  {preset:10s} {r['ms_per_frame']:5.1f} ms/frame  {r['mb']:5.2f} MB  "

@@ -13,12 +13,11 @@ Usage: python benchmarks/bench_render_stages.py [--frames 96]
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).parent))
-from _machine import machine_info, run_child  # noqa: E402
+from _machine import run_child, save_record  # noqa: E402
 
 CHILD = r"""
 import json, sys, tempfile, time
@@ -26,8 +25,8 @@ from pathlib import Path
 import numpy as np
 import photo3d
 from photo3d.data import motorcycle
-from photo3d.io import _yuv, video
-from photo3d.render import _resolve, animate, raster, renderer
+from photo3d.io import video
+from photo3d.render import animate, raster, renderer
 from photo3d.render.animate import VideoSpec, render_video
 from photo3d.render.renderer import AUTHORS_CROP, Renderer, RenderSettings
 frames = int(sys.argv[1])
@@ -51,7 +50,7 @@ timed(raster, "_block_bounds", "block bounds")
 timed(raster, "_raster", "rasterization + resolve")
 timed(renderer, "grow_fill", "hole filling")
 timed(animate, "to_rgb8", "8-bit conversion")
-timed(_yuv, "rgb_to_yuv420", "RGB->YUV 4:2:0")
+timed(video, "rgb_to_yuv420", "RGB->YUV 4:2:0")
 timed(video.VideoWriter, "write", "encoder (write)")
 spec = VideoSpec(path="circle", size=(1280, 720), frames=frames, fps=40)
 with tempfile.TemporaryDirectory() as tmp:
@@ -76,10 +75,7 @@ def main() -> None:
                         default=Path(__file__).parent / "results" / "render_stages.json")
     args = parser.parse_args()
     rec = run_child(CHILD, args.frames)
-    rec.update(benchmark="render_stages", machine=machine_info(),
-               command=" ".join(["python", "benchmarks/bench_render_stages.py", *sys.argv[1:]]))
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(rec, indent=2))
+    save_record(rec, args.out, "render_stages", "bench_render_stages.py")
     print(f"circle path, {args.frames} frames, 1280x720, ssaa 2, {rec['faces']:,} triangles: "
           f"{rec['total_ms']:.1f} ms per frame")
     for stage, value in sorted(rec["stages_ms"].items(), key=lambda kv: -kv[1]):

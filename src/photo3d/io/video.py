@@ -39,6 +39,7 @@ import numpy as np
 from PIL import Image
 
 from photo3d.errors import ConfigError, InputError, OutputError
+from photo3d.io._yuv import rgb_to_yuv420
 
 PathLike = str | os.PathLike[str]
 
@@ -185,8 +186,6 @@ class VideoWriter:
             if self._palette is not None or len(self._pending) == PALETTE_FRAMES:
                 self._flush_pending()
             return
-        from photo3d.io._yuv import rgb_to_yuv420
-
         planes = rgb_to_yuv420(pixels)
         self._encode(_require_av().VideoFrame.from_ndarray(planes, format="yuv420p"),
                      self.count - 1)

@@ -205,7 +205,7 @@ def _render(vertices, colors, scale, faces, rot, trans, k, near, height, width, 
     out = (buffers.get("color", (height, width, 3), np.float32),
            buffers.get("depth", (height, width), np.float32),
            buffers.get("mask", (0, 0) if factor else (height, width), np.bool_))
-    small = (height // max(factor, 1), width // max(factor, 1)) if factor else (0, 0)
+    small = (height // factor, width // factor) if factor else (0, 0)
     resolved = (np.empty((*small, 3), np.float32), np.empty(small, np.float32),
                 np.empty(small, np.float32))
     frame = _raster(sv, colors, scale, faces, n_first, bounds, BLOCK, xsv, xcol, xfaces, *image,

@@ -206,9 +206,11 @@ class TrainingData:
         colour; and with at least one region pair from another image."""
         if kind not in self._eligible:
             ok = self.has_depth.copy() if kind in ("edge", "depth") else np.ones(len(self), bool)
-            if self._sources.size == 1 and self._sources[0] < len(self):
+            if self._sources.size == 0:
+                ok[:] = False  # no pairs at all
+            elif self._sources.size == 1 and self._sources[0] < len(self):
                 ok[self._sources[0]] = False  # its own pairs are the only ones
-            self._eligible[kind] = np.flatnonzero(ok if self._sources.size else ok & False)
+            self._eligible[kind] = np.flatnonzero(ok)
         return self._eligible[kind]
 
     def check(self, kind: str) -> None:
