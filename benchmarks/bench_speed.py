@@ -77,7 +77,9 @@ def main() -> None:
               "command": command}
     if args.merge and args.out.is_file():  # keep the other backends' results
         record = json.loads(args.out.read_text())
-        record["command"] = f"{record['command']}; {command}"
+        commands = record["command"].split("; ")
+        record["command"] = "; ".join([*commands, command] if command not in commands
+                                      else commands)
     for backend in backends:
         if args.runs > 1:
             run_once(sizes[0], backend, args.weights)  # warm-up (numba cache, page cache)

@@ -5,7 +5,10 @@ Per patch, as the authors' inference does (their margin of 20 px is this backend
 
 1. **Inputs** are read under ``context`` only (everything else is zeroed, so the
    nets cannot see the foreground or anything outside the context); each net input is
-   zero-padded, centred, to a multiple of 128.
+   zero-padded, centred, to a multiple of 128 for nets with the authors'
+   architectures (their ``unit_length``), or of the smallest size the net accepts for
+   other nets (:func:`net_unit`: 4 for an edge net, ``2**levels`` for a U-Net; photo3d's
+   own nets are trained on unpadded crops, and padding is up to half their work).
 2. **Edges** (only in the first ``edge_passes`` inpainting passes, authors: the
    first only, and only if a context edge touches the synthesis region, dilated by
    one pixel): the edge net sees (rgb, inverse depth / its maximum over the context,
@@ -31,8 +34,8 @@ synthesis are not part of this backend. Patches of the same
 padded shape run as one batch (at most ``batch_size`` patches and about
 ``batch_pixels`` pixels), under ``torch.inference_mode()``, on CUDA when available.
 
-Two opt-in speed-ups trade exactness for time (both off by default, so the nets
-see what the authors' inference gives them): ``edge_unit=8`` pads the edge net's
+Two opt-in speed-ups trade exactness for time (both off by default, so the authors'
+nets see what the authors' inference gives them): ``edge_unit=8`` pads the edge net's
 input to multiples of 8 instead of 128 (the edge net only needs multiples of 4; its
 instance normalisation then sees less zero padding, so outputs change slightly),
 and ``precision="bf16"`` runs the convolutions in bfloat16 (about twice as fast on
@@ -80,6 +83,34 @@ def bundled_weights() -> Path:
 def padded_shape(h: int, w: int, unit: int = UNIT) -> tuple[int, int]:
     """``(h, w)`` rounded up to multiples of ``unit``."""
     return -(-h // unit) * unit, -(-w // unit) * unit
+
+
+def net_unit(net) -> int:
+    """The multiple the learned backend pads ``net``'s input to by default.
+
+    :data:`UNIT` (128, the authors' ``unit_length``) for a net with the authors'
+    architecture, or one whose architecture is unknown (a wrapper without
+    ``config``); otherwise the smallest multiple the net accepts: 4 for an
+    :class:`~photo3d.nets.edge.EdgeGenerator`, ``2**levels`` for a
+    :class:`~photo3d.nets.partialconv.PartialConvUNet`.
+
+    Example:
+        >>> from photo3d.nets import build_net
+        >>> net_unit(build_net("edge", width=0.25, blocks=4)), net_unit(build_net("edge"))
+        (4, 128)
+        >>> net_unit(build_net("depth", levels=5, width=0.25))
+        32
+    """
+    config = getattr(net, "config", None)
+    if not isinstance(config, dict):
+        return UNIT
+    if "blocks" in config:  # edge generator
+        authors = config.get("width") == 1.0 and config.get("blocks") == 8
+        return UNIT if authors else 4
+    if "levels" in config:  # partial-convolution U-Net
+        authors = config.get("width") == 1.0 and config.get("levels") == 7
+        return UNIT if authors else 2 ** int(config["levels"])
+    return UNIT
 
 
 def color_scale(h: int, w: int, size: int = 512) -> float:
@@ -210,8 +241,10 @@ class LearnedInpainter:
         edge_repeats: extra edge-net runs with the new edges fed back.
         edge_passes: inpainting passes in which the edge net runs (authors: 1, the
             first; later passes use the context's edges as they are).
-        edge_unit: the edge net's input is padded to multiples of this (authors:
-            128; any multiple of 4 works, 8 is faster, see the module docstring).
+        edge_unit: the edge net's input is padded to multiples of this (any
+            multiple of 4; default :func:`net_unit`: 128 for the authors'
+            architecture, 4 for other edge nets; 8 is the opt-in speed-up for the
+            authors' net, see the module docstring).
         precision: ``"fp32"`` or ``"bf16"`` (autocast, opt-in speed-up).
         color_size: target ``sqrt(area)`` of the colour net's input (shrinking only).
         batch_size, batch_pixels: batch limits (patches, padded pixels).
@@ -237,9 +270,9 @@ class LearnedInpainter:
     def __init__(self, *, weights: str | Path | None = None,
                  device: str | torch.device | None = None, nets: InpaintingNets | None = None,
                  edge_threshold: float = 0.002, edge_repeats: int = 2, edge_passes: int = 1,
-                 edge_unit: int = UNIT, precision: str = "fp32", color_size: int = 512,
+                 edge_unit: int | None = None, precision: str = "fp32", color_size: int = 512,
                  batch_size: int = 8, batch_pixels: int = 8 * 256 * 256) -> None:
-        if edge_unit <= 0 or edge_unit % 4:
+        if edge_unit is not None and (edge_unit <= 0 or edge_unit % 4):
             raise ConfigError(f"edge_unit must be a positive multiple of 4, not {edge_unit}")
         if precision not in PRECISIONS:
             raise ConfigError(f"precision must be one of {', '.join(PRECISIONS)}, "
@@ -257,7 +290,9 @@ class LearnedInpainter:
         self.edge_threshold = edge_threshold
         self.edge_repeats = edge_repeats
         self.edge_passes = edge_passes
-        self.edge_unit = edge_unit
+        self.units = {kind: net_unit(getattr(nets, kind)) for kind in ("edge", "depth", "color")}
+        if edge_unit is not None:
+            self.units["edge"] = edge_unit
         self.precision = precision
         self.color_size = color_size
         self.batch = dict(batch_size=batch_size, batch_pixels=batch_pixels)
@@ -272,7 +307,7 @@ class LearnedInpainter:
 
         t = time.perf_counter()
         out = _run_batched(getattr(self.nets, kind), inputs, device=self.nets.device,
-                           unit=self.edge_unit if kind == "edge" else UNIT,
+                           unit=self.units[kind],
                            autocast=torch.bfloat16 if self.precision == "bf16" else None,
                            **self.batch)
         self.timings[kind] += time.perf_counter() - t
