@@ -162,7 +162,18 @@ What changed in this round, and what was measured and left out:
   assumed. The inpainted and border layers add 1.68M triangles to the input layer's
   1.38M. About a third of rasterization goes to them: most are culled by the block
   and hierarchical-z tests, but ~250k per frame are drawn, and ~0.4M of their samples
-  are disocclusions that must be drawn.\
+  are disocclusions that must be drawn.
+* A later round (same session day) timed more rasterizer variants against the kept
+  kernel, interleaved in one process on 24 views of the four paths at 2x (median time
+  ratios; a throwaway harness, not kept): drawing the two triangles of a grid quad in
+  one pass over their common box 0.94 for the input layer alone (about 3 % of a frame);
+  fixed-point vertex coordinates computed once per frame 1.04; one sign test for the
+  three edge functions 1.01; blocks of 16 or 32 faces 1.05 and 1.04; 4 or 8 bands,
+  with static or dynamic scheduling, 0.99-1.03. None was kept. A whole video uses 169 %
+  of the two cores (`/usr/bin/time photo3d render PHOTO --path circle --size
+  1280x720`), so overlapping the stages could win at most ~15 %. Without supersampling
+  the four videos take 63 s, above the target on their own: the remaining levers are
+  a texture-mapped, decimated input layer (a new mesh and viewer format) or a GPU.\
 """
 
 
