@@ -173,7 +173,11 @@ What changed in this round, and what was measured and left out:
   stepping the perspective numerators along each row instead of recomputing them
   1.04. None was kept. With the hidden layers' draws removed (tests kept) a frame
   takes 0.74 of its time: their ~250k drawn faces (1.9M box samples, 0.9M inside)
-  are the whole hidden-layer cost, not the culling tests. A whole video uses 169 %
+  are the whole hidden-layer cost, not the culling tests. x264 options on top of
+  `veryfast` (80 rendered frames each of `circle` and `zoom-in`, three runs):
+  `subme=1` with `me=dia` encodes 26-31 % faster but the files grow 9 %, about 4 %
+  of the whole render, so `veryfast` stays as it is; `me=dia` alone 3-4 % faster,
+  same size; no 8x8 transform no faster. A whole video uses 169 %
   of the two cores (`/usr/bin/time photo3d render PHOTO --path circle --size
   1280x720`), so overlapping the stages could win at most ~15 %. Without supersampling
   the four videos take 63 s, above the target on their own: the remaining levers are
