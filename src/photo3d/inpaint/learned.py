@@ -249,6 +249,11 @@ class LearnedInpainter:
         color_size: target ``sqrt(area)`` of the colour net's input (shrinking only).
         batch_size, batch_pixels: batch limits (patches, padded pixels).
 
+    Attributes:
+        units: per net (``"edge"``, ``"depth"``, ``"color"``), the multiple its
+            input is padded to.
+        timings: seconds spent in each net since construction.
+
     Example:
         >>> from photo3d.nets import InpaintingNets, build_net
         >>> small = dict(levels=3, width=0.125)
