@@ -78,8 +78,9 @@ def main() -> None:
     if args.merge and args.out.is_file():  # keep the other backends' results
         record = json.loads(args.out.read_text())
         commands = record["command"].split("; ")
-        record["command"] = "; ".join([*commands, command] if command not in commands
-                                      else commands)
+        if command not in commands:
+            commands.append(command)
+        record["command"] = "; ".join(commands)
     for backend in backends:
         if args.runs > 1:
             run_once(sizes[0], backend, args.weights)  # warm-up (numba cache, page cache)

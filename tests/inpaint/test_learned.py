@@ -242,11 +242,12 @@ def test_edge_unit_sets_the_edge_padding_only():
 
 
 class Recorded(torch.nn.Module):
-    """Wraps a net, keeping its ``config``; records input shapes."""
+    """Wraps a net, keeping its ``config`` and ``input_multiple``; records input shapes."""
 
     def __init__(self, net) -> None:
         super().__init__()
         self.net, self.config, self.shapes = net, net.config, []
+        self.input_multiple = net.input_multiple
 
     def forward(self, x):
         self.shapes.append(tuple(x.shape[2:]))

@@ -89,8 +89,9 @@ def net_unit(net) -> int:
     """The multiple the learned backend pads ``net``'s input to by default.
 
     :data:`UNIT` (128, the authors' ``unit_length``) for a net with the authors'
-    architecture, or one whose architecture is unknown (a wrapper without
-    ``config``); otherwise the smallest multiple the net accepts: 4 for an
+    architecture (full width, 8 residual blocks or 7 levels), or one whose
+    architecture is unknown (no ``config`` or ``input_multiple``); otherwise the
+    smallest multiple the net accepts, its ``input_multiple``: 4 for an
     :class:`~photo3d.nets.edge.EdgeGenerator`, ``2**levels`` for a
     :class:`~photo3d.nets.partialconv.PartialConvUNet`.
 
@@ -101,16 +102,12 @@ def net_unit(net) -> int:
         >>> net_unit(build_net("depth", levels=5, width=0.25))
         32
     """
-    config = getattr(net, "config", None)
-    if not isinstance(config, dict):
+    config, multiple = getattr(net, "config", None), getattr(net, "input_multiple", None)
+    if not isinstance(config, dict) or multiple is None:
         return UNIT
-    if "blocks" in config:  # edge generator
-        authors = config.get("width") == 1.0 and config.get("blocks") == 8
-        return UNIT if authors else 4
-    if "levels" in config:  # partial-convolution U-Net
-        authors = config.get("width") == 1.0 and config.get("levels") == 7
-        return UNIT if authors else 2 ** int(config["levels"])
-    return UNIT
+    authors = (config.get("width") == 1.0 and config.get("blocks", 8) == 8
+               and config.get("levels", 7) == 7)
+    return UNIT if authors else int(multiple)
 
 
 def color_scale(h: int, w: int, size: int = 512) -> float:

@@ -153,6 +153,9 @@ class EdgeGenerator(nn.Module):
         (1, 1, 16, 16)
     """
 
+    input_multiple = 4
+    """Input height and width must be multiples of this (two stride-2 stages)."""
+
     def __init__(self, in_channels: int = 7, *, width: float = 1.0, blocks: int = 8) -> None:
         super().__init__()
         self.config = dict(in_channels=in_channels, width=width, blocks=blocks)
@@ -174,9 +177,10 @@ class EdgeGenerator(nn.Module):
         self.decoder_2 = nn.Sequential(nn.ReflectionPad2d(3), nn.Conv2d(2 * c1, 1, 7))
 
     def forward(self, x: Tensor) -> Tensor:
-        if x.shape[-1] % 4 or x.shape[-2] % 4:
+        unit = self.input_multiple
+        if x.shape[-1] % unit or x.shape[-2] % unit:
             raise ValueError(f"input is {x.shape[-2]}x{x.shape[-1]}; height and width must "
-                             "be multiples of 4")
+                             f"be multiples of {unit}")
         x1 = self.encoder_0(x)
         x2 = self.encoder_1(x1)
         x3 = self.encoder_2(x2)

@@ -206,6 +206,7 @@ class PartialConvUNet(nn.Module):
         self.config = dict(in_channels=in_channels, out_channels=out_channels, levels=levels,
                            width=width, layout=layout)
         self.levels, self.layout = levels, layout
+        self.input_multiple = 2**levels  # input height and width must be multiples of it
         ch = [in_channels] + [_channels(i, width) for i in range(1, levels + 1)]
         biased = 2 if layout == "depth" else 0
         for i in range(1, levels + 1):
@@ -230,7 +231,7 @@ class PartialConvUNet(nn.Module):
                 for i in range(1, self.levels + 1)}
 
     def forward(self, x: Tensor) -> Tensor:
-        unit = 2**self.levels
+        unit = self.input_multiple
         if x.shape[-1] % unit or x.shape[-2] % unit:
             raise ValueError(f"input is {x.shape[-2]}x{x.shape[-1]}; height and width must "
                              f"be multiples of {unit}")
