@@ -1,0 +1,67 @@
+"""Command line: ``photo3d make``, ``depth``, ``demo``, ``render``, ``view``, ``eval``, ``train``.
+
+Thin layer over the library: parses arguments, shows a progress bar and a timing
+summary, and turns :class:`~photo3d.errors.Photo3DError` into a one-line message
+with exit status 2.
+
+One module per subcommand, each with ``add_parser(subparsers)`` (which registers
+its ``run(args) -> int``); the option groups several commands share live in
+:mod:`photo3d.cli.options`, the progress bars in :mod:`photo3d.cli.progress`.
+Command modules import only those two (never each other, except ``demo``, which
+is ``make`` on the bundled sample), so there is no import cycle.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import warnings
+
+from photo3d.cli import demo, depth, evaluate, make, render, train, view
+from photo3d.errors import Photo3DError
+
+COMMANDS = (make, depth, demo, render, view, evaluate, train)
+"""Subcommand modules, in the order ``photo3d --help`` lists them."""
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The ``photo3d`` argument parser with every subcommand.
+
+    >>> build_parser().parse_args(["view", "out"]).command
+    'view'
+    """
+    parser = argparse.ArgumentParser(
+        prog="photo3d",
+        description="Turn a photo and its depth into a 3D photo (layered depth image, "
+                    "inpainted occlusions, meshes).",
+    )
+    from photo3d import __version__
+
+    parser.add_argument("--version", action="version", version=f"photo3d {__version__}")
+    sub = parser.add_subparsers(dest="command", required=True)
+    for command in COMMANDS:
+        command.add_parser(sub)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of the ``photo3d`` command; returns the exit status."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+
+    def show(message, category, filename, lineno, file=None, line=None):
+        print(f"photo3d: warning: {message}", file=sys.stderr)
+
+    warnings.showwarning = show
+    try:
+        return args.run(args)
+    except Photo3DError as err:
+        print(f"photo3d: error: {err}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("photo3d: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,175 @@
+"""Option groups shared by several subcommands, and their conversion to library objects.
+
+``add_*`` functions register arguments on a parser; the others turn the parsed
+``argparse.Namespace`` into what the library takes (a :class:`~photo3d.config.Config`,
+video specs, render settings, inpainter options).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from photo3d.config import PRESETS, Config
+from photo3d.errors import ConfigError
+
+STAGE_LABELS = {
+    "load": "load",
+    "preprocess": "preprocess",
+    "ldi": "LDI",
+    "inpaint": "inpaint",
+    "mesh": "mesh",
+    "save": "save",
+}
+"""How the timing summary and the progress bar name the pipeline's stages."""
+
+
+def add_depth_sources(p: argparse.ArgumentParser) -> None:
+    """``--depth`` / ``--right`` / ``--depth-model`` (one of) and ``--depth-kind``."""
+    g = p.add_argument_group("depth (one of; default: the depth map embedded in the photo)")
+    src = g.add_mutually_exclusive_group()
+    src.add_argument("--depth", type=Path,
+                     help="depth map: PNG (8/16-bit), .npy, .pfm or float TIFF")
+    src.add_argument("--right", type=Path,
+                     help="right image of a rectified stereo pair (disparity by OpenCV SGM)")
+    src.add_argument("--depth-model", metavar="NAME_OR_PATH",
+                     help="monocular depth model: a Hugging Face name (e.g. "
+                          "depth-anything/Depth-Anything-V2-Small-hf), a local folder or "
+                          "an .onnx file")
+    g.add_argument("--depth-kind", choices=["disparity", "depth"],
+                   help="what --depth holds: disparity (near = large, the default for "
+                        "files) or depth (near = small); models and stereo know their kind")
+
+
+def add_make_options(p: argparse.ArgumentParser, *, out_required: bool) -> None:
+    """Everything ``make`` takes besides the photo and its depth (also ``demo``'s)."""
+    p.add_argument("-o", "--out", type=Path, required=out_required,
+                   help="output folder (must not exist or be empty)")
+    p.add_argument("--preset", choices=sorted(PRESETS), default="default",
+                   help="named configuration (default: %(default)s)")
+    p.add_argument("--size", type=int, help="longer side of the working image in pixels "
+                   "(default 1024; 0 keeps the input size)")
+    p.add_argument("--inpainter", help="inpainting backend: diffusion (default) or learned")
+    p.add_argument("--weights", type=Path, metavar="DIR",
+                   help="weights of the learned inpainter: the authors' edge-model.pth, "
+                        "depth-model.pth, color-model.pth or photo3d *.safetensors "
+                        "(default: the compact nets shipped with photo3d)")
+    p.add_argument("--fast-nets", action="store_true",
+                   help="learned inpainter: pad the edge net's input to multiples of 8 "
+                        "(not 128) and run the nets in bfloat16; about 3x faster on CPU, "
+                        "slightly different results")
+    p.add_argument("--ply", choices=["binary", "ascii", "none"], default="binary",
+                   help="PLY mesh encoding (default: %(default)s)")
+    p.add_argument("--no-glb", action="store_true", help="do not write mesh.glb")
+    p.add_argument("--no-viewer", action="store_true", help="do not write viewer.html")
+    p.add_argument("--no-video", action="store_true",
+                   help="do not render the four standard videos")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
+    add_video_options(p, command="make")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
+
+
+def video_size(text: str) -> tuple[int, int]:
+    """Parse ``WxH``.
+
+    >>> video_size("1280x720")
+    (1280, 720)
+    """
+    try:
+        w, h = (int(v) for v in text.lower().split("x"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"size must look like 1280x720, got {text!r}") from None
+    return w, h
+
+
+def add_video_options(p: argparse.ArgumentParser, *, command: str) -> None:
+    """The ``video`` group of ``make`` and ``render`` (``render`` also takes ``--size``)."""
+    g = p.add_argument_group("video")
+    g.add_argument("--path", dest="paths", action="append", default=None,
+                   metavar="NAME|FILE",
+                   help="camera path: dolly-zoom-in, zoom-in, circle, swing or a JSON/YAML "
+                        "keyframe file (repeatable; make renders all four presets by default)")
+    # `make` uses --size for the working size; `render` has no such option
+    names = ["--video-size", "--resolution"] + (["--size"] if command == "render" else [])
+    g.add_argument(*names, dest="video_size", type=video_size,
+                   metavar="WxH", help="video size, even numbers (default: the photo's size)")
+    g.add_argument("--fps", type=float, default=40.0, help="frames per second (default 40)")
+    g.add_argument("--frames", type=int, default=240, help="frames per video (default 240)")
+    g.add_argument("--format", choices=["mp4", "webm", "gif"], default="mp4",
+                   help="video format (default mp4: H.264, yuv420p)")
+    g.add_argument("--ssaa", type=int, default=2, help="supersampling factor (default 2)")
+    g.add_argument("--no-crop", action="store_true",
+                   help="do not crop the frame border like the authors' videos")
+    g.add_argument("--backend", choices=["auto", "numba", "gl"], default="auto",
+                   help="rasterizer (default auto: OpenGL on a GPU, else numba on the CPU)")
+    g.add_argument("--stereo", choices=["sbs", "sbs-half", "anaglyph"],
+                   help="render stereo videos: side by side (full or half width) or "
+                        "red-cyan anaglyph")
+    g.add_argument("--eye-separation", type=float, default=0.01,
+                   help="stereo eye distance in depth units (default 0.01)")
+    g.add_argument("--eye-order", choices=["lr", "rl"], default="lr",
+                   help="side-by-side order: lr (parallel) or rl (cross-eyed)")
+
+
+def config_from(args: argparse.Namespace, **changes) -> Config:
+    """The :class:`Config` of ``--preset``, ``--size`` and ``--inpainter``."""
+    cfg = PRESETS[args.preset]
+    if args.size is not None:
+        changes["size"] = None if args.size == 0 else args.size
+    if args.inpainter:
+        changes["inpainter"] = args.inpainter
+    return cfg.with_(**changes)
+
+
+def videos_from(args: argparse.Namespace) -> list:
+    """One ``VideoSpec`` per ``--path`` (default: the four presets)."""
+    from photo3d.render.animate import VideoSpec
+    from photo3d.render.paths import PRESETS
+
+    paths = args.paths or list(PRESETS)
+    return [VideoSpec(path=p, size=args.video_size, fps=args.fps, frames=args.frames,
+                      format=args.format, stereo=args.stereo,
+                      eye_separation=args.eye_separation, eye_order=args.eye_order)
+            for p in paths]
+
+
+def render_settings_from(args: argparse.Namespace):
+    """The ``RenderSettings`` of ``--ssaa``, ``--no-crop`` and ``--backend``."""
+    from photo3d.render.renderer import AUTHORS_CROP, RenderSettings
+
+    return RenderSettings(ssaa=args.ssaa, crop=(0.0,) * 4 if args.no_crop else AUTHORS_CROP,
+                          backend=args.backend)
+
+
+def inpainter_options(args: argparse.Namespace, inpainter: str) -> dict:
+    """Keyword arguments of the inpainter from ``--weights`` and ``--fast-nets``.
+
+    Raises ConfigError when they are given for a backend that has no weights.
+    """
+    weights, fast = getattr(args, "weights", None), getattr(args, "fast_nets", False)
+    flags = [f for f, on in (("--weights", weights is not None), ("--fast-nets", fast)) if on]
+    if flags and inpainter != "learned":
+        raise ConfigError(f"{' and '.join(flags)} only apply to --inpainter learned (this "
+                          f"run uses {inpainter})")
+    options = {} if weights is None else {"weights": weights}
+    return {**options, **(dict(edge_unit=8, precision="bf16") if fast else {})}
+
+
+def resolve_depth(args: argparse.Namespace):
+    """Resolve the depth of ``args.image`` from the depth options; say where it came from."""
+    from photo3d.depth.sources import resolve_depth
+
+    est = resolve_depth(args.image, depth=args.depth, right=args.right,
+                        depth_model=args.depth_model, kind=args.depth_kind)
+    if not getattr(args, "quiet", False):
+        print(f"depth: {est.source}", file=sys.stderr)
+    for warning in est.warnings:
+        print(f"photo3d: warning: {warning}", file=sys.stderr)
+    return est
+
+
+def list_files(out: Path) -> None:
+    """Print every file under ``out`` with its size in MB."""
+    for path in sorted(p for p in out.rglob("*") if p.is_file()):
+        print(f"  {str(path.relative_to(out)):<24} {path.stat().st_size / 1e6:8.2f} MB")

@@ -1,0 +1,58 @@
+"""``photo3d render OUT``: videos or a still of a saved 3D photo, without recomputing it."""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+
+from photo3d.cli.options import add_video_options, render_settings_from, videos_from
+from photo3d.cli.progress import StageBar
+
+
+def add_parser(sub) -> None:
+    """Register ``render`` on the subparsers ``sub``."""
+    rd = sub.add_parser("render", help="render videos of a saved 3D photo (no recomputing)")
+    rd.add_argument("photo", type=Path, help="a 3D photo folder written by make")
+    add_video_options(rd, command="render")
+    rd.add_argument("--still", action="store_true",
+                    help="write one image of the input view (stereo with --stereo) to "
+                         "PHOTO/still[_MODE].png instead of videos")
+    rd.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
+    rd.set_defaults(run=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run ``photo3d render``; returns the exit status."""
+    from photo3d.output import load_photo, write_videos
+
+    photo = load_photo(args.photo)
+    videos = videos_from(args)
+    if args.still:
+        return _still(args, photo, videos[0])
+    bar = StageBar(args.quiet)
+    t = time.perf_counter()
+    try:
+        written = write_videos(photo, None, args.photo, videos,
+                               settings=render_settings_from(args), progress=bar)
+    finally:
+        bar.close()
+    if not args.quiet:
+        print(f"rendered {len(written)} video(s) in {time.perf_counter() - t:.2f}s:")
+        for path in written:
+            print(f"  {path}  {path.stat().st_size / 1e6:.2f} MB")
+    return 0
+
+
+def _still(args: argparse.Namespace, photo, spec) -> int:
+    from photo3d.io.images import write_image
+    from photo3d.render.animate import render_still
+    from photo3d.render.renderer import Renderer
+
+    with Renderer(photo.mesh(), render_settings_from(args)) as renderer:
+        image = render_still(renderer, photo.ldi, spec)
+    path = args.photo / (f"still_{spec.stereo}.png" if spec.stereo else "still.png")
+    write_image(path, image)
+    if not args.quiet:
+        print(f"wrote {path} ({image.shape[1]}x{image.shape[0]})")
+    return 0

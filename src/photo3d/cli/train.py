@@ -1,0 +1,149 @@
+"""``photo3d train {edge,depth,color}``: train one of the learned inpainter's nets."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from photo3d.cli.progress import count_bar
+from photo3d.errors import ConfigError, Photo3DError
+
+
+def add_parser(sub) -> None:
+    """Register ``train`` on the subparsers ``sub``."""
+    tr = sub.add_parser(
+        "train", help="train one of the learned inpainter's nets on photos with depth",
+        description="Train the edge, depth or colour net (paper Sec. 3.3): region pairs "
+                    "from photos with depth are pasted onto other photos. Running again "
+                    "with the same --out resumes from the last checkpoint.")
+    tr.add_argument("kind", choices=["edge", "depth", "color"], help="which net")
+    data = tr.add_argument_group("data")
+    data.add_argument("--images", required=True, metavar="DIR|builtin",
+                      help="folder of photos, or 'builtin' (scikit-image photos and "
+                           "synthetic scenes with exact depth, written to RUN_DIR/builtin)")
+    data.add_argument("--depth", type=Path, metavar="DIR",
+                      help="depth maps named like the photos (PNG, NPY, PFM, TIFF)")
+    data.add_argument("--shapes", type=Path, metavar="DIR",
+                      help="depth maps used for region shapes only, never as training pixels")
+    data.add_argument("--depth-kind", choices=["disparity", "depth"],
+                      help="what the depth maps hold (default disparity: near = large)")
+    data.add_argument("--region-size", type=int, metavar="PX",
+                      help="working size (longer side) of region growth (default 4 x --size)")
+    data.add_argument("--builtin-scenes", type=int, default=48, metavar="N",
+                      help="synthetic scenes in --images builtin (default 48)")
+    tr.add_argument("-o", "--out", type=Path, required=True, metavar="RUN_DIR",
+                    help="run folder: checkpoints, losses.csv, samples/, <kind>.safetensors")
+    tr.add_argument("--steps", type=int, help="optimisation steps in total (default 1000)")
+    tr.add_argument("--batch", type=int, help="samples per step (default 8, the paper's)")
+    tr.add_argument("--size", type=int, help="crop side in pixels (default 256)")
+    net = tr.add_argument_group("architecture (compact variants)")
+    net.add_argument("--width", type=float, help="channel multiplier (default 1.0 = authors')")
+    net.add_argument("--levels", type=int, help="U-Net levels, depth/color (default 7)")
+    net.add_argument("--blocks", type=int, help="residual blocks, edge (default 8)")
+    opt = tr.add_argument_group("optimisation")
+    opt.add_argument("--lr", type=float, help="Adam learning rate (default 1e-4)")
+    opt.add_argument("--seed", type=int, help="random seed (default 0)")
+    opt.add_argument("--gan", choices=["nsgan", "hinge"],
+                     help="edge net adversarial loss (default nsgan)")
+    opt.add_argument("--checkpoint-every", type=int, metavar="K",
+                     help="checkpoint every K steps (default 500)")
+    opt.add_argument("--sample-every", type=int, metavar="K",
+                     help="sample grid every K steps (default 500)")
+    tr.add_argument("--device", help="torch device, e.g. cpu or cuda (default: CUDA if any)")
+    tr.add_argument("--threads", type=int, metavar="N",
+                    help="CPU threads of torch (default: torch's choice; 1 is much faster for "
+                         "compact nets when another process keeps the other cores busy)")
+    tr.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
+    tr.set_defaults(run=run)
+
+
+_TRAIN_OPTIONS = ("width", "levels", "blocks", "size", "batch", "steps", "lr", "seed",
+                  "region_size", "depth_kind", "gan", "checkpoint_every", "sample_every")
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run ``photo3d train``; returns the exit status."""
+    try:
+        import torch
+    except ImportError:
+        raise Photo3DError("photo3d train needs PyTorch: pip install 'photo3d[learned]'") from None
+    from photo3d.train import (
+        TrainConfig,
+        find_training_files,
+        parameter_count,
+        prepare_data,
+        train,
+        write_builtin,
+    )
+    from photo3d.train.run import check_resumable, checkpoints
+
+    options = {k: getattr(args, k) for k in _TRAIN_OPTIONS if getattr(args, k) is not None}
+    config = TrainConfig(args.kind, **options)
+    try:
+        device = torch.device(args.device) if args.device else None
+    except RuntimeError:
+        raise ConfigError(f"unknown torch device {args.device!r} (try cpu or cuda)") from None
+    if device is not None and device.type == "cuda" and not torch.cuda.is_available():
+        raise ConfigError("--device cuda: no CUDA device is available")
+    if args.threads is not None:
+        if args.threads < 1:
+            raise ConfigError(f"--threads must be at least 1, got {args.threads}")
+        torch.set_num_threads(args.threads)
+    run = args.out
+    if run.exists() and not run.is_dir():
+        raise ConfigError(f"--out {run} exists and is not a folder")
+    check_resumable(run, config)
+    say = (lambda msg: None) if args.quiet else (lambda msg: print(msg, flush=True))
+
+    def bar(total: int, desc: str, initial: int = 0):
+        return count_bar(total, desc, quiet=args.quiet, initial=initial)
+
+    if args.images == "builtin":
+        if args.depth is not None or args.shapes is not None:
+            raise ConfigError("--images builtin brings its own depth: drop --depth/--shapes")
+        folder = run / "builtin"
+        if not (folder / "images").is_dir():
+            side = config.working_size
+            with bar(100, "builtin data") as b:
+                write_builtin(folder, scenes=args.builtin_scenes, width=side,
+                              height=side * 3 // 4,
+                              progress=lambda _, f: b.update(round(100 * f) - b.n))
+        images, depth, shapes = folder / "images", folder / "depth", folder / "shapes"
+    else:
+        images, depth, shapes = Path(args.images), args.depth, args.shapes
+    files = find_training_files(images, depth=depth, shapes=shapes)
+    with bar(100, "prepare") as b:
+        data = prepare_data(files, crop=config.size, region_size=config.working_size,
+                            depth_kind=config.depth_kind, seed=config.seed,
+                            cache=run / "data",
+                            progress=lambda _, f: b.update(round(100 * f) - b.n))
+    data.check(config.kind)
+    sources = len({p.source for p in data.pool})
+    say(f"data: {len(data)} photos ({int(data.has_depth.sum())} with depth), "
+        f"{len(data.pool)} region pairs from {sources} depth maps")
+    saved = checkpoints(run)
+    start = saved[-1][0] if saved else 0
+    from photo3d.nets import build_net
+
+    params = parameter_count(build_net(config.kind, **config.net_config()))
+    arch = ", ".join(f"{k} {v}" for k, v in config.net_config().items())
+    say(f"net: {config.kind} ({arch}), {params / 1e6:.2f} M parameters; crop {config.size}, "
+        f"batch {config.batch}, steps {start} -> {config.steps}"
+        + (f" (resuming from {saved[-1][1].name})" if saved else ""))
+    with bar(config.steps, "train", initial=min(start, config.steps)) as b:
+        def progress(step: int, total: int, losses: dict) -> None:
+            b.set_postfix_str(f"loss {losses['total']:.4g}", refresh=False)
+            b.update(step - b.n)
+
+        result = train(data, run, config, device=device, progress=progress)
+    steps_run = result.step - result.start_step
+    if steps_run:
+        terms = ", ".join(f"{k} {v:.4g}" for k, v in result.losses.items())
+        say(f"trained {steps_run} steps in {result.seconds:.1f}s "
+            f"({result.seconds / steps_run:.2f} s/step); step {result.step}: {terms}")
+    else:
+        say(f"nothing to do: {run} is already at step {result.step}")
+    size = result.weights.stat().st_size / 1e6
+    say(f"weights: {result.weights} ({size:.2f} MB); log: {run / 'losses.csv'}; "
+        f"samples: {run / 'samples'}/")
+    return 0

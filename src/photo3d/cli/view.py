@@ -1,0 +1,33 @@
+"""``photo3d view OUT``: serve a 3D photo folder on 127.0.0.1 and open its viewer."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+
+def add_parser(sub) -> None:
+    """Register ``view`` on the subparsers ``sub``."""
+    vw = sub.add_parser("view", help="serve a 3D photo folder on 127.0.0.1 and open its viewer")
+    vw.add_argument("photo", type=Path, help="a 3D photo folder written by make")
+    vw.add_argument("--port", type=int, default=0, help="port (default: any free one)")
+    vw.add_argument("--no-browser", action="store_true", help="only print the URL")
+    vw.set_defaults(run=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run ``photo3d view`` until Ctrl-C; returns the exit status."""
+    from photo3d.output import load_photo
+    from photo3d.viewer import VIEWER_FILE, serve, write_viewer
+
+    page = args.photo / VIEWER_FILE
+    if not page.is_file():  # made with --no-viewer: write it now
+        write_viewer(load_photo(args.photo).mesh(), page, title=args.photo.name)
+
+    def ready(url: str, opened: bool) -> None:
+        print(f"serving {args.photo}/ at {url}" + ("" if opened else "  (open it in a browser)"),
+              flush=True)
+        print("press Ctrl-C to stop", flush=True)
+
+    serve(args.photo, port=args.port, open_browser=not args.no_browser, on_ready=ready)
+    return 0
