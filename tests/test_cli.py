@@ -78,7 +78,7 @@ def test_render_errors_are_one_line(files, capsys):
         (["make", "{d}/nope.jpg", "--depth", "{d}/depth.png", "-o", "{d}/o"], "not found"),
         (["make", "{d}/photo.png", "--depth", "{d}/nope.png", "-o", "{d}/o"], "not found"),
         (["make", "{d}/photo.png", "--depth", "{d}/photo.png", "-o", "{d}/o"], "depth"),
-        (["make", "{d}/photo.png", "--depth", "{d}/depth.png", "-o", "{d}"], "not empty"),
+        (["make", "{d}/photo.png", "--depth", "{d}/depth.png", "-o", "{d}"], "holds the input"),
         (["make", "{d}/photo.png", "--depth", "{d}/depth.png", "-o", "{d}/o",
           "--inpainter", "magic"], "unknown inpainter"),
         (["make", "{d}/photo.png", "--depth", "{d}/depth.png", "-o", "{d}/o",

@@ -40,6 +40,11 @@ def test_existing_output_is_refused_and_overwrite_replaces_it(tmp_path):
     with pytest.raises(OutputError, match="exists and is not empty"):
         photo.save(out)
     assert (out / "keep.txt").read_text() == "mine"
+    with pytest.raises(OutputError, match="only replaces a folder photo3d wrote"):
+        photo.save(out, overwrite=True)  # never an arbitrary folder
+    assert sorted(p.name for p in out.iterdir()) == ["keep.txt"]
+    (out / "keep.txt").unlink()
+    photo.save(out)
     photo.save(out, overwrite=True, glb=False, ply="ascii", viewer=False)
     assert sorted(p.name for p in out.iterdir()) == ["config.json", "mesh.ply", "photo3d.npz"]
     assert (out / "mesh.ply").read_bytes().startswith(b"ply\nformat ascii 1.0\n")
@@ -53,7 +58,7 @@ def test_failed_save_leaves_no_folder(tmp_path, monkeypatch):
         raise OSError("disk full")
 
     monkeypatch.setattr("photo3d.output.write_glb", boom)
-    with pytest.raises(OSError, match="disk full"):
+    with pytest.raises(OutputError, match="cannot write .*out: disk full"):
         photo.save(tmp_path / "out")
     assert list(tmp_path.iterdir()) == []
 

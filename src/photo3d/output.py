@@ -3,17 +3,16 @@
 A 3D photo folder holds ``photo3d.npz`` (the LDI, lossless), ``mesh.ply``
 (binary by default, the authors' header), ``mesh.glb``, ``viewer.html`` (interactive,
 self-contained) and ``config.json`` (the resolved configuration plus stats and
-timings), and videos in ``video/``. Everything is written into a
-temporary sibling folder first and moved into place at the end, so an interrupted
-or failed run never leaves a half-written output folder.
+timings), and videos in ``video/``. Everything is written into a hidden
+temporary sibling folder first and moved into place at the end
+(:mod:`photo3d.io.safeout`), so an interrupted or failed run never leaves a
+half-written output folder, and ``overwrite`` only ever replaces a folder holding
+nothing but these files.
 """
 
 from __future__ import annotations
 
 import json
-import os
-import shutil
-import tempfile
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -22,6 +21,7 @@ from photo3d.config import Config
 from photo3d.errors import InputError, OutputError
 from photo3d.io.gltf import write_glb
 from photo3d.io.ply import write_ply
+from photo3d.io.safeout import Staging, owned_by_names, stage_output
 from photo3d.ldi import load_npz, save_npz
 
 if TYPE_CHECKING:
@@ -30,19 +30,33 @@ if TYPE_CHECKING:
     from photo3d.render.renderer import RenderSettings
 
 LDI_FILE = "photo3d.npz"
+PHOTO_FILES = (LDI_FILE, "config.json", "mesh.ply", "mesh.glb", "viewer.html", "video",
+               "still.png", "still_*.png")
+"""Top-level names in a 3D photo folder (``render --still`` adds ``still*.png``)."""
+
+owned_photo = owned_by_names(LDI_FILE, PHOTO_FILES)
+"""The check that a folder is a 3D photo folder photo3d wrote (and may replace)."""
 
 
-def check_output(out: str | Path, *, overwrite: bool) -> Path:
-    """Raise :class:`OutputError` early if ``out`` cannot become a 3D photo folder."""
-    out = Path(out)
-    if out.exists() and not out.is_dir():
-        raise OutputError(f"output {out} exists and is not a folder")
-    if out.exists() and any(out.iterdir()) and not overwrite:
-        raise OutputError(f"output folder {out} exists and is not empty (use --overwrite)")
-    return out
+def check_output(out: str | Path, *, overwrite: bool, inputs: Sequence[str | Path] = (),
+                 need_bytes: int = 0) -> Staging:
+    """Check early that ``out`` can become a 3D photo folder; return its staging folder.
+
+    See :func:`photo3d.io.safeout.stage_output` (``inputs``: files the run reads,
+    which the output may not hold). Use the result in a ``with`` block and pass it to
+    :func:`save_photo` as ``out``.
+
+    Example:
+        >>> import pathlib, tempfile
+        >>> with check_output(pathlib.Path(tempfile.mkdtemp()) / "o", overwrite=False) as s:
+        ...     s.path.name.startswith(".o.")
+        True
+    """
+    return stage_output(out, overwrite=overwrite, inputs=inputs, owned=owned_photo,
+                        need_bytes=need_bytes)
 
 
-def save_photo(photo: Photo3D, out: str | Path, *, overwrite: bool = False,
+def save_photo(photo: Photo3D, out: str | Path | Staging, *, overwrite: bool = False,
                ply: str | None = "binary", glb: bool = True, viewer: bool = True,
                videos: Sequence[VideoSpec] = (), render_settings: RenderSettings | None = None,
                progress: Callable[[str, float], None] | None = None) -> Path:
@@ -50,7 +64,9 @@ def save_photo(photo: Photo3D, out: str | Path, *, overwrite: bool = False,
 
     Args:
         photo: the 3D photo.
-        out: destination folder; must not exist or be empty unless ``overwrite``.
+        out: destination folder; must not exist or be empty unless ``overwrite``
+            (which only replaces a 3D photo folder). Or the :class:`Staging` that
+            :func:`check_output` returned before the work.
         ply: ``"binary"``, ``"ascii"`` or None (no PLY).
         glb: also write ``mesh.glb``.
         viewer: also write ``viewer.html`` (the interactive, self-contained viewer).
@@ -72,39 +88,38 @@ def save_photo(photo: Photo3D, out: str | Path, *, overwrite: bool = False,
     """
     if ply not in ("binary", "ascii", None):
         raise OutputError(f"ply must be 'binary', 'ascii' or None, got {ply!r}")
-    out = check_output(out, overwrite=overwrite)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
-    try:
-        meta = {"config": photo.config.to_dict(), "stats": photo.stats,
-                "timings": photo.timings}
-        save_npz(photo.ldi, tmp / LDI_FILE, meta=meta)
-        (tmp / "config.json").write_text(json.dumps(meta, indent=2))
-        mesh = photo.mesh() if ply or glb or viewer or videos else None
-        if ply:
-            write_ply(tmp / "mesh.ply", mesh, binary=ply == "binary")
-        if glb:
-            write_glb(tmp / "mesh.glb", mesh)
-        if viewer:
-            from photo3d.viewer import write_viewer
+    staging = out if isinstance(out, Staging) else check_output(out, overwrite=overwrite)
+    with staging:
+        try:
+            _write_photo(photo, staging.path, title=staging.final.name, ply=ply, glb=glb,
+                         viewer=viewer, videos=videos, render_settings=render_settings,
+                         progress=progress)
+        except OSError as err:
+            raise OutputError(f"cannot write {staging.out}: {err.strerror or err}") from None
+        staging.commit()
+    return Path(staging.out)
 
-            write_viewer(mesh, tmp / "viewer.html", title=out.name)
-        if progress:
-            progress("save", 1.0)
-        if videos:
-            write_videos(photo, mesh, tmp, videos, settings=render_settings, progress=progress)
-        if out.exists():
-            old = out.with_name(f".{out.name}.old")
-            shutil.rmtree(old, ignore_errors=True)
-            os.replace(out, old)
-            os.replace(tmp, out)
-            shutil.rmtree(old, ignore_errors=True)
-        else:
-            os.replace(tmp, out)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
-    return out
+
+def _write_photo(photo: Photo3D, tmp: Path, *, title: str, ply, glb, viewer, videos,
+                 render_settings, progress) -> None:
+    """Write the files of a 3D photo folder into ``tmp``."""
+    meta = {"config": photo.config.to_dict(), "stats": photo.stats,
+            "timings": photo.timings}
+    save_npz(photo.ldi, tmp / LDI_FILE, meta=meta)
+    (tmp / "config.json").write_text(json.dumps(meta, indent=2))
+    mesh = photo.mesh() if ply or glb or viewer or videos else None
+    if ply:
+        write_ply(tmp / "mesh.ply", mesh, binary=ply == "binary")
+    if glb:
+        write_glb(tmp / "mesh.glb", mesh)
+    if viewer:
+        from photo3d.viewer import write_viewer
+
+        write_viewer(mesh, tmp / "viewer.html", title=title)
+    if progress:
+        progress("save", 1.0)
+    if videos:
+        write_videos(photo, mesh, tmp, videos, settings=render_settings, progress=progress)
 
 
 def write_videos(photo: Photo3D, mesh, folder: Path, videos: Sequence[VideoSpec], *,

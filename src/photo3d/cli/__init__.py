@@ -14,11 +14,13 @@ is ``make`` on the bundled sample), so there is no import cycle.
 from __future__ import annotations
 
 import argparse
+import signal
 import sys
 import warnings
 
 from photo3d.cli import demo, depth, evaluate, make, render, train, view
 from photo3d.errors import Photo3DError
+from photo3d.io.safeout import handle_signals
 
 COMMANDS = (make, depth, demo, render, view, evaluate, train)
 """Subcommand modules, in the order ``photo3d --help`` lists them."""
@@ -53,15 +55,33 @@ def main(argv: list[str] | None = None) -> int:
         print(f"photo3d: warning: {message}", file=sys.stderr)
 
     warnings.showwarning = show
-    try:
-        return args.run(args)
-    except Photo3DError as err:
-        print(f"photo3d: error: {err}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:
-        print("photo3d: interrupted", file=sys.stderr)
-        return 130
+    with handle_signals() as guard:
+        try:
+            return args.run(args)
+        except Photo3DError as err:
+            print(f"photo3d: error: {err}", file=sys.stderr)
+            return 2
+        except BaseException as err:  # noqa: B036 - only interruptions are turned into a line
+            signum = guard.signum or (signal.SIGINT if _interrupted(err) else None)
+            if signum is None:
+                if isinstance(err, MemoryError):
+                    print("photo3d: error: out of memory (try a smaller --size)", file=sys.stderr)
+                    return 1
+                raise
+            name = "" if signum == signal.SIGINT else f" ({signal.Signals(signum).name})"
+            print(f"photo3d: interrupted{name}", file=sys.stderr)
+            return 128 + signum
 
+
+def _interrupted(err: BaseException) -> bool:
+    """True if ``err`` is, or was caused by, a KeyboardInterrupt (numba wraps it)."""
+    seen = set()
+    while err is not None and id(err) not in seen:
+        if isinstance(err, KeyboardInterrupt):
+            return True
+        seen.add(id(err))
+        err = err.__cause__ or err.__context__
+    return False
 
 if __name__ == "__main__":
     sys.exit(main())

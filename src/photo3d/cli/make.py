@@ -52,29 +52,47 @@ def run_make(args: argparse.Namespace, image, depth, config: Config) -> int:
     from photo3d.output import check_output
     from photo3d.pipeline import make
 
-    check_output(args.out, overwrite=args.overwrite)
     videos = [] if args.no_video else videos_from(args)
     settings = render_settings_from(args)
     backend = get_inpainter(config.inpainter, **inpainter_options(args, config.inpainter))
-    if callable(depth):
-        image, depth, kind = depth()
-        config = config.with_(depth_kind=kind)
-    bar = StageBar(args.quiet)
-    try:
-        photo = make(image, depth=depth, config=config, inpainter=backend, progress=bar)
-        bar("mesh", 0.0)
-        t = time.perf_counter()
-        photo.save(args.out, overwrite=args.overwrite,
-                   ply=None if args.ply == "none" else args.ply, glb=not args.no_glb,
-                   viewer=not args.no_viewer, videos=videos, render_settings=settings,
-                   progress=bar)
-        photo.timings["save + video" if videos else "save"] = time.perf_counter() - t
-        bar("video", 1.0)
-    finally:
-        bar.close()
+    staging = check_output(args.out, overwrite=args.overwrite, inputs=inputs_of(args),
+                           need_bytes=output_bytes(config, videos))
+    with staging:  # removed on any error or interruption unless committed
+        if callable(depth):
+            image, depth, kind = depth()
+            config = config.with_(depth_kind=kind)
+        bar = StageBar(args.quiet)
+        try:
+            photo = make(image, depth=depth, config=config, inpainter=backend, progress=bar)
+            bar("mesh", 0.0)
+            t = time.perf_counter()
+            photo.save(staging, ply=None if args.ply == "none" else args.ply,
+                       glb=not args.no_glb, viewer=not args.no_viewer, videos=videos,
+                       render_settings=settings, progress=bar)
+            photo.timings["save + video" if videos else "save"] = time.perf_counter() - t
+            bar("video", 1.0)
+        finally:
+            bar.close()
     if not args.quiet:
         summary(photo, args.out)
     return 0
+
+
+def output_bytes(config: Config, videos: list) -> int:
+    """A low estimate of the output's size (a full disk is refused before the work)."""
+    side = config.size or 1024
+    frames = sum(v.frames * (v.size[0] * v.size[1] if v.size else side * side * 0.75)
+                 for v in videos)
+    return int(60 * side * side + 0.02 * frames)
+
+
+def inputs_of(args: argparse.Namespace) -> list[Path]:
+    """The files a run reads (its output folder may not hold any of them)."""
+    given = [getattr(args, n, None) for n in ("image", "depth", "right", "weights")]
+    model = getattr(args, "depth_model", None)
+    paths = [p for p in (args.paths or []) if Path(p).suffix.lower() in (".json", ".yaml",
+                                                                         ".yml")]
+    return [Path(p) for p in [*given, model, *paths] if p is not None and Path(p).exists()]
 
 
 def summary(photo, out: Path) -> None:
