@@ -267,3 +267,201 @@ def _unwritable_parent(photos: Path, base: Path) -> None:
     assert proc.returncode == 2 and len(err.splitlines()) == 1, err
     assert "Permission denied" in err
     assert os.listdir(locked) == []
+
+
+# --- hostile and broken input files: one line, never a traceback -------------------------
+
+
+def _png_header_only(width: int, height: int) -> bytes:
+    """A PNG that declares ``width x height`` grey pixels but holds almost no data."""
+    import struct
+    import zlib
+
+    def chunk(kind: bytes, data: bytes) -> bytes:
+        body = kind + data
+        return struct.pack(">I", len(data)) + body + struct.pack(">I", zlib.crc32(body))
+
+    ihdr = struct.pack(">IIBBBBB", width, height, 8, 0, 0, 0, 0)
+    return (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", ihdr) + chunk(b"IDAT", zlib.compress(b"\0"))
+            + chunk(b"IEND", b""))
+
+
+def _tiff_header_only(width: int, height: int, bits: int) -> bytes:
+    """A little-endian float TIFF that declares ``width x height`` but holds 8 bytes."""
+    import struct
+
+    tags = [(256, 4, width), (257, 4, height), (258, 3, bits), (259, 3, 1), (262, 3, 1),
+            (273, 4, 8), (277, 3, 1), (278, 4, height), (279, 4, 8), (339, 3, 3)]
+    ifd = struct.pack("<H", len(tags)) + b"".join(
+        struct.pack("<HHII", tag, kind, 1, value) if kind == 4
+        else struct.pack("<HHIHH", tag, kind, 1, value, 0) for tag, kind, value in tags)
+    return b"II*\x00" + struct.pack("<I", 16) + b"\0" * 8 + ifd + b"\0\0\0\0"
+
+
+def _npy_header_only(shape: tuple[int, ...]) -> bytes:
+    import io
+
+    buf = io.BytesIO()
+    np.lib.format.write_array_header_1_0(buf, {"descr": "<f4", "fortran_order": False,
+                                               "shape": shape})
+    return buf.getvalue() + b"\0" * 16
+
+
+DEPTH_FILES = {
+    "bomb.png": (_png_header_only(100_000, 100_000), "decompression bomb"),
+    "bomb.tif": (_tiff_header_only(100_000, 100_000, 32), "decompression bomb"),
+    "bomb64.tif": (_tiff_header_only(100_000, 100_000, 64), "decompression bomb"),
+    "short.png": (b"\x89PNG\r\n\x1a\n\0\0\0\x0dIHDR", "not a complete PNG"),
+    "huge.npy": (_npy_header_only((100_000, 100_000)), "at most"),
+    "truncated.npy": (_npy_header_only((480, 640)), "truncated"),
+    "text.npy": (b"just some text\n", "not a .npy array"),
+    "empty.pfm": (b"", "not a PFM file"),
+    "bomb.pfm": (b"Pf\n100000 100000\n-1.0\n" + b"\0" * 64, "truncated"),
+}
+
+
+@pytest.mark.parametrize("name", sorted(DEPTH_FILES))
+def test_hostile_depth_files(photos, capsys, no_work, name):
+    data, message = DEPTH_FILES[name]
+    (photos / name).write_bytes(data)
+    run(capsys, "make", photos / "a.png", "--depth", photos / name, "-o", "out", *FAST,
+        status=2, message=message)
+
+
+def test_folders_and_odd_files_as_inputs(photos, capsys, no_work):
+    run(capsys, "make", photos, "--depth", photos / "a.npy", "-o", "out", status=2,
+        message="it is a folder")
+    run(capsys, "make", photos / "a.png", "--depth", photos, "-o", "out", status=2,
+        message="depth file not found")
+    run(capsys, "make", photos / "notes.txt", "--depth", photos / "a.npy", "-o", "out",
+        status=2, message="not a recognised image format")
+    (photos / "bomb.png").write_bytes(_png_header_only(100_000, 100_000))
+    run(capsys, "make", photos / "bomb.png", "--depth", photos / "a.npy", "-o", "out",
+        status=2, message="decompression bomb")
+
+
+def _saved(photos: Path, capsys) -> Path:
+    run(capsys, *make(photos, "saved"), status=0)
+    return photos.parent / "saved"
+
+
+def _rewrite_npz(path: Path, **changes) -> None:
+    """Rewrite ``photo3d.npz`` with some arrays or header fields replaced."""
+    import json
+
+    from photo3d.ldi import load_npz
+
+    ldi, meta = load_npz(path)
+    arrays = {k: getattr(ldi, k) for k in ("y", "x", "color", "disparity", "links", "label")}
+    header = {"format": "photo3d-ldi", "version": 1,
+              "intrinsics": [ldi.intrinsics.fx, ldi.intrinsics.fy, ldi.intrinsics.cx,
+                             ldi.intrinsics.cy, ldi.intrinsics.width, ldi.intrinsics.height],
+              "mapping": [ldi.mapping.scale, ldi.mapping.offset, ldi.mapping.floor],
+              "border": ldi.border, "meta": meta}
+    for key, value in changes.items():
+        (arrays if key in arrays else header)[key] = value
+    arrays["header"] = np.frombuffer(json.dumps(header).encode(), np.uint8)
+    np.savez(path, **arrays)
+
+
+def test_broken_saved_photos(photos, capsys):
+    saved = _saved(photos, capsys)
+    npz = saved / "photo3d.npz"
+    good = npz.read_bytes()
+
+    def check(message: str, *args: str) -> None:
+        run(capsys, *(args or ("render", saved, "--still")), status=2, message=message)
+        npz.write_bytes(good)
+
+    npz.write_bytes(good[: len(good) // 2])
+    check("not a photo3d file")  # truncated: the zip directory is gone
+    npz.write_bytes(good[:200] + bytes(2000) + good[2200:])
+    check("damaged or truncated")
+    npz.write_bytes(os.urandom(4000))
+    check("not a photo3d file", "view", saved, "--no-browser")
+    (photos.parent / "text.npz").write_text("hello")
+    check("not a photo3d file", "view", photos.parent / "text.npz", "--no-browser")
+    n = np.load(npz)["links"].shape[0]
+    for changes, message in [
+        ({"links": np.full((n, 4), n + 5, np.int32)}, "links point outside"),
+        ({"links": np.roll(np.load(npz)["links"], 1, axis=0)}, "inconsistent links"),
+        ({"intrinsics": [1e300, 1, 0, 0, 64, 48]}, "not plausible"),
+        ({"intrinsics": [10, 10, 0, 0, 1e9, 48]}, "not between 1 and 65536"),
+        ({"intrinsics": [float("nan"), 10, 0, 0, 64, 48]}, "not finite"),
+        ({"color": np.zeros((n, 2), np.float32)}, "color has shape"),
+        ({"y": np.zeros(n, np.float32)}, "y has shape"),
+        ({"border": -3}, "border"),
+        ({"format": "other"}, "not a photo3d file"),
+    ]:
+        _rewrite_npz(npz, **changes)
+        check(message)
+    with np.load(npz) as f:
+        arrays = {k: f[k] for k in f.files}
+    np.savez(npz, **{**arrays, "links": np.array([{"evil": 1}], dtype=object)})
+    check("pickled")  # nothing is ever unpickled
+    assert not (saved / "still.png").exists()
+
+
+@pytest.mark.parametrize(("text", "message"), [
+    ("[1, 2, 3]", "keyframe 0 is"),
+    ('{"keyframes": 5}', "must hold a list"),
+    ('[{"position": [0, 0]}]', "3-D positions"),
+    ('[{"position": [NaN, 0, 0]}]', "3-D positions"),
+    ('[{"position": [0, 0, 0], "rotation": "x"}]', "bad keyframe"),
+    ("[]", "at least one keyframe"),
+    ("{not json", "cannot parse"),
+])
+def test_bad_keyframe_files_are_refused_before_the_work(photos, capsys, no_work, text,
+                                                        message):
+    (photos / "path.json").write_text(text)
+    run(capsys, *make(photos, "out")[:-len(FAST)], "--path", photos / "path.json",
+        "--size", "48", "-q", status=2, message=message)
+
+
+@pytest.mark.parametrize(("options", "message"), [
+    (["--size", "5"], "size must be between"),
+    (["--size", "-1"], "size must be between"),
+    (["--fps", "0"], "fps"),
+    (["--fps", "inf"], "fps"),
+    (["--frames", "0"], "frames"),
+    (["--ssaa", "0"], "ssaa"),
+    (["--eye-separation", "nan"], "eye separation"),
+    (["--video-size", "0x0"], "even"),
+    (["--video-size", "abc"], "must look like"),
+    (["--inpainter", "magic"], "unknown inpainter"),
+    (["--weights", "nowhere"], "only apply to --inpainter learned"),
+])
+def test_bad_options_are_refused_before_the_work(photos, capsys, no_work, options, message):
+    argv = ["make", photos / "a.png", "--depth", photos / "a.npy", "-o", "out", *options]
+    before = snapshot(photos.parent)
+    try:
+        code = main([str(a) for a in argv])
+    except SystemExit as exit:  # argparse's own errors: usage line + message, status 2
+        code = exit.code
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and message in err[-1] and "Traceback" not in "\n".join(err), err
+    assert snapshot(photos.parent) == before and not leftovers(photos.parent)
+
+
+def test_missing_extras_are_named_in_one_line(photos, capsys, monkeypatch, no_work):
+    monkeypatch.setitem(sys.modules, "torch", None)
+    monkeypatch.setitem(sys.modules, "moderngl", None)
+    for name in [m for m in sys.modules if m.startswith("photo3d.nets")]:
+        monkeypatch.delitem(sys.modules, name)
+    run(capsys, *make(photos, "out", "--inpainter", "learned"), status=2,
+        message="pip install 'photo3d[learned]'")
+    run(capsys, *make(photos, "out")[:-len(FAST)], "--backend", "gl", status=2,
+        message="pip install 'photo3d[gl]'")
+
+
+def test_unicode_and_very_long_paths(photos, capsys):
+    odd = photos.parent / "fötos 📷 (copy)"
+    shutil.copytree(photos, odd)
+    run(capsys, *make(odd, "résultat 3D ✓"), status=0)
+    photo3d.load(photos.parent / "résultat 3D ✓")
+    deep = photos.parent.joinpath(*["d" * 200] * 8, "out")  # 1.6 kB path, 255 B names
+    run(capsys, *make(photos, deep), status=0)
+    assert (deep / "photo3d.npz").is_file()
+    too_deep = photos.parent.joinpath(*["e" * 250] * 20, "out")  # beyond PATH_MAX
+    run(capsys, *make(photos, too_deep), status=2, message="too long")
+    assert not (photos.parent / ("e" * 250)).exists()  # created parents removed again

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import json
 import zipfile
+import zlib
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -202,24 +203,117 @@ def save_npz(ldi: LDI, path: str | Path, *, meta: dict | None = None) -> None:
 def load_npz(path: str | Path) -> tuple[LDI, dict]:
     """Inverse of :func:`save_npz`: returns ``(ldi, meta)``.
 
-    Raises :class:`InputError` if the file is missing or not a photo3d LDI.
+    Everything read is checked before use (the file may come from anywhere): a zip
+    holding the six arrays and the header, sizes within limits before allocating,
+    dtypes and shapes, link indices in range and symmetric, lattice positions inside
+    the image plus border, finite and plausible intrinsics.
+
+    Raises:
+        InputError: one line; the file is missing, not a photo3d file (any other zip,
+            a text file, pickled data: nothing is unpickled), truncated or inconsistent.
+
+    Example:
+        >>> import tempfile
+        >>> path = Path(tempfile.mkdtemp()) / "notes.npz"
+        >>> _ = path.write_text("not an LDI")
+        >>> try:
+        ...     load_npz(path)
+        ... except InputError as err:
+        ...     print(str(err).split(": ")[1])
+        not a photo3d file (a photo3d.npz written by photo3d make)
     """
     path = Path(path)
     if not path.is_file():
         raise InputError(f"3D photo file not found: {path}")
+    if not zipfile.is_zipfile(path):
+        raise InputError(f"cannot read 3D photo {path}: not a photo3d file "
+                         "(a photo3d.npz written by photo3d make)")
     try:
-        with np.load(path, allow_pickle=False) as f:
-            arrays = {k: f[k] for k in f.files}
+        arrays = _read_arrays(path)
         header = json.loads(arrays.pop("header").tobytes().decode())
-        if header.get("format") != "photo3d-ldi":
-            raise ValueError("not a photo3d LDI")
-        fx, fy, cx, cy, w, h = header["intrinsics"]
-        ldi = LDI(
-            intrinsics=Intrinsics(fx, fy, cx, cy, int(w), int(h)),
-            mapping=DepthMapping(*header["mapping"]),
-            border=int(header["border"]),
-            **arrays,
-        )
-    except (OSError, ValueError, KeyError, TypeError) as err:
-        raise InputError(f"cannot read 3D photo {path}: {err}") from None
-    return ldi, header.get("meta", {})
+        if not isinstance(header, dict) or header.get("format") != "photo3d-ldi":
+            raise InputError("not a photo3d file (its header is not a photo3d LDI header)")
+        ldi = _checked_ldi(arrays, header)
+        meta = header.get("meta", {})
+    except (OSError, ValueError, KeyError, TypeError, EOFError, RuntimeError,
+            NotImplementedError, zipfile.BadZipFile, zlib.error) as err:
+        raise InputError(f"cannot read 3D photo {path}: {_reason(err)}") from None
+    return ldi, meta if isinstance(meta, dict) else {}
+
+
+_ARRAYS = ("y", "x", "color", "disparity", "links", "label")
+_LIMIT = 1 << 26  # LDI pixels (a 1024 px photo has ~1.5M)
+
+
+def _reason(err: BaseException) -> str:
+    if isinstance(err, InputError):
+        return str(err)
+    if isinstance(err, KeyError):
+        return f"not a photo3d file (no {err.args[0]})"
+    if isinstance(err, zipfile.BadZipFile | zlib.error | EOFError):
+        return f"damaged or truncated file ({err})"
+    return f"not a valid photo3d file ({type(err).__name__}: {err})"
+
+
+def _read_arrays(path: Path) -> dict[str, np.ndarray]:
+    from photo3d.io.npy import read_npy
+
+    arrays = {}
+    with zipfile.ZipFile(path) as zf:
+        for name in (*_ARRAYS, "header"):
+            info = zf.getinfo(f"{name}.npy")
+            with zf.open(info) as f:
+                try:
+                    arrays[name] = read_npy(f, max_items=4 * _LIMIT, size=info.file_size)
+                except InputError as err:
+                    raise InputError(f"{name}: {err}") from None
+    return arrays
+
+
+def _checked_ldi(arrays: dict[str, np.ndarray], header: dict) -> LDI:
+    """An LDI from untrusted arrays and header, or InputError naming what is wrong."""
+    values = [float(v) for v in header["intrinsics"]]
+    mapping = [float(v) for v in header["mapping"]]
+    if len(values) != 6 or len(mapping) != 3 or not np.all(np.isfinite(values + mapping)):
+        raise InputError("intrinsics or depth mapping are not finite numbers")
+    fx, fy, cx, cy, w, h = values
+    border = header["border"]
+    if not (w == int(w) and h == int(h) and 1 <= w <= 65536 and 1 <= h <= 65536):
+        raise InputError(f"image size {w}x{h} is not between 1 and 65536 pixels")
+    w, h = int(w), int(h)
+    if not (0 < fx < 1e6 * max(w, h) and 0 < fy < 1e6 * max(w, h)):
+        raise InputError(f"focal lengths fx={fx:g}, fy={fy:g} are not plausible")
+    if not (abs(cx) < 100 * w and abs(cy) < 100 * h):
+        raise InputError(f"principal point ({cx:g}, {cy:g}) lies far outside the image")
+    if not (isinstance(border, int) and 0 <= border <= max(w, h)):
+        raise InputError(f"border {border!r} is not between 0 and the image size")
+    n = arrays["y"].shape[0] if arrays["y"].ndim == 1 else -1
+    shapes = {"y": (n,), "x": (n,), "color": (n, 3), "disparity": (n,), "links": (n, 4),
+              "label": (n,)}
+    for name, shape in shapes.items():
+        a = arrays[name]
+        kind = "f" if name in ("color", "disparity") else "iu"
+        if a.shape != shape or a.dtype.kind not in kind:
+            raise InputError(f"{name} has shape {a.shape} and dtype {a.dtype}; expected "
+                             f"{shape} {'float' if kind == 'f' else 'integer'}")
+    if n < w * h:
+        raise InputError(f"{n} pixels for a {w}x{h} image (the first H * W are the image)")
+    y, x, links = arrays["y"], arrays["x"], arrays["links"]
+    if n and (y.min() < -border or y.max() >= h + border or x.min() < -border
+              or x.max() >= w + border):
+        raise InputError("pixel positions lie outside the image and its border")
+    if n and (links.min() < -1 or links.max() >= n):
+        raise InputError(f"links point outside the {n} pixels")
+    if not (np.isfinite(arrays["color"]).all() and np.isfinite(arrays["disparity"]).all()):
+        raise InputError("colours or disparities are not finite")
+    ldi = LDI(y=y.astype(np.int32), x=x.astype(np.int32),
+              color=arrays["color"].astype(np.float32),
+              disparity=arrays["disparity"].astype(np.float32),
+              links=links.astype(np.int32), label=arrays["label"].astype(np.uint8),
+              intrinsics=Intrinsics(fx, fy, cx, cy, w, h), mapping=DepthMapping(*mapping),
+              border=border)
+    try:
+        ldi.check()
+    except AssertionError as err:
+        raise InputError(f"inconsistent links ({err})") from None
+    return ldi

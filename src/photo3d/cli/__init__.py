@@ -61,6 +61,11 @@ def main(argv: list[str] | None = None) -> int:
         except Photo3DError as err:
             print(f"photo3d: error: {err}", file=sys.stderr)
             return 2
+        except ImportError as err:
+            if "pip install" not in str(err):  # not a missing extra: a bug, show it
+                raise
+            print(f"photo3d: error: {err}", file=sys.stderr)
+            return 2
         except BaseException as err:  # noqa: B036 - only interruptions are turned into a line
             signum = guard.signum or (signal.SIGINT if _interrupted(err) else None)
             if signum is None:

@@ -54,6 +54,10 @@ def run_make(args: argparse.Namespace, image, depth, config: Config) -> int:
 
     videos = [] if args.no_video else videos_from(args)
     settings = render_settings_from(args)
+    if videos and settings.backend == "gl":
+        from photo3d.render.renderer import select_backend
+
+        select_backend("gl")
     backend = get_inpainter(config.inpainter, **inpainter_options(args, config.inpainter))
     staging = check_output(args.out, overwrite=args.overwrite, inputs=inputs_of(args),
                            need_bytes=output_bytes(config, videos))

@@ -25,6 +25,8 @@ import numpy as np
 from PIL import Image, UnidentifiedImageError
 
 from photo3d.errors import InputError, OutputError
+from photo3d.io.images import check_pixel_count
+from photo3d.io.npy import read_npy
 
 PathLike = str | os.PathLike[str]
 
@@ -196,6 +198,8 @@ def _read_png(path: Path) -> np.ndarray:
     """Raw values of a grey (or grey-looking RGB) PNG, 8 or 16 bit."""
     with path.open("rb") as file:
         head = file.read(26)
+    if len(head) < 26:
+        raise InputError(f"only {len(head)} bytes: not a complete PNG")
     if head[:8] == b"\x89PNG\r\n\x1a\n" and head[24] == 16 and head[25] != 0:
         raise InputError("16-bit PNGs with colour or alpha are not supported; save 16-bit grey")
     try:
@@ -208,20 +212,17 @@ def _read_png(path: Path) -> np.ndarray:
             return _first_of_equal_channels(np.asarray(im))
     except UnidentifiedImageError as err:
         raise InputError("not a recognised image format") from err
-    except (OSError, SyntaxError) as err:
+    except (OSError, SyntaxError, ValueError, Image.DecompressionBombError) as err:
         raise InputError(str(err)) from err
 
 
 def _read_npy(path: Path) -> np.ndarray:
-    """Array of a ``.npy`` file; pickled (object) arrays are refused."""
+    """Array of a ``.npy`` file; pickled (object) arrays and huge shapes are refused."""
     try:
-        return np.load(path, allow_pickle=False)
-    except ValueError as err:
-        raise InputError(
-            "not a plain numeric .npy array (pickled and object data are refused)"
-        ) from err
+        with path.open("rb") as file:
+            return read_npy(file, size=path.stat().st_size)
     except OSError as err:
-        raise InputError(str(err)) from err
+        raise InputError(err.strerror or str(err)) from err
 
 
 def _read_pfm(path: Path) -> np.ndarray:
@@ -265,7 +266,7 @@ def _read_tiff_with_pillow(path: Path) -> np.ndarray | None:
             return np.asarray(im)
     except UnidentifiedImageError:
         return None  # e.g. float64 or multi-channel float: tifffile reads those
-    except (OSError, SyntaxError) as err:
+    except (OSError, SyntaxError, ValueError, Image.DecompressionBombError) as err:
         raise InputError(str(err)) from err
 
 
@@ -278,8 +279,11 @@ def _read_tiff_with_tifffile(path: Path) -> np.ndarray:
             "this TIFF needs the tifffile package: pip install 'photo3d[tiff]'"
         ) from err
     try:
-        array = tifffile.imread(path, key=0)
-    except (OSError, ValueError, tifffile.TiffFileError) as err:
+        with tifffile.TiffFile(path) as tif:
+            page = tif.pages[0]
+            check_pixel_count(page.shape)
+            array = page.asarray()
+    except (OSError, ValueError, IndexError, tifffile.TiffFileError) as err:
         raise InputError(str(err) or "not a readable TIFF") from err
     return _first_of_equal_channels(array)
 

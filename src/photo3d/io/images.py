@@ -164,6 +164,31 @@ def write_image(path: PathLike, image: np.ndarray, *, quality: int = 95) -> None
         raise OutputError(f"cannot write image {path}: {err.strerror or err}") from err
 
 
+def check_pixel_count(shape: tuple[int, ...]) -> None:
+    """Refuse a declared size above Pillow's decompression-bomb limit, before decoding.
+
+    Args:
+        shape: the declared array shape (pixels and samples).
+
+    Raises:
+        InputError: more values than twice ``PIL.Image.MAX_IMAGE_PIXELS`` (Pillow's
+            own error limit; no limit if that is None).
+
+    Example:
+        >>> check_pixel_count((1000, 1000, 3))
+        >>> try:
+        ...     check_pixel_count((100000, 100000))
+        ... except InputError as err:
+        ...     print(str(err)[:50])
+        declared size 100000x100000 (10,000,000,000 values
+    """
+    count = int(np.prod(shape, dtype=np.float64))
+    limit = Image.MAX_IMAGE_PIXELS
+    if limit and count > 2 * limit:
+        raise InputError(f"declared size {'x'.join(map(str, shape))} ({count:,} values) is "
+                         f"more than the {2 * limit:,} photo3d accepts (decompression bomb?)")
+
+
 def _scale_to_unit(array: np.ndarray) -> np.ndarray:
     """Map uint8 / uint16 / float values to float32 in [0, 1] (shape unchanged)."""
     if array.dtype == np.uint8:
@@ -250,11 +275,12 @@ def _read_tiff_with_tifffile(path: Path) -> np.ndarray:
     try:
         with tifffile.TiffFile(path) as tif:
             page = tif.pages[0]
+            check_pixel_count(page.shape)
             array = page.asarray()
             if page.planarconfig == tifffile.PLANARCONFIG.SEPARATE and array.ndim == 3:
                 array = np.moveaxis(array, 0, -1)  # (C, H, W) planes -> (H, W, C)
             tag = page.tags.get("Orientation")
-    except (OSError, ValueError, tifffile.TiffFileError) as err:
+    except (OSError, ValueError, IndexError, tifffile.TiffFileError) as err:
         raise InputError(str(err) or "not a readable TIFF") from err
     if array.ndim == 3 and array.shape[2] > 4:
         raise InputError(f"TIFF has {array.shape[2]} channels; expected 1, 3 or 4")

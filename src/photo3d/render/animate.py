@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -48,11 +49,16 @@ class VideoSpec:
     def __post_init__(self) -> None:
         if self.size is not None and (self.size[0] % 2 or self.size[1] % 2 or min(self.size) < 2):
             raise ConfigError(f"video size must be even numbers, got {self.size[0]}x{self.size[1]}")
-        if self.frames < 1 or not self.fps > 0:
-            raise ConfigError("frames and fps must be positive")
+        if not 1 <= self.frames <= 100_000 or not 0 < self.fps <= 1000:
+            raise ConfigError(f"frames must be 1..100000 and fps in (0, 1000], got "
+                              f"{self.frames} frames at {self.fps} fps")
+        if not (math.isfinite(self.eye_separation) and self.eye_separation >= 0):
+            raise ConfigError(f"eye separation must be >= 0, got {self.eye_separation}")
         if self.path not in PRESETS and not Path(self.path).is_file():
             raise ConfigError(f"unknown camera path {self.path!r}: not a preset "
                               f"({', '.join(PRESETS)}) nor a keyframe file")
+        if self.path not in PRESETS:  # a keyframe file: check it now, not after the work
+            load_path(self.path, Intrinsics.default(64, 48), frames=2)
 
     @property
     def name(self) -> str:

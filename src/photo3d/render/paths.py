@@ -161,6 +161,10 @@ def keyframe_path(keyframes: list[dict], intrinsics: Intrinsics, *, frames: int)
     """
     if not keyframes:
         raise InputError("a camera path needs at least one keyframe")
+    for i, k in enumerate(keyframes):
+        if not isinstance(k, dict):
+            raise InputError(f"keyframe {i} is {str(k)[:40]!r}; expected an object with a "
+                             "position, e.g. {\"position\": [0, 0, 0]}")
     try:
         times = np.array([float(k.get("time", i)) for i, k in enumerate(keyframes)])
         positions = np.array([k["position"] for k in keyframes], float)
@@ -171,10 +175,12 @@ def keyframe_path(keyframes: list[dict], intrinsics: Intrinsics, *, frames: int)
             raise InputError("give look_at in every keyframe or in none")
         targets = np.array([k["look_at"] for k in keyframes], float) if use_look else None
         quats = [_to_quat(_euler_to_matrix(k.get("rotation", (0, 0, 0)))) for k in keyframes]
-    except (KeyError, TypeError, ValueError) as err:
+    except (KeyError, TypeError, ValueError, IndexError) as err:
         raise InputError(f"bad keyframe: {err}") from None
-    if positions.shape[1:] != (3,) or np.any(np.diff(times) <= 0) or np.any(fovs <= 0) or \
-            np.any(fovs >= 180):
+    finite = all(np.isfinite(a).all() for a in (times, positions, fovs)) and (
+        targets is None or np.isfinite(targets).all())
+    if positions.ndim != 2 or positions.shape[1:] != (3,) or not finite or \
+            np.any(np.diff(times) <= 0) or np.any(fovs <= 0) or np.any(fovs >= 180):
         raise InputError("keyframes need 3-D positions, increasing times and 0 < fov < 180")
     t = np.linspace(times[0], times[-1], frames)
     pos = _catmull_rom(times, positions, t)
@@ -214,7 +220,10 @@ def load_path(path: str | Path, intrinsics: Intrinsics, *, frames: int) -> list[
     path = Path(path)
     if not path.is_file():
         raise InputError(f"camera path file not found: {path}")
-    text = path.read_text()
+    try:
+        text = path.read_text()
+    except (OSError, UnicodeDecodeError) as err:
+        raise InputError(f"cannot read camera path {path}: {err}") from None
     try:
         if path.suffix.lower() in (".yaml", ".yml"):
             try:

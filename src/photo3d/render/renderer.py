@@ -153,7 +153,7 @@ class Renderer:
         self.settings = settings or RenderSettings()
         self.mesh = mesh
         self._vertices, self._colors, _, self._faces = mesh.checked()
-        self.backend = self._select(self.settings.backend)
+        self.backend = select_backend(self.settings.backend)
         if self.backend == "gl":
             from photo3d.render.gl import GLRasterizer
 
@@ -167,24 +167,6 @@ class Renderer:
             first = int(np.count_nonzero(self._faces.max(axis=1) < n_input))
             self._raster = CPURasterizer(self._vertices, self._colors, self._faces, first=first,
                                          reuse=True)  # frames are resolved into new arrays
-
-    @staticmethod
-    def _select(name: str) -> str:
-        if name == "numba":
-            return "numba"
-        try:
-            from photo3d.render.gl import gl_available, gl_renderer, is_software_renderer
-        except ImportError:
-            if name == "gl":
-                raise
-            return "numba"
-        if name == "gl":
-            if not gl_available():
-                raise ConfigError("backend 'gl' requested but no OpenGL context can be made")
-            return "gl"
-        if gl_available() and not is_software_renderer(gl_renderer() or ""):
-            return "gl"
-        return "numba"
 
     def close(self) -> None:
         """Release GPU resources (if any)."""
@@ -212,3 +194,38 @@ class Renderer:
             bg = np.asarray(s.background, np.float32)
             color = color * coverage[..., None] + bg * (1.0 - coverage[..., None])
         return View(color=np.clip(color, 0.0, 1.0, out=color), depth=depth, mask=mask)
+
+
+def select_backend(name: str) -> str:
+    """The rasterizer ``Renderer`` uses for ``name`` (``auto``, ``numba`` or ``gl``).
+
+    Raises:
+        ImportError: ``gl`` without moderngl (names the ``gl`` extra).
+        ConfigError: ``gl`` and no OpenGL context can be made.
+
+    Example:
+        >>> select_backend("numba")
+        'numba'
+    """
+    if name == "numba":
+        return "numba"
+    if name == "gl":
+        import importlib.util
+
+        if importlib.util.find_spec("moderngl") is None:
+            raise ImportError("--backend gl needs moderngl: pip install 'photo3d[gl]'")
+    try:
+        from photo3d.render.gl import gl_available, gl_renderer, is_software_renderer
+    except ImportError:
+        if name == "gl":
+            raise
+        return "numba"
+    if name == "gl":
+        if not gl_available():
+            raise ConfigError("backend 'gl' requested but no OpenGL context can be made "
+                              "(needs libEGL and a Mesa or GPU driver; --backend numba "
+                              "works everywhere)")
+        return "gl"
+    if gl_available() and not is_software_renderer(gl_renderer() or ""):
+        return "gl"
+    return "numba"

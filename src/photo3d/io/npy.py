@@ -1,0 +1,72 @@
+"""Read ``.npy`` arrays from untrusted files: the declared size is checked before allocating.
+
+``np.load`` trusts the header: a 100-byte file declaring shape ``(100000, 100000)``
+makes it allocate 37 GiB (or fail with ``MemoryError``). :func:`read_npy` reads the
+header, refuses object (pickle) arrays, arrays larger than ``max_items`` and data
+shorter than declared, and only then reads the values.
+
+Example:
+    >>> import io
+    >>> import numpy as np
+    >>> buf = io.BytesIO()
+    >>> np.save(buf, np.arange(6, dtype=np.int32).reshape(2, 3))
+    >>> _ = buf.seek(0)
+    >>> read_npy(buf, max_items=10).tolist()
+    [[0, 1, 2], [3, 4, 5]]
+"""
+
+from __future__ import annotations
+
+from typing import BinaryIO
+
+import numpy as np
+
+from photo3d.errors import InputError
+
+MAX_ITEMS = 2 * 89_478_485
+"""Default limit on the values of one array (Pillow's decompression-bomb limit)."""
+
+
+def read_npy(file: BinaryIO, *, max_items: int = MAX_ITEMS, size: int | None = None) -> np.ndarray:
+    """Read one ``.npy`` array from an open binary file, checking its header first.
+
+    Args:
+        file: positioned at the start of the ``.npy`` data.
+        max_items: largest number of values accepted.
+        size: bytes available from the start (checked against the declared shape when
+            given; a file or zip member shorter than declared is refused).
+
+    Returns:
+        The array (any numeric dtype, never an object array).
+
+    Raises:
+        InputError: not a ``.npy`` array, an object (pickled) dtype, more than
+            ``max_items`` values, or truncated data.
+    """
+    try:
+        version = np.lib.format.read_magic(file)
+        if version == (1, 0):
+            shape, fortran, dtype = np.lib.format.read_array_header_1_0(file)
+        else:
+            shape, fortran, dtype = np.lib.format.read_array_header_2_0(file)
+    except (ValueError, OSError, EOFError, SyntaxError) as err:
+        raise InputError(f"not a .npy array ({err})") from None
+    if dtype.hasobject:
+        raise InputError("not a plain numeric array (pickled and object arrays are refused)")
+    count = int(np.prod(shape, dtype=np.float64)) if shape else 1
+    if count > max_items:
+        shown = "x".join(str(s) for s in shape)
+        raise InputError(f"declared shape {shown} holds {count:,} values; "
+                         f"photo3d accepts at most {max_items:,}")
+    if size is not None and size - file.tell() < count * dtype.itemsize:
+        raise InputError(f"truncated: shape {shape} declared but the data is shorter")
+    try:
+        data = file.read(count * dtype.itemsize)
+    except (OSError, EOFError, ValueError) as err:
+        raise InputError(f"cannot read the data ({err})") from None
+    if len(data) < count * dtype.itemsize:
+        raise InputError(f"truncated: shape {shape} declared but the data is shorter")
+    array = np.frombuffer(data, dtype=dtype, count=count)
+    if fortran:
+        return array.reshape(shape[::-1]).transpose().copy()
+    return array.reshape(shape).copy()
