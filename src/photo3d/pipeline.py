@@ -25,6 +25,7 @@ from photo3d.merge import merge
 from photo3d.mesh import Mesh, build_mesh
 from photo3d.preprocess import preprocess
 from photo3d.regions import find_regions
+from photo3d.resources import check_memory
 
 if TYPE_CHECKING:
     from photo3d.render.renderer import RenderSettings, View
@@ -182,6 +183,7 @@ def make(
     if min(img.shape[:2]) < MIN_SIDE:
         raise InputError(f"image is {img.shape[1]}x{img.shape[0]} pixels; photo3d needs at "
                          f"least {MIN_SIDE}x{MIN_SIDE}")
+    check_memory(img.shape[:2], config)
     dep = prepare_depth(raw, img.shape[:2], kind=config.depth_kind)
     done("load")
 

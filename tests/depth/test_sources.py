@@ -42,8 +42,8 @@ def test_depth_given_as_disparity_by_mistake_is_flagged(tmp_path):
 
 def test_depth_of_another_size_reports_the_resampling(tmp_path):
     est = resolve_depth(photo_file(tmp_path), depth=floor_disparity(24, 32))
-    assert est.depth.shape == (24, 32)  # passed on as given; the pipeline resamples
-    assert any("resampling" in w for w in est.warnings)
+    assert est.depth.shape == (48, 64)  # resampled once here: the pipeline does not warn
+    assert sum("resampling" in w for w in est.warnings) == 1
     with pytest.raises(InputError, match="aspect ratios differ"):
         resolve_depth(photo_file(tmp_path), depth=floor_disparity(48, 20))
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import shutil
 import sys
 from pathlib import Path
 
@@ -49,9 +50,18 @@ def run(args: argparse.Namespace) -> int:
     if unknown:
         raise Photo3DError(f"unknown method(s) {', '.join(unknown)}; "
                            f"methods: {', '.join(_methods())}")
+    if not methods:
+        raise Photo3DError(f"--methods is empty; methods: {', '.join(_methods())}")
+    if args.synthetic is not None and not 1 <= args.synthetic <= 1000:
+        raise Photo3DError(f"--synthetic must be between 1 and 1000, got {args.synthetic}")
+    if args.out.exists() and not args.out.is_dir():
+        raise Photo3DError(f"--out {args.out} exists and is not a folder")
     if args.pair:
+        for given in args.pair:
+            if not Path(given).is_file():
+                raise Photo3DError(f"--pair: file not found: {given}")
         pairs = {Path(args.pair[0]).stem: partial(load_pair, *args.pair)}
-    elif args.synthetic:
+    elif args.synthetic is not None:
         pairs = {f"synthetic{i}": partial(synthetic_pair, i) for i in range(args.synthetic)}
     else:
         pairs = {"motorcycle": motorcycle_pair}
@@ -60,8 +70,14 @@ def run(args: argparse.Namespace) -> int:
         if not args.quiet:
             print(f"  {msg}", file=sys.stderr)
 
-    record = run_eval(pairs, args.out, methods=methods, weights=args.weights,
-                      lpips=not args.no_lpips, progress=say)
+    missing = [p for p in (args.out, *args.out.parents) if not p.exists()]
+    try:
+        record = run_eval(pairs, args.out, methods=methods, weights=args.weights,
+                          lpips=not args.no_lpips, progress=say)
+    except BaseException:
+        if missing:  # a failed or interrupted eval leaves no folder behind
+            shutil.rmtree(missing[-1], ignore_errors=True)
+        raise
     if not args.quiet:
         print((args.out / "results.md").read_text())
         print(f"written: {args.out}/results.json, results.md, "

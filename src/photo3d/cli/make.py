@@ -3,8 +3,11 @@
 from __future__ import annotations
 
 import argparse
+import sys
 import time
 from pathlib import Path
+
+import numpy as np
 
 from photo3d.cli.options import (
     STAGE_LABELS,
@@ -19,6 +22,7 @@ from photo3d.cli.options import (
 )
 from photo3d.cli.progress import StageBar
 from photo3d.config import Config
+from photo3d.resources import check_memory
 
 
 def add_parser(sub) -> None:
@@ -52,6 +56,7 @@ def run_make(args: argparse.Namespace, image, depth, config: Config) -> int:
     from photo3d.output import check_output
     from photo3d.pipeline import make
 
+    check_memory((9, 16), config, at_least=True)  # a 16:9 photo, before reading the input
     videos = [] if args.no_video else videos_from(args)
     settings = render_settings_from(args)
     if videos and settings.backend == "gl":
@@ -65,6 +70,7 @@ def run_make(args: argparse.Namespace, image, depth, config: Config) -> int:
         if callable(depth):
             image, depth, kind = depth()
             config = config.with_(depth_kind=kind)
+        _say_if_upscaled(np.shape(image)[:2], config)
         bar = StageBar(args.quiet)
         try:
             photo = make(image, depth=depth, config=config, inpainter=backend, progress=bar)
@@ -80,6 +86,16 @@ def run_make(args: argparse.Namespace, image, depth, config: Config) -> int:
     if not args.quiet:
         summary(photo, args.out)
     return 0
+
+
+def _say_if_upscaled(shape: tuple[int, int], config: Config) -> None:
+    """A small photo is enlarged to the working size (the parameters are tuned at 1024 px)."""
+    from photo3d.preprocess import working_shape
+
+    if config.size is not None and max(shape) < config.size:
+        h, w = working_shape(shape, config.size)
+        print(f"photo3d: note: the photo is {shape[1]}x{shape[0]}; it is upscaled to a "
+              f"{w}x{h} working size (--size 0 keeps its size)", file=sys.stderr)
 
 
 def output_bytes(config: Config, videos: list) -> int:

@@ -57,19 +57,9 @@ def prepare_depth(depth: np.ndarray, image_shape: tuple[int, int], *, kind: str)
     if not np.issubdtype(depth.dtype, np.number):
         raise InputError(f"depth has dtype {depth.dtype}; expected numbers")
     depth = depth.astype(np.float32)
-    h, w = image_shape
-    if depth.shape != (h, w):
-        ratio_d, ratio_i = depth.shape[1] / depth.shape[0], w / h
-        if abs(ratio_d / ratio_i - 1.0) > 0.01:
-            raise InputError(
-                f"depth has shape {depth.shape} but image is {(h, w)}: aspect ratios differ"
-            )
-        warnings.warn(
-            f"depth has shape {depth.shape} but image is {(h, w)}; resampling the depth",
-            UserWarning,
-            stacklevel=2,
-        )
-        depth = _resize_nearest(depth, (h, w))
+    depth, note = match_shape(depth, image_shape)
+    if note:
+        warnings.warn(note, UserWarning, stacklevel=2)
 
     if kind == "depth":
         valid = np.isfinite(depth) & (depth > 0)
@@ -83,6 +73,32 @@ def prepare_depth(depth: np.ndarray, image_shape: tuple[int, int], *, kind: str)
         raise InputError("depth has no valid value (all NaN, inf or out of range)")
     filled = fill_unknown(disparity.astype(np.float32), ~valid)
     return DepthInput(disparity=filled, unknown=~valid)
+
+
+def match_shape(depth: np.ndarray, image_shape: tuple[int, int]) -> tuple[np.ndarray, str]:
+    """Resample ``depth`` (nearest) to ``image_shape`` if only the resolution differs.
+
+    Returns:
+        ``(depth at image_shape, note)``; the note is ``""`` when nothing changed.
+
+    Raises:
+        InputError: the aspect ratios differ by more than 1 %.
+
+    Example:
+        >>> d, note = match_shape(np.ones((2, 3), np.float32), (4, 6))
+        >>> d.shape, note
+        ((4, 6), 'depth has shape (2, 3) but image is (4, 6); resampling the depth')
+    """
+    h, w = image_shape
+    if depth.shape == (h, w):
+        return depth, ""
+    ratio_d, ratio_i = depth.shape[1] / depth.shape[0], w / h
+    if abs(ratio_d / ratio_i - 1.0) > 0.01:
+        raise InputError(
+            f"depth has shape {depth.shape} but image is {(h, w)}: aspect ratios differ"
+        )
+    note = f"depth has shape {depth.shape} but image is {(h, w)}; resampling the depth"
+    return _resize_nearest(depth, (h, w)), note
 
 
 def fill_unknown(disparity: np.ndarray, unknown: np.ndarray) -> np.ndarray:

@@ -18,7 +18,7 @@ import numpy as np
 from PIL import Image
 
 from photo3d.depth.checks import check_depth
-from photo3d.depth.normalize import prepare_depth
+from photo3d.depth.normalize import match_shape, prepare_depth
 from photo3d.errors import InputError
 from photo3d.io.depth import read_depth
 from photo3d.io.images import read_image, to_float_image
@@ -32,8 +32,9 @@ class DepthEstimate:
     """A depth map ready for the pipeline, with where it came from.
 
     Attributes:
-        depth: ``(H, W) float32`` at the image size (a ``depth`` file of another
-            size is passed on as read; the pipeline resamples it). Unknown values
+        depth: ``(H, W) float32`` at the image size (a map of another size with the
+            same aspect ratio is resampled here, nearest neighbour, with one
+            warning). Unknown values
             (NaN, inf, negative) may remain; the pipeline fills them.
         kind: ``"disparity"`` (larger = nearer) or ``"depth"`` (camera z).
         source: one line for humans, e.g. ``"embedded GDepth depth map (range
@@ -49,6 +50,10 @@ class DepthEstimate:
     source: str
     warnings: tuple[str, ...] = ()
     image: np.ndarray | None = None
+
+
+UNKNOWN_WARNING = 0.5
+"""Warn when more than this fraction of the depth map is unknown."""
 
 
 def load_photo(image: np.ndarray | PathLike) -> np.ndarray:
@@ -142,6 +147,9 @@ def resolve_depth(
     else:
         raw, kind, source, found, better_image = _embedded(image, kind, photo.shape[:2])
         notes += found
+    if raw.ndim == 2:  # resample once here, so that the pipeline does not warn again
+        raw, note = match_shape(raw, photo.shape[:2])
+        notes += [note] if note else []
     notes += _checks(raw, photo, kind)
     return DepthEstimate(depth=raw.astype(np.float32), kind=kind, source=source,
                          warnings=tuple(notes), image=better_image)
@@ -175,4 +183,8 @@ def _checks(raw: np.ndarray, photo: np.ndarray, kind: str) -> list[str]:
         warnings.simplefilter("always")
         prepared = prepare_depth(raw, photo.shape[:2], kind=kind)
     notes = [str(w.message) for w in caught]
+    unknown = float(prepared.unknown.mean())
+    if unknown > UNKNOWN_WARNING:
+        notes.append(f"depth is unknown at {unknown:.0%} of the pixels (NaN, inf or out of "
+                     "range): they are guessed from their row neighbours")
     return notes + check_depth(prepared.disparity, photo, kind=kind)

@@ -19,6 +19,7 @@ Example:
 from __future__ import annotations
 
 import os
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -85,9 +86,9 @@ def read_image(path: PathLike) -> np.ndarray:
     back portrait. Conversions follow :func:`to_float_image`: grey (``L``, ``I;16``,
     ``I``, ``F``) is replicated to 3 channels, transparency (``RGBA``, ``LA``,
     palette) is composited over white, 16-bit values are divided by 65535. 16-bit
-    RGB TIFFs are read with ``tifffile`` (extra ``photo3d[tiff]``); 16-bit colour
-    PNGs are reduced to 8 bits by Pillow. Only the first frame of a multi-frame file
-    is read.
+    RGB TIFFs are read with ``tifffile`` (extra ``photo3d[tiff]``), 16-bit colour
+    PNGs with OpenCV (extra ``photo3d[stereo]``; without it they are read at 8 bits,
+    with a warning). Only the first frame of a multi-frame file is read.
 
     Args:
         path: the image file.
@@ -226,6 +227,10 @@ def _read_pixels(path: Path) -> np.ndarray:
         with Image.open(path) as im:
             if _is_wide_colour_tiff(im):
                 return _read_tiff_with_tifffile(path)
+            if im.format == "PNG" and _is_wide_colour_png(path):
+                wide = _read_png16_colour(path, im.getexif().get(0x0112, 1))
+                if wide is not None:
+                    return wide
             im.load()
             im = ImageOps.exif_transpose(im)
             return _pixels_of(im)
@@ -253,6 +258,28 @@ def _pixels_of(im: Image.Image) -> np.ndarray:
         return np.asarray(im)
     transparent = mode in _ALPHA_MODES or "transparency" in im.info
     return np.asarray(im.convert("RGBA" if transparent else "RGB"))
+
+
+def _is_wide_colour_png(path: Path) -> bool:
+    """True for a 16-bit RGB or RGBA PNG (Pillow reduces those to 8 bits)."""
+    with path.open("rb") as file:
+        head = file.read(26)
+    return len(head) == 26 and head[24] == 16 and head[25] in (2, 6)
+
+
+def _read_png16_colour(path: Path, orientation: int) -> np.ndarray | None:
+    """``(H, W, 3|4) uint16`` of a 16-bit colour PNG through OpenCV, or None without it."""
+    try:
+        import cv2
+    except ImportError:
+        warnings.warn(f"{path.name}: 16-bit colour PNG read at 8 bits (full precision needs "
+                      "OpenCV: pip install 'photo3d[stereo]')", stacklevel=3)
+        return None
+    array = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+    if array is None or array.dtype != np.uint16 or array.ndim != 3:
+        return None  # let Pillow decode it (or say why it cannot)
+    order = [2, 1, 0, 3][: array.shape[2]]  # BGR(A) -> RGB(A)
+    return _apply_orientation(np.ascontiguousarray(array[:, :, order]), int(orientation))
 
 
 def _is_wide_colour_tiff(im: Image.Image) -> bool:
