@@ -34,6 +34,7 @@ BENCHMARKS = [
     ["bench_learned.py", "--edge-unit", "8", "--precision", "bf16"],
     ["bench_stereo.py"],
     ["bench_viewer.py"],
+    ["bench_memory.py"],
 ]
 
 
@@ -397,6 +398,8 @@ def main() -> None:
         section_make(), section_render(), section_speed(), section_quality(),
         section_learned(),
         section_stereo(), section_viewer(),
+        section_json("memory.json", "Peak memory of make (what --size can fit)",
+                     "python benchmarks/bench_memory.py"),
     ]
     (HERE / "RESULTS.md").write_text("\n".join(parts).rstrip() + "\n")
     print(f"wrote {HERE / 'RESULTS.md'}")

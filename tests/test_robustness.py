@@ -465,3 +465,90 @@ def test_unicode_and_very_long_paths(photos, capsys):
     too_deep = photos.parent.joinpath(*["e" * 250] * 20, "out")  # beyond PATH_MAX
     run(capsys, *make(photos, too_deep), status=2, message="too long")
     assert not (photos.parent / ("e" * 250)).exists()  # created parents removed again
+
+
+# --- smaller promises ---------------------------------------------------------------------
+
+
+def test_16_bit_colour_png_is_read_at_full_precision(tmp_path):
+    cv2 = pytest.importorskip("cv2")
+    from photo3d.io.images import read_image
+
+    values = np.random.default_rng(1).integers(0, 65536, (12, 16, 3), dtype=np.uint16)
+    cv2.imwrite(str(tmp_path / "deep.png"), values[:, :, ::-1])  # OpenCV writes BGR
+    image = read_image(tmp_path / "deep.png")
+    assert np.abs(image * 65535.0 - values).max() < 0.02  # not 8 bits (error up to 128)
+
+
+def test_upscaling_a_small_photo_is_announced(photos, capsys):
+    argv = [str(a) for a in make(photos, "up")[:-len(FAST)]] + ["--size", "96", "--no-video"]
+    assert main(argv) == 0
+    err = capsys.readouterr().err
+    assert "the photo is 64x48; it is upscaled to a 96x72 working size" in err
+    assert main(argv[:4] + ["-o", "up2", "-q", "--size", "32", "--no-video"]) == 0
+    assert "upscaled" not in capsys.readouterr().err  # larger than --size: no note
+
+
+def test_a_size_beyond_the_memory_is_refused_up_front(photos, capsys, monkeypatch, no_work):
+    monkeypatch.setattr("photo3d.resources.available_memory", lambda: 2_000_000_000)
+    run(capsys, *make(photos, "out")[:-len(FAST)], "--size", "16384", status=2,
+        message="--size 16384 needs at least 285.6 GB of memory but 2.0 GB are available")
+    from photo3d.config import Config
+    from photo3d.errors import ConfigError
+
+    img, d = two_planes(48, 64, 32)
+    with pytest.raises(ConfigError, match="a 4096x3072 working size needs about 23.0 GB"):
+        photo3d.make(img, depth=d, config=Config(size=4096))  # the unpatched one
+
+
+def test_depth_warnings_are_printed_once(photos, capsys):
+    small = np.load(photos / "a.npy")[::2, ::2].copy()
+    small[:, :28] = np.nan  # 88 % unknown
+    np.save(photos / "half.npy", small)
+    code = main([str(a) for a in ["make", photos / "a.png", "--depth", photos / "half.npy",
+                                  "-o", "out", *FAST]])
+    err = capsys.readouterr().err
+    assert code == 0
+    assert err.count("resampling the depth") == 1, err
+    assert err.count("depth is unknown at 88% of the pixels") == 1, err
+
+
+@pytest.mark.parametrize(("args", "message"), [
+    (["--synthetic", "0"], "between 1 and 1000"),
+    (["--synthetic", "-2"], "between 1 and 1000"),
+    (["--methods", ","], "--methods is empty"),
+    (["--pair", "l.png", "r.png", "d.pfm", "calib.txt"], "file not found"),
+])
+def test_eval_options_are_checked(photos, capsys, args, message):
+    run(capsys, "eval", *args, "-o", "ev/out", "-q", status=2, message=message)
+
+
+def test_a_failed_eval_leaves_no_folder(photos, capsys):
+    bad = [photos / "notes.txt"] * 4
+    run(capsys, "eval", "--pair", *bad, "-o", "ev/out", "-q", "--no-lpips",
+        status=2, message="notes.txt")
+
+
+def test_the_licence_is_an_spdx_expression():
+    import tomllib
+
+    root = Path(__file__).parents[1]
+    project = tomllib.loads((root / "pyproject.toml").read_text())["project"]
+    assert project["license"] == "MIT"
+
+
+def test_render_and_depth_on_a_read_only_file_system(photos, capsys):
+    mnt = photos.parent / "mnt"
+    if not _mount_tmpfs(mnt, "size=20m"):
+        pytest.skip("needs root to mount a small tmpfs")
+    try:
+        run(capsys, *make(photos, mnt / "p"), status=0)
+        subprocess.run(["mount", "-o", "remount,ro", str(mnt)], check=True)
+        run(capsys, "render", mnt / "p", "--path", "circle", "--frames", "2", "-q", status=2,
+            message="Read-only file system")
+        run(capsys, "render", mnt / "p", "--still", "-q", status=2,
+            message="Read-only file system")
+        run(capsys, "depth", photos / "a.png", "--depth", photos / "a.npy", "-o",
+            mnt / "d.png", status=2, message="Read-only file system")
+    finally:
+        subprocess.run(["umount", str(mnt)], check=True)

@@ -129,16 +129,20 @@ def write_videos(photo: Photo3D, mesh, folder: Path, videos: Sequence[VideoSpec]
     from photo3d.render.animate import render_video
     from photo3d.render.renderer import Renderer
 
-    (folder / "video").mkdir(exist_ok=True)
-    written = []
-    with Renderer(mesh if mesh is not None else photo.mesh(), settings) as renderer:
-        for i, spec in enumerate(videos):
-            def on_frame(done: int, total: int, i: int = i) -> None:
-                if progress:
-                    progress("video", (i + done / total) / len(videos))
+    try:
+        (folder / "video").mkdir(exist_ok=True)
+        written = []
+        with Renderer(mesh if mesh is not None else photo.mesh(), settings) as renderer:
+            for i, spec in enumerate(videos):
+                def on_frame(done: int, total: int, i: int = i) -> None:
+                    if progress:
+                        progress("video", (i + done / total) / len(videos))
 
-            target = folder / "video" / f"{spec.name}.{spec.format}"
-            written.append(render_video(renderer, photo.ldi, spec, target, progress=on_frame))
+                target = folder / "video" / f"{spec.name}.{spec.format}"
+                written.append(render_video(renderer, photo.ldi, spec, target,
+                                            progress=on_frame))
+    except OSError as err:
+        raise OutputError(f"cannot write videos in {folder}: {err.strerror or err}") from None
     return written
 
 

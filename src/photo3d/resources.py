@@ -1,10 +1,10 @@
 """Memory a run needs, estimated before the work so that a too-large size is refused.
 
 The estimate is linear in the working pixels (longer side ``Config.size``, border
-included): peak resident memory of ``photo3d demo --no-video`` measured with
-``/usr/bin/time -f %M`` at ``--size`` 256, 512 and 1024 (240, 372 and 1019 MB, i.e.
-about 200 MB of interpreter and libraries plus 1.0-1.25 kB per working pixel).
-The per-pixel figure used here rounds that up.
+included): ``benchmarks/bench_memory.py`` measured the peak resident memory of
+``photo3d demo --no-video`` at ``--size`` 256, 512 and 1024 (246, 392 and 1123 MB:
+about 200 MB of interpreter and libraries plus 850-1050 bytes per working pixel).
+The per-pixel figure used here rounds that up (1024 px: 1.5 GB estimated).
 
 Example:
     >>> from photo3d.config import Config
@@ -23,7 +23,7 @@ from photo3d.preprocess import working_shape
 BASE_BYTES = 200e6
 """Interpreter, numpy, numba and the nets' code, resident before any pixel."""
 BYTES_PER_PIXEL = 1400
-"""Peak bytes per working pixel (measured 1.0-1.25 kB, rounded up)."""
+"""Peak bytes per working pixel (measured 850-1050, rounded up)."""
 
 
 def memory_estimate(shape: tuple[int, int], config: Config) -> int:

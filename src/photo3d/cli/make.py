@@ -70,7 +70,8 @@ def run_make(args: argparse.Namespace, image, depth, config: Config) -> int:
         if callable(depth):
             image, depth, kind = depth()
             config = config.with_(depth_kind=kind)
-        _say_if_upscaled(np.shape(image)[:2], config)
+        if not args.quiet:
+            _say_if_upscaled(np.shape(image)[:2], config)
         bar = StageBar(args.quiet)
         try:
             photo = make(image, depth=depth, config=config, inpainter=backend, progress=bar)

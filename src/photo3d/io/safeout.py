@@ -358,6 +358,37 @@ def _swap(tmp: Path, final: Path, out: Path, *, expected: tuple | None) -> Path:
     return old
 
 
+def check_writable(file: PathLike) -> Path:
+    """Check early that ``file`` can be created: its folder exists and takes a new file.
+
+    A hidden probe file is created beside it and removed. Returns ``file`` as a Path.
+
+    Raises:
+        OutputError: ``file`` is a folder, its folder is missing, or the file system
+            refuses a new file there (permissions, read-only, full, name too long).
+
+    Example:
+        >>> import pathlib, tempfile
+        >>> check_writable(pathlib.Path(tempfile.mkdtemp()) / "depth.png").name
+        'depth.png'
+    """
+    file = Path(file)
+    if file.is_dir():
+        raise OutputError(f"output {file} is a folder; expected a file name")
+    parent = file.parent
+    if not parent.is_dir():
+        raise OutputError(f"cannot write {file}: the folder {parent} does not exist")
+    probe = parent / f".{file.name[:64]}.{secrets.token_hex(4)}.tmp"
+    try:
+        if len(os.fsencode(file.name)) > 255:
+            raise OSError(errno.ENAMETOOLONG, os.strerror(errno.ENAMETOOLONG))
+        probe.touch(exist_ok=False)
+        probe.unlink()
+    except OSError as err:
+        raise OutputError(f"cannot write {file}: {err.strerror or err}") from None
+    return file
+
+
 class Interrupted(KeyboardInterrupt):
     """Raised inside :func:`handle_signals` when a termination signal arrives.
 
