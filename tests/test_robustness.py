@@ -552,3 +552,19 @@ def test_render_and_depth_on_a_read_only_file_system(photos, capsys):
             mnt / "d.png", status=2, message="Read-only file system")
     finally:
         subprocess.run(["umount", str(mnt)], check=True)
+
+
+def test_a_folder_filled_meanwhile_is_not_replaced_without_overwrite(tmp_path):
+    out = tmp_path / "out"
+    out.mkdir()  # an empty folder may be used
+    from photo3d.output import check_output
+
+    with check_output(out, overwrite=False) as staging:
+        (out / "photo3d.npz").write_text("written meanwhile")
+        with pytest.raises(OutputError, match="not empty"):
+            staging.commit()
+    assert os.listdir(tmp_path) == ["out"] and os.listdir(out) == ["photo3d.npz"]
+    with check_output(tmp_path / "new", overwrite=False) as staging:
+        (tmp_path / "new").mkdir()  # an empty folder appearing meanwhile is fine
+        staging.commit()
+    assert sorted(os.listdir(tmp_path)) == ["new", "out"]

@@ -18,6 +18,8 @@ The rules (what photo3d promises, README "Inputs"):
 * Two runs writing the same output: the first to finish wins; the other fails with
   :class:`~photo3d.errors.OutputError` (the final rename never replaces a folder
   that appeared or changed meanwhile).
+* Signals: run the work inside :func:`photo3d.io.signals.handle_signals` so that
+  SIGTERM and SIGHUP, like Ctrl-C, unwind through the ``with`` block.
 * New folders get the usual permissions (``0o777`` minus the umask).
 
 Example:
@@ -33,15 +35,13 @@ Example:
 from __future__ import annotations
 
 import atexit
-import contextlib
 import ctypes
 import errno
 import fnmatch
 import os
 import secrets
 import shutil
-import signal
-from collections.abc import Callable, Iterable, Iterator, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
 
 from photo3d.errors import OutputError
@@ -95,9 +95,11 @@ class Staging:
     """
 
     def __init__(self, path: Path, final: Path, out: Path, *, seen: tuple | None,
-                 owned: Callable[[Path], list[str]] | None, made: list[Path]) -> None:
+                 owned: Callable[[Path], list[str]] | None, made: list[Path],
+                 overwrite: bool) -> None:
         self.path, self.final, self.out = path, final, out
         self._seen, self._owned, self._made = seen, owned, made
+        self._overwrite = overwrite
         self._done = False
 
     def __enter__(self) -> Staging:
@@ -122,11 +124,13 @@ class Staging:
                                   "(another run?); this run's result was discarded")
             if now is None:
                 _claim(self.path, self.final, self.out)
-            elif self._seen is not None and _is_empty_dir(self.final):
+            elif _is_empty_dir(self.final):
                 os.rmdir(self.final)
                 _claim(self.path, self.final, self.out)
             else:
                 foreign = self._owned(self.final) if self._owned else ["is not empty"]
+                if not self._overwrite:
+                    foreign = ["is not empty (use --overwrite)"]
                 if foreign:
                     raise OutputError(f"output {self.out} changed meanwhile and "
                                       f"{' and '.join(foreign)}; nothing replaced")
@@ -230,7 +234,7 @@ def _stage(out: Path, *, overwrite, inputs, owned, need_bytes) -> Staging:
         _remove_empty(made)
         raise OutputError(f"only {_mb(free)} free in {parent}; this output needs about "
                           f"{_mb(need_bytes)}")
-    return Staging(tmp, final, out, seen=seen, owned=owned, made=made)
+    return Staging(tmp, final, out, seen=seen, owned=owned, made=made, overwrite=overwrite)
 
 
 def _mb(size: int) -> str:
@@ -387,68 +391,6 @@ def check_writable(file: PathLike) -> Path:
     except OSError as err:
         raise OutputError(f"cannot write {file}: {err.strerror or err}") from None
     return file
-
-
-class Interrupted(KeyboardInterrupt):
-    """Raised inside :func:`handle_signals` when a termination signal arrives.
-
-    Attributes:
-        signum: the signal number (``signal.SIGTERM``, ``signal.SIGHUP``, ...).
-    """
-
-    def __init__(self, signum: int) -> None:
-        super().__init__(signal.Signals(signum).name)
-        self.signum = signum
-
-
-class SignalGuard:
-    """What :func:`handle_signals` saw: ``signum`` is the first signal received, or None."""
-
-    signum: int | None = None
-
-
-@contextlib.contextmanager
-def handle_signals() -> Iterator[SignalGuard]:
-    """Turn SIGINT, SIGTERM and SIGHUP into exceptions, so cleanup code runs.
-
-    SIGINT raises :class:`KeyboardInterrupt` (as Python does), SIGTERM and SIGHUP
-    raise :class:`Interrupted`; either unwinds through ``with stage_output(...)``,
-    which removes its temporary folder. The guard remembers the signal, because an
-    interrupt that lands inside compiled code (numba) can surface as another
-    exception (``SystemError``): callers should treat any exception raised after
-    ``guard.signum`` was set as the interruption. Does nothing outside the main thread.
-
-    Example:
-        >>> import os, signal
-        >>> with handle_signals() as guard:
-        ...     try:
-        ...         os.kill(os.getpid(), signal.SIGTERM)
-        ...     except Interrupted as err:
-        ...         print(err.signum == signal.SIGTERM, guard.signum == signal.SIGTERM)
-        True True
-    """
-    guard = SignalGuard()
-
-    def handler(signum, frame):
-        if guard.signum is None:
-            guard.signum = signum
-        if signum == signal.SIGINT:
-            raise KeyboardInterrupt
-        raise Interrupted(signum)
-
-    wanted = [signal.SIGINT, signal.SIGTERM] + ([signal.SIGHUP] if hasattr(signal, "SIGHUP")
-                                                else [])
-    previous = {}
-    try:
-        for signum in wanted:
-            previous[signum] = signal.signal(signum, handler)
-    except ValueError:  # not the main thread: leave the handlers alone
-        pass
-    try:
-        yield guard
-    finally:
-        for signum, old in previous.items():
-            signal.signal(signum, old)
 
 
 @atexit.register
