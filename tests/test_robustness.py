@@ -24,6 +24,7 @@ import photo3d
 from photo3d.cli import main
 from photo3d.errors import OutputError
 from photo3d.io.safeout import stage_output
+from photo3d.pipeline import make as make_photo  # before any test patches it
 
 SRC = str(Path(photo3d.__file__).parents[1])
 FAST = ["--size", "48", "--no-video", "--no-glb", "--no-viewer", "-q"]
@@ -498,7 +499,7 @@ def test_a_size_beyond_the_memory_is_refused_up_front(photos, capsys, monkeypatc
 
     img, d = two_planes(48, 64, 32)
     with pytest.raises(ConfigError, match="a 4096x3072 working size needs about 23.0 GB"):
-        photo3d.make(img, depth=d, config=Config(size=4096))  # the unpatched one
+        make_photo(img, depth=d, config=Config(size=4096))
 
 
 def test_depth_warnings_are_printed_once(photos, capsys):
@@ -568,3 +569,36 @@ def test_a_folder_filled_meanwhile_is_not_replaced_without_overwrite(tmp_path):
         (tmp_path / "new").mkdir()  # an empty folder appearing meanwhile is fine
         staging.commit()
     assert sorted(os.listdir(tmp_path)) == ["new", "out"]
+
+
+def test_interruptions_anywhere_in_main_are_one_line(photos, capsys, monkeypatch):
+    """Ctrl-C while the parser is built (it imports a lot), and a KeyboardInterrupt
+    wrapped by numba's dispatcher (``SystemError ... with an exception set``)."""
+    import photo3d.cli as cli
+
+    def interrupted():
+        raise KeyboardInterrupt
+
+    with monkeypatch.context() as m:
+        m.setattr(cli, "build_parser", interrupted)
+        assert main(["make"]) == 130
+    assert capsys.readouterr().err == "photo3d: interrupted\n"
+
+    def wrapped(*args, **kwargs):
+        try:
+            raise KeyboardInterrupt
+        except KeyboardInterrupt as err:
+            raise SystemError("CPUDispatcher(<function _raster>) returned a result with an "
+                              "exception set") from err
+
+    monkeypatch.setattr("photo3d.pipeline.make", wrapped)
+    run(capsys, *make(photos, "out"), status=130, message="photo3d: interrupted")
+
+
+def test_import_photo3d_stays_light():
+    """The command line starts (and handles Ctrl-C) before the heavy imports."""
+    code = ("import sys, photo3d.cli; "
+            "print(sorted(m for m in ('numpy', 'numba', 'scipy', 'PIL') if m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], env={**os.environ, "PYTHONPATH": SRC},
+                         capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "[]"

@@ -15,10 +15,22 @@ Example:
 
 from photo3d.config import PRESETS, Config
 from photo3d.errors import ConfigError, InputError, OutputError, Photo3DError
-from photo3d.output import load_photo as load
-from photo3d.pipeline import Photo3D, make
 
 __version__ = "0.1.0"
+
+_LAZY = {"load": ("photo3d.output", "load_photo"), "make": ("photo3d.pipeline", "make"),
+         "Photo3D": ("photo3d.pipeline", "Photo3D")}
+
+
+def __getattr__(name: str):
+    """Import the pipeline on first use: ``import photo3d`` (and the command line's
+    start, where Ctrl-C must already be handled) stays fast."""
+    if name in _LAZY:
+        import importlib
+
+        module, attr = _LAZY[name]
+        return getattr(importlib.import_module(module), attr)
+    raise AttributeError(f"module 'photo3d' has no attribute {name!r}")
 
 __all__ = [
     "PRESETS",

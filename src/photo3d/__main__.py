@@ -2,6 +2,10 @@
 
 import sys
 
-from photo3d.cli import main
+try:
+    from photo3d.cli import main
+except KeyboardInterrupt:  # Ctrl-C while starting: still one line
+    print("photo3d: interrupted", file=sys.stderr)  # noqa: T201
+    sys.exit(130)
 
 sys.exit(main())

@@ -48,15 +48,14 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``photo3d`` command; returns the exit status."""
-    parser = build_parser()
-    args = parser.parse_args(argv)
 
     def show(message, category, filename, lineno, file=None, line=None):
         print(f"photo3d: warning: {message}", file=sys.stderr)
 
-    warnings.showwarning = show
-    with handle_signals() as guard:
+    with handle_signals() as guard:  # from the start: building the parser imports a lot
         try:
+            args = build_parser().parse_args(argv)
+            warnings.showwarning = show
             return args.run(args)
         except Photo3DError as err:
             print(f"photo3d: error: {err}", file=sys.stderr)

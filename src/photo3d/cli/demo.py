@@ -5,8 +5,6 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-import numpy as np
-
 from photo3d.cli.make import run_make
 from photo3d.cli.options import add_make_options, config_from
 
@@ -20,6 +18,8 @@ def add_parser(sub) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run ``photo3d demo``; returns the exit status."""
+    import numpy as np
+
     from photo3d.data import motorcycle
 
     sample = motorcycle()

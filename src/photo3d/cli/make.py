@@ -7,8 +7,6 @@ import sys
 import time
 from pathlib import Path
 
-import numpy as np
-
 from photo3d.cli.options import (
     STAGE_LABELS,
     add_depth_sources,
@@ -22,7 +20,6 @@ from photo3d.cli.options import (
 )
 from photo3d.cli.progress import StageBar
 from photo3d.config import Config
-from photo3d.resources import check_memory
 
 
 def add_parser(sub) -> None:
@@ -55,6 +52,7 @@ def run_make(args: argparse.Namespace, image, depth, config: Config) -> int:
     from photo3d.inpaint import get_inpainter
     from photo3d.output import check_output
     from photo3d.pipeline import make
+    from photo3d.resources import check_memory
 
     check_memory((9, 16), config, at_least=True)  # a 16:9 photo, before reading the input
     videos = [] if args.no_video else videos_from(args)
@@ -71,7 +69,7 @@ def run_make(args: argparse.Namespace, image, depth, config: Config) -> int:
             image, depth, kind = depth()
             config = config.with_(depth_kind=kind)
         if not args.quiet:
-            _say_if_upscaled(np.shape(image)[:2], config)
+            _say_if_upscaled(image.shape[:2], config)
         bar = StageBar(args.quiet)
         try:
             photo = make(image, depth=depth, config=config, inpainter=backend, progress=bar)

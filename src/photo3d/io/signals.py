@@ -38,7 +38,9 @@ def handle_signals() -> Iterator[SignalGuard]:
     which removes its temporary folder. The guard remembers the signal, because an
     interrupt that lands inside compiled code (numba) can surface as another
     exception (``SystemError``): callers should treat any exception raised after
-    ``guard.signum`` was set as the interruption. Does nothing outside the main thread.
+    ``guard.signum`` was set as the interruption. Signals ignored when the process
+started stay ignored (``nohup``, background jobs). Does nothing outside the main
+thread.
 
     Example:
         >>> import os, signal
@@ -67,7 +69,8 @@ def handle_signals() -> Iterator[SignalGuard]:
                                                 else [])
     try:
         for signum in wanted:
-            previous[signum] = signal.signal(signum, handler)
+            if signal.getsignal(signum) != signal.SIG_IGN:  # nohup, background jobs
+                previous[signum] = signal.signal(signum, handler)
     except ValueError:  # not the main thread: leave the handlers alone
         pass
     try:
