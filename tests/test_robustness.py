@@ -460,7 +460,8 @@ def test_unicode_and_very_long_paths(photos, capsys):
     shutil.copytree(photos, odd)
     run(capsys, *make(odd, "résultat 3D ✓"), status=0)
     photo3d.load(photos.parent / "résultat 3D ✓")
-    deep = photos.parent.joinpath(*["d" * 200] * 8, "out")  # 1.6 kB path, 255 B names
+    run(capsys, *make(photos, "n" * 255), status=0)  # the longest name: the temp's is shorter
+    deep = photos.parent.joinpath(*["d" * 200] * 8, "out")  # a 1.6 kB path
     run(capsys, *make(photos, deep), status=0)
     assert (deep / "photo3d.npz").is_file()
     too_deep = photos.parent.joinpath(*["e" * 250] * 20, "out")  # beyond PATH_MAX
@@ -558,17 +559,19 @@ def test_render_and_depth_on_a_read_only_file_system(photos, capsys):
 def test_a_folder_filled_meanwhile_is_not_replaced_without_overwrite(tmp_path):
     out = tmp_path / "out"
     out.mkdir()  # an empty folder may be used
-    from photo3d.output import check_output
+    from photo3d.output import check_output, stage_photo
 
-    with check_output(out, overwrite=False) as staging:
+    with stage_photo(out, overwrite=False) as staging:
         (out / "photo3d.npz").write_text("written meanwhile")
         with pytest.raises(OutputError, match="not empty"):
             staging.commit()
     assert os.listdir(tmp_path) == ["out"] and os.listdir(out) == ["photo3d.npz"]
-    with check_output(tmp_path / "new", overwrite=False) as staging:
+    with stage_photo(tmp_path / "new", overwrite=False) as staging:
         (tmp_path / "new").mkdir()  # an empty folder appearing meanwhile is fine
         staging.commit()
     assert sorted(os.listdir(tmp_path)) == ["new", "out"]
+    assert check_output(tmp_path / "other", overwrite=False).name == "other"
+    assert sorted(os.listdir(tmp_path)) == ["new", "out"]  # a check leaves nothing
 
 
 def test_interruptions_anywhere_in_main_are_one_line(photos, capsys, monkeypatch):

@@ -39,16 +39,34 @@ owned_photo = owned_by_names(LDI_FILE, PHOTO_FILES)
 
 
 def check_output(out: str | Path, *, overwrite: bool, inputs: Sequence[str | Path] = (),
-                 need_bytes: int = 0) -> Staging:
-    """Check early that ``out`` can become a 3D photo folder; return its staging folder.
+                 need_bytes: int = 0) -> Path:
+    """Raise :class:`OutputError` early if ``out`` cannot become a 3D photo folder.
 
-    See :func:`photo3d.io.safeout.stage_output` (``inputs``: files the run reads,
-    which the output may not hold). Use the result in a ``with`` block and pass it to
-    :func:`save_photo` as ``out``.
+    Runs every check of :func:`stage_photo` (a temporary folder is created and
+    removed again, so permissions and read-only file systems are caught) and returns
+    ``out`` as a Path. Use :func:`stage_photo` to keep the temporary folder and write.
 
     Example:
         >>> import pathlib, tempfile
-        >>> with check_output(pathlib.Path(tempfile.mkdtemp()) / "o", overwrite=False) as s:
+        >>> check_output(pathlib.Path(tempfile.mkdtemp()) / "o", overwrite=False).name
+        'o'
+    """
+    with stage_photo(out, overwrite=overwrite, inputs=inputs, need_bytes=need_bytes):
+        pass
+    return Path(out)
+
+
+def stage_photo(out: str | Path, *, overwrite: bool, inputs: Sequence[str | Path] = (),
+                need_bytes: int = 0) -> Staging:
+    """Check ``out`` before the work and create the temporary folder to write it in.
+
+    See :func:`photo3d.io.safeout.stage_output` (``inputs``: files the run reads,
+    which the output may not hold; ``overwrite`` only replaces a 3D photo folder).
+    Use the result in a ``with`` block and pass it to :func:`save_photo` as ``out``.
+
+    Example:
+        >>> import pathlib, tempfile
+        >>> with stage_photo(pathlib.Path(tempfile.mkdtemp()) / "o", overwrite=False) as s:
         ...     s.path.name.startswith(".o.")
         True
     """
@@ -66,7 +84,7 @@ def save_photo(photo: Photo3D, out: str | Path | Staging, *, overwrite: bool = F
         photo: the 3D photo.
         out: destination folder; must not exist or be empty unless ``overwrite``
             (which only replaces a 3D photo folder). Or the :class:`Staging` that
-            :func:`check_output` returned before the work.
+            :func:`stage_photo` returned before the work.
         ply: ``"binary"``, ``"ascii"`` or None (no PLY).
         glb: also write ``mesh.glb``.
         viewer: also write ``viewer.html`` (the interactive, self-contained viewer).
@@ -88,7 +106,7 @@ def save_photo(photo: Photo3D, out: str | Path | Staging, *, overwrite: bool = F
     """
     if ply not in ("binary", "ascii", None):
         raise OutputError(f"ply must be 'binary', 'ascii' or None, got {ply!r}")
-    staging = out if isinstance(out, Staging) else check_output(out, overwrite=overwrite)
+    staging = out if isinstance(out, Staging) else stage_photo(out, overwrite=overwrite)
     with staging:
         try:
             _write_photo(photo, staging.path, title=staging.final.name, ply=ply, glb=glb,

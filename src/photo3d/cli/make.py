@@ -50,7 +50,7 @@ def run_make(args: argparse.Namespace, image, depth, config: Config) -> int:
     only after the options are known to be valid (it can be slow: stereo, models).
     """
     from photo3d.inpaint import get_inpainter
-    from photo3d.output import check_output
+    from photo3d.output import stage_photo
     from photo3d.pipeline import make
     from photo3d.resources import check_memory
 
@@ -62,8 +62,8 @@ def run_make(args: argparse.Namespace, image, depth, config: Config) -> int:
 
         select_backend("gl")
     backend = get_inpainter(config.inpainter, **inpainter_options(args, config.inpainter))
-    staging = check_output(args.out, overwrite=args.overwrite, inputs=inputs_of(args),
-                           need_bytes=output_bytes(config, videos))
+    staging = stage_photo(args.out, overwrite=args.overwrite, inputs=inputs_of(args),
+                          need_bytes=output_bytes(config, videos))
     with staging:  # removed on any error or interruption unless committed
         if callable(depth):
             image, depth, kind = depth()
