@@ -1,4 +1,5 @@
-"""Command line: ``photo3d make``, ``depth``, ``demo``, ``render``, ``view``, ``eval``, ``train``.
+"""Command line: ``photo3d make``, ``batch``, ``depth``, ``demo``, ``render``, ``view``,
+``eval``, ``train``.
 
 Thin layer over the library: parses arguments, shows a progress bar and a timing
 summary, and turns :class:`~photo3d.errors.Photo3DError` into a one-line message
@@ -17,10 +18,10 @@ import argparse
 import sys
 import warnings
 
-from photo3d.cli import demo, depth, evaluate, make, render, train, view
+from photo3d.cli import batch, demo, depth, evaluate, make, render, train, view
 from photo3d.errors import Photo3DError
 
-COMMANDS = (make, depth, demo, render, view, evaluate, train)
+COMMANDS = (make, batch, depth, demo, render, view, evaluate, train)
 """Subcommand modules, in the order ``photo3d --help`` lists them."""
 
 
