@@ -34,6 +34,7 @@ BENCHMARKS = [
     ["bench_learned.py", "--edge-unit", "8", "--precision", "bf16"],
     ["bench_stereo.py"],
     ["bench_viewer.py"],
+    ["bench_batch.py"],
 ]
 
 
@@ -397,6 +398,8 @@ def main() -> None:
         section_make(), section_render(), section_speed(), section_quality(),
         section_learned(),
         section_stereo(), section_viewer(),
+        section_json("batch.json", "Many photos: `photo3d batch` against a shell loop of `make`",
+                     "python benchmarks/bench_batch.py"),
     ]
     (HERE / "RESULTS.md").write_text("\n".join(parts).rstrip() + "\n")
     print(f"wrote {HERE / 'RESULTS.md'}")

@@ -26,9 +26,10 @@ from pathlib import Path
 
 from photo3d.batch.jobs import MakeOptions, PhotoJob
 from photo3d.batch.manifest import PhotoResult
-from photo3d.batch.worker import PhotoMaker
+from photo3d.batch.worker import PhotoMaker, one_line
 
 _maker: PhotoMaker | None = None
+_init_error: str | None = None
 _busy = False
 
 
@@ -62,15 +63,20 @@ def _on_term(signum, frame) -> None:
 
 
 def _init(options: MakeOptions, threads: int) -> None:
-    global _maker
+    global _maker, _init_error
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, _on_term)
     set_threads(threads)
-    _maker = PhotoMaker(options)
+    try:
+        _maker = PhotoMaker(options)
+    except Exception as err:  # each photo then fails with this message
+        _init_error = one_line(err)
 
 
 def _run(job: PhotoJob, out_dir: Path) -> PhotoResult:
     global _busy
+    if _maker is None:
+        return PhotoResult(job.name, "failed", _init_error, 0.0, str(Path(out_dir) / job.name))
     _busy = True
     try:
         return _maker(job, out_dir)

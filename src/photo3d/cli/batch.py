@@ -64,13 +64,16 @@ def _options(args: argparse.Namespace):
                        render_settings=render_settings_from(args), overwrite=args.overwrite)
 
 
-def _prefetch(jobs, options, quiet: bool) -> None:
-    """Download the depth model once, here, before the workers need it."""
+def _prefetch(jobs, out: Path, options, quiet: bool) -> None:
+    """Download the depth model once, here, before the workers may need it (for photos
+    to make that have no depth map; those with an embedded map will not use it)."""
+    from photo3d.batch import is_complete
     from photo3d.depth.models import default_depth_model, fetch_model, needs_download
     from photo3d.errors import InputError
 
     model = options.depth_model or default_depth_model()
-    if all(j.depth is not None for j in jobs) or not needs_download(model):
+    todo = [j for j in jobs if options.overwrite or not is_complete(out / j.name)]
+    if all(j.depth is not None for j in todo) or not needs_download(model):
         return
     try:
         fetch_model(model, bar=download_bar(quiet))
@@ -91,7 +94,7 @@ def run_batch_command(args: argparse.Namespace) -> int:
     options = _options(args)
     jobs = find_photos(args.input, depth=args.depth, recursive=args.recursive, skip=args.out)
     check_out_dir(args.out)
-    _prefetch(jobs, options, args.quiet)
+    _prefetch(jobs, args.out, options, args.quiet)
     bar = PhotoBar(len(jobs), quiet=args.quiet)
     previous = {s: signal.signal(s, _interrupt) for s in (signal.SIGTERM, signal.SIGHUP)}
     try:
