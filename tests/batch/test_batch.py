@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 import signal
 import subprocess
 import sys
@@ -187,15 +188,17 @@ def test_ctrl_c_stops_cleanly_and_a_rerun_resumes(tmp_path):
     argv = [sys.executable, "-m", "photo3d", "batch", str(src), "-o", str(out), "--depth",
             str(depth), "--workers", "2", "--size", "64", "--frames", "40", "--no-glb",
             "--no-viewer", "--path", "circle"]
-    # default SIGINT in the child even if we were started with it ignored (background job)
+    # default SIGINT in the child even if we were started with it ignored (background job);
+    # its own process group, so Ctrl-C can reach the batch and its workers as a terminal does
     proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            start_new_session=True,
                             preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     try:
         def writing() -> bool:
             return out.is_dir() and any(p.name.startswith(".p") for p in out.iterdir())
 
         assert _wait_for(writing, 120), "no photo started"
-        proc.send_signal(signal.SIGINT)
+        os.killpg(proc.pid, signal.SIGINT)  # what Ctrl-C at a terminal does
         stdout, stderr = proc.communicate(timeout=60)
     finally:
         if proc.poll() is None:

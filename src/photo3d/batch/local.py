@@ -10,11 +10,14 @@ tried once more, then recorded as failed, and a new pool carries on.
 
 Ctrl-C: workers ignore SIGINT; the parent stops submitting, sends SIGTERM to its
 workers, and each worker busy with a photo removes its temporary output folder
-before it exits (``save`` cleans up on any exception), so nothing partial is left.
+before it exits (``save`` cleans up on any exception); once they are gone the
+parent removes anything left of the photos that were in flight, so nothing
+partial is left.
 """
 
 from __future__ import annotations
 
+import contextlib
 import multiprocessing
 import os
 import signal
@@ -26,7 +29,7 @@ from pathlib import Path
 
 from photo3d.batch.jobs import MakeOptions, PhotoJob
 from photo3d.batch.manifest import PhotoResult
-from photo3d.batch.worker import PhotoMaker, one_line
+from photo3d.batch.worker import PhotoMaker, discard_partial, one_line
 
 _maker: PhotoMaker | None = None
 _init_error: str | None = None
@@ -57,6 +60,9 @@ def set_threads(threads: int) -> None:
 
 
 def _on_term(signum, frame) -> None:
+    # once is enough: a second SIGTERM (the executor also terminates the workers when
+    # another one exits) must not interrupt the clean-up this one starts
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)
     if _busy:
         raise _Stopped
     os._exit(0)
@@ -105,7 +111,8 @@ def run_local(jobs: Sequence[PhotoJob], out_dir: Path, options: MakeOptions, *,
             while queue or running:
                 while queue and len(running) < workers:
                     job = queue.popleft()
-                    running[pool.submit(_run, job, out_dir)] = job
+                    with _sigint_ignored():  # workers start with it ignored (see below)
+                        running[pool.submit(_run, job, out_dir)] = job
                 done, _ = wait(running, return_when=FIRST_COMPLETED)
                 for future in done:
                     job = running.pop(future)
@@ -121,9 +128,28 @@ def run_local(jobs: Sequence[PhotoJob], out_dir: Path, options: MakeOptions, *,
                     queue.appendleft(job)
         except BaseException:
             _stop(pool)
+            for job in running.values():  # belt and braces: all workers are gone now
+                discard_partial(Path(out_dir) / job.name)
             raise
         finally:
             pool.shutdown(wait=True, cancel_futures=True)
+
+
+@contextlib.contextmanager
+def _sigint_ignored():
+    """Ignore SIGINT while worker processes may be started (they are started on
+    submit): they inherit it, so a Ctrl-C at the terminal, which reaches the whole
+    process group, cannot interrupt them while they import, before their initializer
+    runs. The parent stops them itself."""
+    try:
+        previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    except ValueError:  # not the main thread: nothing to protect
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
 
 
 def _stop(pool: ProcessPoolExecutor) -> None:
