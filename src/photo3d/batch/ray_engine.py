@@ -9,13 +9,16 @@ a mounted bucket, ...), and photo3d must be installed on every node.
 
 Connects to ``address`` (``--ray-address``), else to ``RAY_ADDRESS``, else starts
 a local Ray on this machine. Ctrl-C kills the actors (actor tasks cannot be
-interrupted) and removes the temporary folders of the photos they were making.
+interrupted) and removes the temporary folders of the photos they were making. An
+actor that dies (out of memory, a crash) stops the batch with a one-line error;
+the same command resumes it.
 """
 
 from __future__ import annotations
 
 import logging
 import os
+import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
@@ -84,8 +87,7 @@ def run_ray(jobs: Sequence[PhotoJob], out_dir: Path, options: MakeOptions, *,
         cpus = int(ray.cluster_resources().get("CPU", 1))
         count = max(1, min(workers or cpus, len(jobs)))
         threads = max(1, cpus // count) if started == "local" else 1
-        # Ray restarts an actor that died (memory, native crash) and retries its photo
-        actor = ray.remote(num_cpus=1, max_restarts=2, max_task_retries=1)(_Actor)
+        actor = ray.remote(num_cpus=1)(_Actor)
         actors = [actor.remote(options, threads) for _ in range(count)]
         pool = ray.util.ActorPool(actors)
         out = str(Path(out_dir).resolve())
@@ -99,15 +101,16 @@ def run_ray(jobs: Sequence[PhotoJob], out_dir: Path, options: MakeOptions, *,
             while pool.has_next():
                 try:
                     result = pool.get_next_unordered()
-                except ray.exceptions.RayError as err:
+                except ray.exceptions.RayError as err:  # an actor died (memory, crash)
                     text = " ".join(str(err).split())[:200]
-                    raise Photo3DError(f"a Ray worker failed beyond retries ({text}); run "
-                                       "the same command again to resume") from None
+                    raise Photo3DError(f"a Ray worker died ({text}); run the same command "
+                                       "again to resume") from None
                 pending.pop(result.name, None)
                 on_result(result)
         except BaseException:
             for a in actors:
                 ray.kill(a)
+            time.sleep(1.0)  # ray.kill returns before the actor processes are gone
             for job in pending.values():
                 discard_partial(Path(out) / job.name)
             raise

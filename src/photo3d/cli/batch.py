@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import argparse
+import os
 import signal
+import sys
 from pathlib import Path
 
 from photo3d.cli.options import (
@@ -100,6 +102,15 @@ def run_batch_command(args: argparse.Namespace) -> int:
     try:
         summary = run_batch(jobs, args.out, options, engine=args.engine, workers=args.workers,
                             ray_address=args.ray_address, progress=bar)
+    except KeyboardInterrupt:
+        if args.engine != "ray":
+            raise
+        # Everything is stopped and recorded by now, but Ray's core worker can crash
+        # (SIGSEGV) in interpreter teardown after an interrupted wait: leave at once.
+        bar.close()
+        print("photo3d: interrupted", file=sys.stderr, flush=True)
+        sys.stdout.flush()
+        os._exit(130)
     finally:
         bar.close()
         for s, handler in previous.items():
