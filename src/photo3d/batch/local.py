@@ -57,6 +57,8 @@ def set_threads(threads: int) -> None:
     numba.set_num_threads(max(1, min(threads, numba.config.NUMBA_NUM_THREADS)))
     if "torch" in sys.modules:
         sys.modules["torch"].set_num_threads(max(1, threads))
+    else:  # torch (depth model, learned nets) may be imported later: it reads this then
+        os.environ["OMP_NUM_THREADS"] = str(max(1, threads))
 
 
 def _on_term(signum, frame) -> None:
