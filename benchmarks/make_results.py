@@ -35,6 +35,7 @@ BENCHMARKS = [
     ["bench_stereo.py"],
     ["bench_viewer.py"],
     ["bench_memory.py"],
+    ["bench_batch.py"],
 ]
 
 
@@ -400,6 +401,8 @@ def main() -> None:
         section_stereo(), section_viewer(),
         section_json("memory.json", "Peak memory of make (what --size can fit)",
                      "python benchmarks/bench_memory.py"),
+        section_json("batch.json", "Many photos: `photo3d batch` against a shell loop of `make`",
+                     "python benchmarks/bench_batch.py"),
     ]
     (HERE / "RESULTS.md").write_text("\n".join(parts).rstrip() + "\n")
     print(f"wrote {HERE / 'RESULTS.md'}")

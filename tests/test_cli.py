@@ -104,7 +104,7 @@ def test_console_script_runs_without_traceback(files):
     assert "Traceback" not in proc.stderr and "image file not found" in proc.stderr
 
 
-def test_depth_command_and_make_from_a_stereo_pair(tmp_path, capsys):
+def test_depth_command_and_make_from_a_stereo_pair(tmp_path, capsys, monkeypatch):
     pytest.importorskip("cv2")
     from photo3d.eval.synthetic import synthetic_pair
 
@@ -125,9 +125,11 @@ def test_depth_command_and_make_from_a_stereo_pair(tmp_path, capsys):
                  "-o", str(out), "--no-video", "--size", "160", "-q"]) == 0
     assert (out / "photo3d.npz").is_file()
     capsys.readouterr()
+    monkeypatch.setenv("PHOTO3D_DEPTH_MODEL", str(tmp_path / "no-such-model.onnx"))
     assert main(["make", str(tmp_path / "left.png"), "-o", str(tmp_path / "o2")]) == 2
     err = capsys.readouterr().err
-    assert "no depth given" in err and not (tmp_path / "o2").exists()
+    assert "no depth for left.png" in err and "--depth FILE, --right IMAGE" in err
+    assert not (tmp_path / "o2").exists()
 
 
 def test_view_serves_the_viewer_on_localhost(files):

@@ -94,12 +94,13 @@ def test_embedded_depth_is_resized_to_the_photo(tmp_path):
 
 
 def test_no_source_and_nothing_embedded(tmp_path):
+    # without a fallback model (the default model: tests/depth/test_default_model.py)
     with pytest.raises(InputError) as err:
-        resolve_depth(photo_file(tmp_path))
+        resolve_depth(photo_file(tmp_path), fallback_model=None)
     assert str(err.value) == ("no depth given: pass --depth FILE, --right IMAGE or "
                               "--depth-model NAME; photo.png has no embedded depth map")
     with pytest.raises(InputError, match="an image array has no embedded depth map"):
-        resolve_depth(np.zeros((8, 8, 3)))
+        resolve_depth(np.zeros((8, 8, 3)), fallback_model=None)
 
 
 def test_sources_exclude_each_other():

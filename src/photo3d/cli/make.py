@@ -8,7 +8,6 @@ import time
 from pathlib import Path
 
 from photo3d.cli.options import (
-    STAGE_LABELS,
     add_depth_sources,
     add_make_options,
     config_from,
@@ -18,7 +17,7 @@ from photo3d.cli.options import (
     resolve_depth,
     videos_from,
 )
-from photo3d.cli.progress import StageBar
+from photo3d.cli.progress import STAGE_LABELS, StageBar
 from photo3d.config import Config
 
 

@@ -11,18 +11,9 @@ import argparse
 import sys
 from pathlib import Path
 
+from photo3d.cli.progress import download_bar
 from photo3d.config import PRESETS, Config
 from photo3d.errors import ConfigError
-
-STAGE_LABELS = {
-    "load": "load",
-    "preprocess": "preprocess",
-    "ldi": "LDI",
-    "inpaint": "inpaint",
-    "mesh": "mesh",
-    "save": "save",
-}
-"""How the timing summary and the progress bar name the pipeline's stages."""
 
 
 def add_depth_sources(p: argparse.ArgumentParser) -> None:
@@ -42,10 +33,12 @@ def add_depth_sources(p: argparse.ArgumentParser) -> None:
                         "files) or depth (near = small); models and stereo know their kind")
 
 
-def add_make_options(p: argparse.ArgumentParser, *, out_required: bool) -> None:
-    """Everything ``make`` takes besides the photo and its depth (also ``demo``'s)."""
-    p.add_argument("-o", "--out", type=Path, required=out_required,
-                   help="output folder (must not exist or be empty)")
+def add_make_options(p: argparse.ArgumentParser, *, out_required: bool,
+                     out_help: str = "output folder (must not exist or be empty)",
+                     overwrite_help: str = "replace an existing output folder") -> None:
+    """Everything ``make`` takes besides the photo and its depth (also ``demo``'s and
+    ``batch``'s)."""
+    p.add_argument("-o", "--out", type=Path, required=out_required, help=out_help)
     p.add_argument("--preset", choices=sorted(PRESETS), default="default",
                    help="named configuration (default: %(default)s)")
     p.add_argument("--size", type=int, help="longer side of the working image in pixels "
@@ -65,7 +58,7 @@ def add_make_options(p: argparse.ArgumentParser, *, out_required: bool) -> None:
     p.add_argument("--no-viewer", action="store_true", help="do not write viewer.html")
     p.add_argument("--no-video", action="store_true",
                    help="do not render the four standard videos")
-    p.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
+    p.add_argument("--overwrite", action="store_true", help=overwrite_help)
     add_video_options(p, command="make")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
 
@@ -161,7 +154,8 @@ def resolve_depth(args: argparse.Namespace):
     from photo3d.depth.sources import resolve_depth
 
     est = resolve_depth(args.image, depth=args.depth, right=args.right,
-                        depth_model=args.depth_model, kind=args.depth_kind)
+                        depth_model=args.depth_model, kind=args.depth_kind,
+                        download_bar=download_bar(getattr(args, "quiet", False)))
     if not getattr(args, "quiet", False):
         print(f"depth: {est.source}", file=sys.stderr)
     for warning in est.warnings:

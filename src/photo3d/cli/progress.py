@@ -4,7 +4,15 @@ from __future__ import annotations
 
 import sys
 
-from photo3d.cli.options import STAGE_LABELS
+STAGE_LABELS = {
+    "load": "load",
+    "preprocess": "preprocess",
+    "ldi": "LDI",
+    "inpaint": "inpaint",
+    "mesh": "mesh",
+    "save": "save",
+}
+"""How the timing summary and the progress bar name the pipeline's stages."""
 
 
 class StageBar:
@@ -51,3 +59,57 @@ def count_bar(total: int, desc: str, *, quiet: bool, initial: int = 0):
 
     return tqdm(total=total, initial=initial, desc=desc, file=sys.stderr, leave=False,
                 disable=True if quiet else None, dynamic_ncols=True)
+
+
+class PhotoBar:
+    """Progress over the photos of a batch: ``progress(result, done, total)``.
+
+    On a terminal: one bar (photos/s, ETA), failed photos written above it. Elsewhere
+    (a log file, a pipe): one plain line per photo. Failures are shown even when
+    ``quiet``.
+    """
+
+    def __init__(self, total: int, *, quiet: bool) -> None:
+        self.quiet = quiet
+        self.bar = None
+        if not quiet and sys.stderr.isatty():
+            from tqdm import tqdm
+
+            self.bar = tqdm(total=total, desc="photos", unit="photo", file=sys.stderr,
+                            dynamic_ncols=True, smoothing=0.1)
+
+    def __call__(self, result, done: int, total: int) -> None:
+        line = None
+        if result.status == "failed" and (self.quiet or self.bar is not None):
+            line = f"photo3d: failed: {result.name}: {result.error}"
+        elif not self.quiet and self.bar is None:
+            line = f"[{done}/{total}] {result.name}: {result.status}" + (
+                f" ({result.seconds:.1f}s)" if result.status == "ok" else "") + (
+                f": {result.error}" if result.status == "failed" else "")
+        if line is not None:
+            if self.bar is not None:
+                self.bar.write(line, file=sys.stderr)
+            else:
+                print(line, file=sys.stderr, flush=True)
+        if self.bar is not None:
+            if result.status == "skipped":  # finished earlier: not in this run's rate
+                self.bar.initial += 1
+            self.bar.update(1)
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.close()
+
+
+def download_bar(quiet: bool):
+    """A ``tqdm`` class for the depth model's download (bytes) on stderr."""
+    from tqdm import tqdm
+
+    class Download(tqdm):
+        def __init__(self, *args, **kwargs):
+            kwargs.pop("name", None)
+            kwargs.setdefault("desc", "depth model")
+            super().__init__(*args, **{**kwargs, "file": sys.stderr,
+                                       "disable": True if quiet else None})
+
+    return Download

@@ -80,12 +80,15 @@ def resolve_depth(
     right: np.ndarray | PathLike | None = None,
     depth_model: str | PathLike | None = None,
     kind: str | None = None,
+    fallback_model: str | PathLike | None = "default",
+    download_bar=None,
 ) -> DepthEstimate:
     """Get the depth for a photo from whichever source was given.
 
     Exactly one of ``depth``, ``right`` and ``depth_model`` may be given; with none,
     the depth map embedded in the image file (Google GDepth / Dynamic Depth JPEG,
-    HEIF depth image) is used.
+    HEIF depth image) is used, and a photo without one gets its depth from
+    ``fallback_model``.
 
     Args:
         image: the photo, a path or an ``(H, W, 3)`` array (embedded depth needs a path).
@@ -96,13 +99,19 @@ def resolve_depth(
         kind: ``"disparity"`` or ``"depth"``. Default: ``"disparity"`` for ``depth``,
             the model's own kind for ``depth_model`` (given, it overrides it);
             ignored for stereo (always disparity) and embedded maps (decoded exactly).
+        fallback_model: the monocular model for a photo with no source and no
+            embedded map: ``"default"`` (:func:`photo3d.depth.models.default_depth_model`,
+            Depth Anything V2 Small), another model, or None (refuse such photos).
+        download_bar: a ``tqdm`` class showing the download of a hub model that is
+            not cached yet (default: nothing shown).
 
     Returns:
         :class:`DepthEstimate`.
 
     Raises:
-        InputError: several sources given, none given and none embedded, or any
-            error of the chosen source.
+        InputError: several sources given, none given, none embedded and the
+            fallback model not usable (missing extra, offline), or any error of the
+            chosen source.
 
     Example:
         >>> est = resolve_depth(np.zeros((8, 8, 3)), depth=np.ones((8, 8)))
@@ -136,16 +145,15 @@ def resolve_depth(
         source = (f"stereo pair (SGBM, {result.valid.mean():.0%} of pixels matched, "
                   f"disparities up to {result.max_disparity} px)")
     elif depth_model is not None:
-        from photo3d.depth.models import run_model
-
-        out = run_model(photo, depth_model, kind=kind)
-        raw, kind = out.depth, out.kind
-        source = f"monocular depth model {depth_model} ({kind}: {out.reason})"
-        if out.reason.startswith("assumed"):
-            notes.append(f"the model's output kind is unknown; {kind} assumed "
-                         "(pass --depth-kind to change it)")
+        raw, kind, source, found = _model(photo, depth_model, kind, download_bar)
+        notes += found
     else:
-        raw, kind, source, found, better_image = _embedded(image, kind, photo.shape[:2])
+        embedded = _embedded(image, kind, photo.shape[:2])
+        if embedded is not None:
+            raw, kind, source, found, better_image = embedded
+        else:
+            raw, kind, source, found = _fallback(image, photo, fallback_model, kind,
+                                                 download_bar)
         notes += found
     if raw.ndim == 2:  # resample once here, so that the pipeline does not warn again
         raw, note = match_shape(raw, photo.shape[:2])
@@ -155,17 +163,46 @@ def resolve_depth(
                          warnings=tuple(notes), image=better_image)
 
 
+def _model(photo, model, kind, download_bar):
+    """Depth from a monocular network, downloaded first if it is a hub model not cached."""
+    from photo3d.depth.models import fetch_model, run_model
+
+    fetch_model(model, bar=download_bar)
+    out = run_model(photo, model, kind=kind)
+    source = f"monocular depth model {model} ({out.kind}: {out.reason})"
+    notes = []
+    if out.reason.startswith("assumed"):
+        notes.append(f"the model's output kind is unknown; {out.kind} assumed "
+                     "(pass --depth-kind to change it)")
+    return out.depth, out.kind, source, notes
+
+
+def _fallback(image, photo, model, kind, download_bar):
+    """Depth from the fallback model for a photo that came with none."""
+    what = Path(image).name if isinstance(image, str | os.PathLike) else "an image array"
+    ways = "pass --depth FILE, --right IMAGE or --depth-model NAME"
+    if model is None:
+        raise InputError(f"no depth given: {ways}; {what} has no embedded depth map")
+    if model == "default":
+        from photo3d.depth.models import default_depth_model
+
+        model = default_depth_model()
+    try:
+        return _model(photo, model, kind, download_bar)
+    except InputError as err:
+        raise InputError(f"no depth for {what} (no embedded depth map) and no depth "
+                         f"model to estimate it: {err}; {ways}") from err
+
+
 def _embedded(image, kind, shape):
-    """The embedded depth map of an image file, resized to the image size."""
-    missing = ("no depth given: pass --depth FILE, --right IMAGE or --depth-model NAME; "
-               "{} has no embedded depth map")
+    """The embedded depth map of an image file, resized to the image size, or None."""
     if not isinstance(image, str | os.PathLike):
-        raise InputError(missing.format("an image array"))
+        return None
     from photo3d.depth.portrait import read_embedded_depth
 
     found = read_embedded_depth(image)
     if found is None:
-        raise InputError(missing.format(Path(image).name))
+        return None
     notes = list(found.warnings)
     if kind is not None and kind != found.kind:
         notes.append(f"--depth-kind {kind} ignored: the embedded map is decoded as {found.kind}")

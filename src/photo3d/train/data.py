@@ -30,12 +30,11 @@ from photo3d.config import Config
 from photo3d.depth.normalize import prepare_depth
 from photo3d.errors import InputError
 from photo3d.io.depth import read_depth
+from photo3d.io.folders import IMAGE_SUFFIXES, depth_by_key, files_in
 from photo3d.io.images import read_image
 from photo3d.preprocess import preprocess, resize, working_shape
 from photo3d.train.pairs import RegionPair, extract_region_pairs
 
-IMAGE_SUFFIXES = (".jpg", ".jpeg", ".png", ".tif", ".tiff", ".webp")
-DEPTH_SUFFIXES = (".png", ".npy", ".pfm", ".tif", ".tiff")
 KINDS = ("edge", "depth", "color")
 CACHE_VERSION = 1
 
@@ -75,21 +74,11 @@ class Target:
 
 
 def _files(folder: Path, suffixes: tuple[str, ...]) -> list[Path]:
-    return sorted(p for p in folder.iterdir() if p.is_file() and p.suffix.lower() in suffixes)
+    return files_in(folder, suffixes)
 
 
 def _depth_by_stem(folder: Path | None, what: str) -> dict[str, Path]:
-    if folder is None:
-        return {}
-    if not Path(folder).is_dir():
-        raise InputError(f"{what} folder {folder} does not exist or is not a folder")
-    found: dict[str, Path] = {}
-    for p in _files(Path(folder), DEPTH_SUFFIXES):
-        if p.stem in found:
-            raise InputError(f"{what} folder {folder} holds two maps for {p.stem!r}: "
-                             f"{found[p.stem].name} and {p.name}")
-        found[p.stem] = p
-    return found
+    return depth_by_key(folder, what)
 
 
 def find_training_files(images: str | Path, *, depth: str | Path | None = None,

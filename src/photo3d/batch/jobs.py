@@ -1,0 +1,110 @@
+"""What a batch is made of: the photos of a folder, their depth maps, and the make options.
+
+:func:`find_photos` lists a folder into :class:`PhotoJob` s (one output folder per
+photo, named by the photo's path relative to the input folder without its
+extension); :class:`MakeOptions` holds everything ``photo3d make`` takes besides
+the photo and its depth, so a worker process can rebuild the same run.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from photo3d.config import Config
+from photo3d.depth.sources import HEIF_SUFFIXES
+from photo3d.errors import InputError
+from photo3d.io.folders import IMAGE_SUFFIXES, depth_by_key, file_key, files_in
+
+PHOTO_SUFFIXES = IMAGE_SUFFIXES + HEIF_SUFFIXES
+"""Files a batch takes as photos."""
+
+
+@dataclass(frozen=True)
+class PhotoJob:
+    """One photo of a batch.
+
+    Attributes:
+        name: the photo's path relative to the input folder without its extension,
+            ``/``-separated (``"a"``, ``"trip/b"``); its output folder is ``OUT/name/``.
+        image: the photo file.
+        depth: its depth map from the depth folder (same name), or None (then the
+            embedded depth map, else the depth model).
+    """
+
+    name: str
+    image: Path
+    depth: Path | None = None
+
+
+@dataclass(frozen=True)
+class MakeOptions:
+    """Everything ``photo3d make`` takes besides the photo and its depth.
+
+    Attributes:
+        config: the pipeline configuration (``config.depth_kind`` is replaced per
+            photo by what its depth source holds).
+        inpainter_options: keyword arguments of the inpainter backend, as pairs.
+        depth_kind: what the depth files hold (None: disparity).
+        depth_model: the monocular model for photos with neither a depth file nor an
+            embedded map (None: the default, see
+            :func:`photo3d.depth.sources.default_depth_model`).
+        ply: ``"binary"``, ``"ascii"`` or None.
+        glb: write ``mesh.glb``.
+        viewer: write ``viewer.html``.
+        videos: the videos to render (``VideoSpec`` s).
+        render_settings: how videos are rendered (None: defaults).
+        overwrite: replace finished output folders instead of skipping them.
+    """
+
+    config: Config = field(default_factory=Config)
+    inpainter_options: tuple[tuple[str, object], ...] = ()
+    depth_kind: str | None = None
+    depth_model: str | None = None
+    ply: str | None = "binary"
+    glb: bool = True
+    viewer: bool = True
+    videos: tuple = ()
+    render_settings: object | None = None
+    overwrite: bool = False
+
+
+def find_photos(folder: str | Path, *, depth: str | Path | None = None,
+                recursive: bool = False, skip: str | Path | None = None) -> list[PhotoJob]:
+    """The photos of ``folder`` with their depth maps, sorted by name.
+
+    Args:
+        folder: the input folder.
+        depth: a folder of depth maps named like the photos (the rule of
+            :mod:`photo3d.io.folders`, shared with ``photo3d train --depth``).
+        recursive: also take the photos of subfolders (hidden ones are left out).
+        skip: a subfolder never entered (the batch's own output folder).
+
+    Raises:
+        InputError: a folder is missing, there is no photo, or two photos would
+            share an output folder (``a.jpg`` and ``a.png``).
+
+    Example:
+        >>> import tempfile
+        >>> d = Path(tempfile.mkdtemp()); (d / "depth").mkdir()
+        >>> for name in ("a.jpg", "b.png", "depth/b.npy"): (d / name).touch()
+        >>> [(j.name, j.depth is not None) for j in find_photos(d, depth=d / "depth")]
+        [('a', False), ('b', True)]
+    """
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise InputError(f"input folder {folder} does not exist or is not a folder")
+    photos = files_in(folder, PHOTO_SUFFIXES, recursive=recursive,
+                      skip=Path(skip) if skip is not None else None)
+    if not photos:
+        raise InputError(f"no photos in {folder} (looked for {', '.join(PHOTO_SUFFIXES)}"
+                         + ("" if recursive else "; --recursive looks in subfolders") + ")")
+    depths = depth_by_key(Path(depth) if depth is not None else None, recursive=recursive)
+    jobs: dict[str, PhotoJob] = {}
+    for path in photos:
+        name = file_key(path, folder)
+        if name in jobs:
+            raise InputError(f"two photos would write the same output folder {name!r}: "
+                             f"{jobs[name].image.name} and {path.name} (rename one)")
+        jobs[name] = PhotoJob(name, path, depths.get(name))
+    return list(jobs.values())

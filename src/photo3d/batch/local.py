@@ -1,0 +1,166 @@
+"""The local engine: a pool of worker processes, each with its models loaded once.
+
+Built on :class:`concurrent.futures.ProcessPoolExecutor` (``spawn`` processes, so
+nothing of the parent's threads or torch state is forked). Each worker builds one
+:class:`~photo3d.batch.worker.PhotoMaker` in its initializer and gets
+``cores // workers`` numba/torch threads, so the pool does not oversubscribe the
+CPU. At most ``workers`` photos are in flight, so when a worker dies (killed for
+memory, a crash in native code) the photos it may have held are known: they are
+tried once more, then recorded as failed, and a new pool carries on.
+
+Ctrl-C: workers ignore SIGINT; the parent stops submitting, sends SIGTERM to its
+workers, and each worker busy with a photo removes its temporary output folder
+before it exits (``save`` cleans up on any exception); once they are gone the
+parent removes anything left of the photos that were in flight, so nothing
+partial is left.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import multiprocessing
+import os
+import signal
+from collections import deque
+from collections.abc import Callable, Sequence
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from concurrent.futures.process import BrokenProcessPool
+from pathlib import Path
+
+from photo3d.batch.jobs import MakeOptions, PhotoJob
+from photo3d.batch.manifest import PhotoResult
+from photo3d.batch.worker import PhotoMaker, discard_partial, one_line
+
+_maker: PhotoMaker | None = None
+_init_error: str | None = None
+_busy = False
+
+
+class _Stopped(BaseException):
+    """Raised in a busy worker by SIGTERM, so the photo's temporary folder is removed."""
+
+
+def cpu_count() -> int:
+    """CPU cores this process may use."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        return os.cpu_count() or 1
+
+
+def set_threads(threads: int) -> None:
+    """Limit numba's (and torch's, if loaded) CPU threads in this process."""
+    import sys
+
+    import numba
+
+    numba.set_num_threads(max(1, min(threads, numba.config.NUMBA_NUM_THREADS)))
+    if "torch" in sys.modules:
+        sys.modules["torch"].set_num_threads(max(1, threads))
+    else:  # torch (depth model, learned nets) may be imported later: it reads this then
+        os.environ["OMP_NUM_THREADS"] = str(max(1, threads))
+
+
+def _on_term(signum, frame) -> None:
+    # once is enough: a second SIGTERM (the executor also terminates the workers when
+    # another one exits) must not interrupt the clean-up this one starts
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)
+    if _busy:
+        raise _Stopped
+    os._exit(0)
+
+
+def _init(options: MakeOptions, threads: int) -> None:
+    global _maker, _init_error
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, _on_term)
+    set_threads(threads)
+    try:
+        _maker = PhotoMaker(options)
+    except Exception as err:  # each photo then fails with this message
+        _init_error = one_line(err)
+
+
+def _run(job: PhotoJob, out_dir: Path) -> PhotoResult:
+    global _busy
+    if _maker is None:
+        return PhotoResult(job.name, "failed", _init_error, 0.0, str(Path(out_dir) / job.name))
+    _busy = True
+    try:
+        return _maker(job, out_dir)
+    except _Stopped:
+        os._exit(1)  # the output's temporary folder is already gone
+    finally:
+        _busy = False
+
+
+def run_local(jobs: Sequence[PhotoJob], out_dir: Path, options: MakeOptions, *,
+              workers: int, on_result: Callable[[PhotoResult], None]) -> None:
+    """Make every job on a pool of ``workers`` processes; ``on_result`` for each.
+
+    Raises:
+        KeyboardInterrupt: after stopping the workers cleanly.
+    """
+    threads = max(1, cpu_count() // workers)
+    queue = deque(jobs)
+    crashes: dict[str, int] = {}
+    context = multiprocessing.get_context("spawn")
+    while queue:
+        pool = ProcessPoolExecutor(workers, mp_context=context, initializer=_init,
+                                   initargs=(options, threads))
+        running: dict = {}
+        try:
+            while queue or running:
+                while queue and len(running) < workers:
+                    job = queue.popleft()
+                    with _sigint_ignored():  # workers start with it ignored (see below)
+                        running[pool.submit(_run, job, out_dir)] = job
+                done, _ = wait(running, return_when=FIRST_COMPLETED)
+                for future in done:
+                    job = running.pop(future)
+                    on_result(future.result())
+        except BrokenProcessPool:
+            for job in running.values():  # one of these killed its worker
+                crashes[job.name] = crashes.get(job.name, 0) + 1
+                if crashes[job.name] >= 2:
+                    on_result(PhotoResult(job.name, "failed", "the worker process making "
+                                          "this photo died (out of memory?)", 0.0,
+                                          str(Path(out_dir) / job.name)))
+                else:
+                    queue.appendleft(job)
+        except BaseException:
+            _stop(pool)
+            for job in running.values():  # belt and braces: all workers are gone now
+                discard_partial(Path(out_dir) / job.name)
+            raise
+        finally:
+            pool.shutdown(wait=True, cancel_futures=True)
+
+
+@contextlib.contextmanager
+def _sigint_ignored():
+    """Ignore SIGINT while worker processes may be started (they are started on
+    submit): they inherit it, so a Ctrl-C at the terminal, which reaches the whole
+    process group, cannot interrupt them while they import, before their initializer
+    runs. The parent stops them itself."""
+    try:
+        previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    except ValueError:  # not the main thread: nothing to protect
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+def _stop(pool: ProcessPoolExecutor) -> None:
+    """Stop the pool's workers now (SIGTERM: busy ones clean up their output first)."""
+    pool.shutdown(wait=False, cancel_futures=True)
+    children = multiprocessing.active_children()
+    for child in children:
+        child.terminate()
+    for child in children:
+        child.join(timeout=60)
+        if child.is_alive():
+            child.kill()

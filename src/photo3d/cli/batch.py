@@ -1,0 +1,126 @@
+"""``photo3d batch IN_DIR -o OUT_DIR``: every photo of a folder, resumable, local or on Ray."""
+
+from __future__ import annotations
+
+import argparse
+import os
+import signal
+import sys
+from pathlib import Path
+
+from photo3d.cli.options import (
+    add_make_options,
+    config_from,
+    inpainter_options,
+    render_settings_from,
+    videos_from,
+)
+from photo3d.cli.progress import PhotoBar, download_bar
+
+
+def add_parser(sub) -> None:
+    """Register ``batch`` on the subparsers ``sub``."""
+    bt = sub.add_parser(
+        "batch", help="make a 3D photo of every photo in a folder (resumable; local or Ray)",
+        description="Make OUT_DIR/<name>/ for every photo of IN_DIR, exactly what make "
+                    "writes. Running the same command again skips finished photos and "
+                    "retries failed ones; OUT_DIR/batch.jsonl records every photo.")
+    bt.add_argument("input", type=Path, metavar="IN_DIR", help="folder of photos")
+    bt.add_argument("--recursive", action="store_true", help="also take photos in subfolders "
+                    "(output folders keep the subfolder names)")
+    g = bt.add_argument_group("depth (per photo: a map in --depth, else the photo's embedded "
+                              "map, else a depth model)")
+    g.add_argument("--depth", type=Path, metavar="DEPTH_DIR",
+                   help="depth maps named like the photos (a.jpg <-> a.png/.npy/.pfm/.tif)")
+    g.add_argument("--depth-kind", choices=["disparity", "depth"],
+                   help="what the maps in --depth hold (default disparity: near = large)")
+    g.add_argument("--depth-model", metavar="NAME_OR_PATH",
+                   help="monocular model for photos without a map (default: Depth Anything "
+                        "V2 Small through transformers, extra photo3d[depth])")
+    run = bt.add_argument_group("workers")
+    run.add_argument("--engine", choices=["local", "ray"], default="local",
+                     help="local: a process pool on this machine (default); ray: Ray actors "
+                          "(extra photo3d[ray])")
+    run.add_argument("--workers", type=int, metavar="N",
+                     help="processes or Ray actors (default: the CPU cores, or the Ray "
+                          "cluster's CPUs)")
+    run.add_argument("--ray-address", metavar="ADDRESS",
+                     help="Ray cluster to use (default: RAY_ADDRESS, else a local Ray)")
+    add_make_options(bt, out_required=True, out_help="output folder: one folder per photo "
+                     "plus batch.jsonl", overwrite_help="redo photos that are already finished")
+    bt.set_defaults(run=run_batch_command)
+
+
+def _options(args: argparse.Namespace):
+    from photo3d.batch import MakeOptions
+    from photo3d.inpaint import get_inpainter
+
+    config = config_from(args)
+    inpainter = inpainter_options(args, config.inpainter)
+    get_inpainter(config.inpainter, **inpainter)  # bad names or weights: refused before any work
+    return MakeOptions(config=config, inpainter_options=tuple(inpainter.items()),
+                       depth_kind=args.depth_kind, depth_model=args.depth_model,
+                       ply=None if args.ply == "none" else args.ply, glb=not args.no_glb,
+                       viewer=not args.no_viewer,
+                       videos=() if args.no_video else tuple(videos_from(args)),
+                       render_settings=render_settings_from(args), overwrite=args.overwrite)
+
+
+def _prefetch(jobs, out: Path, options, quiet: bool) -> None:
+    """Download the depth model once, here, before the workers may need it (for photos
+    to make that have no depth map; those with an embedded map will not use it)."""
+    from photo3d.batch import is_complete
+    from photo3d.depth.models import default_depth_model, fetch_model, needs_download
+    from photo3d.errors import InputError
+
+    model = options.depth_model or default_depth_model()
+    todo = [j for j in jobs if options.overwrite or not is_complete(out / j.name)]
+    if all(j.depth is not None for j in todo) or not needs_download(model):
+        return
+    try:
+        fetch_model(model, bar=download_bar(quiet))
+    except InputError:
+        pass  # photos without embedded depth then fail, each with the reason
+
+
+def run_batch_command(args: argparse.Namespace) -> int:
+    """Run ``photo3d batch``; exit status 1 if any photo failed."""
+    from photo3d.batch import find_photos, run_batch
+    from photo3d.batch.run import check_out_dir
+    from photo3d.errors import ConfigError
+
+    if args.workers is not None and args.workers < 1:
+        raise ConfigError(f"--workers must be at least 1, got {args.workers}")
+    if args.ray_address and args.engine != "ray":
+        raise ConfigError("--ray-address only applies to --engine ray")
+    options = _options(args)
+    jobs = find_photos(args.input, depth=args.depth, recursive=args.recursive, skip=args.out)
+    check_out_dir(args.out)
+    _prefetch(jobs, args.out, options, args.quiet)
+    bar = PhotoBar(len(jobs), quiet=args.quiet)
+    previous = {s: signal.signal(s, _interrupt) for s in (signal.SIGTERM, signal.SIGHUP)}
+    try:
+        summary = run_batch(jobs, args.out, options, engine=args.engine, workers=args.workers,
+                            ray_address=args.ray_address, progress=bar)
+    except KeyboardInterrupt:
+        if args.engine != "ray":
+            raise
+        # Everything is stopped and recorded by now, but Ray's core worker can crash
+        # (SIGSEGV) in interpreter teardown after an interrupted wait: leave at once.
+        bar.close()
+        print("photo3d: interrupted", file=sys.stderr, flush=True)
+        sys.stdout.flush()
+        os._exit(130)
+    finally:
+        bar.close()
+        for s, handler in previous.items():
+            signal.signal(s, handler)
+    if not args.quiet:
+        rate = (summary.ok + summary.failed) / max(summary.seconds, 1e-9)
+        print(f"batch: {summary.ok} ok, {summary.failed} failed, {summary.skipped} skipped "
+              f"in {summary.seconds:.1f}s ({rate:.2f} photos/s); manifest {summary.manifest}")
+    return 1 if summary.failed else 0
+
+
+def _interrupt(signum, frame) -> None:
+    raise KeyboardInterrupt

@@ -1,0 +1,84 @@
+"""Folders of photos and depth maps: which files count, and how a depth map finds its photo.
+
+One rule for ``photo3d train --depth DIR`` and ``photo3d batch --depth DIR``: a
+depth map belongs to the photo with the same *key*, the file's path relative to
+its folder without the extension (``a.jpg`` <-> ``a.png``; with subfolders
+``trip/a.jpg`` <-> ``trip/a.npy``). Two maps with the same key are refused.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from photo3d.errors import InputError
+
+IMAGE_SUFFIXES = (".jpg", ".jpeg", ".png", ".tif", ".tiff", ".webp")
+"""Photo files (without the HEIF extensions, which need ``photo3d[heif]``)."""
+DEPTH_SUFFIXES = (".png", ".npy", ".pfm", ".tif", ".tiff")
+"""Depth map files (:func:`photo3d.io.depth.read_depth`)."""
+
+
+def files_in(folder: Path, suffixes: tuple[str, ...], *, recursive: bool = False,
+             skip: Path | None = None) -> list[Path]:
+    """Files of ``folder`` with one of ``suffixes`` (any case), sorted.
+
+    Args:
+        folder: the folder.
+        suffixes: lower-case extensions with their dot.
+        recursive: also look in subfolders (hidden ones, starting with ``.``, and
+            ``skip`` are left out).
+        skip: a subfolder never entered (e.g. the output folder of a batch).
+
+    Example:
+        >>> import tempfile
+        >>> d = Path(tempfile.mkdtemp()); (d / "s").mkdir()
+        >>> for name in ("b.PNG", "a.jpg", "notes.txt", "s/c.png"): (d / name).touch()
+        >>> [p.name for p in files_in(d, (".jpg", ".png"))]
+        ['a.jpg', 'b.PNG']
+        >>> [str(p.relative_to(d)) for p in files_in(d, (".png",), recursive=True)]
+        ['b.PNG', 's/c.png']
+    """
+    folder = Path(folder)
+    if not recursive:
+        return sorted(p for p in folder.iterdir() if p.is_file() and p.suffix.lower() in suffixes)
+    skip = skip.resolve() if skip is not None else None
+    found = []
+    for p in folder.iterdir():
+        if p.is_dir():
+            if not p.name.startswith(".") and (skip is None or p.resolve() != skip):
+                found += files_in(p, suffixes, recursive=True, skip=skip)
+        elif p.is_file() and p.suffix.lower() in suffixes:
+            found.append(p)
+    return sorted(found, key=lambda p: p.relative_to(folder).parts)
+
+
+def file_key(path: Path, folder: Path) -> str:
+    """``path`` relative to ``folder``, without its extension, with ``/`` separators.
+
+    Example:
+        >>> file_key(Path("/photos/trip/a.jpg"), Path("/photos"))
+        'trip/a'
+    """
+    return Path(path).relative_to(folder).with_suffix("").as_posix()
+
+
+def depth_by_key(folder: Path | None, what: str = "depth", *,
+                 recursive: bool = False) -> dict[str, Path]:
+    """The depth maps of ``folder`` by key (see the module doc); ``{}`` for None.
+
+    Raises:
+        InputError: the folder is missing, or two maps have the same key.
+    """
+    if folder is None:
+        return {}
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise InputError(f"{what} folder {folder} does not exist or is not a folder")
+    found: dict[str, Path] = {}
+    for p in files_in(folder, DEPTH_SUFFIXES, recursive=recursive):
+        key = file_key(p, folder)
+        if key in found:
+            raise InputError(f"{what} folder {folder} holds two maps for {key!r}: "
+                             f"{found[key].name} and {p.name}")
+        found[key] = p
+    return found
