@@ -1,12 +1,18 @@
-"""Backend ``"structured"``: structure first, then each side filled on its own.
+"""Backend ``"structured"``: structure first, then each side, then texture.
 
-Per patch (see :mod:`photo3d.inpaint.structure` for the first step):
+The classical counterpart of the paper's edge-then-colour order. Per patch:
 
 1. the context's colour and depth edges are continued into the synthesis region as
-   straight lines (the structure map);
+   straight lines (the structure map, :mod:`photo3d.inpaint.structure`);
 2. colour and disparity are diffused from the context without crossing those lines,
    so each side of a continued edge takes the colours of its own side and the
-   boundary stays sharp; the line pixels themselves are filled last, from both sides.
+   boundary stays sharp; the line pixels themselves are filled last, from both sides;
+3. texture: every synthesis pixel copies the centre of the context patch that best
+   matches its neighbourhood, the step-2 colours included in the match so sources come
+   from the matching side (:mod:`photo3d.inpaint.exemplar`, PatchMatch).
+
+Disparity is the step-2 result (no texture is added to depth). Every value read comes
+from the patch's context: nothing from the foreground or outside the context.
 """
 
 from __future__ import annotations
@@ -63,7 +69,16 @@ def piecewise_diffuse(values: np.ndarray, context: np.ndarray, synthesis: np.nda
 
 
 class StructuredInpainter:
-    """Backend ``"structured"``: continued edges, then piecewise diffusion.
+    """Backend ``"structured"``: continued edges, piecewise diffusion, exemplar texture.
+
+    Options (keyword-only): ``iterations``, ``tolerance`` (diffusion, as
+    :func:`photo3d.inpaint.diffusion.diffuse`); ``lines`` (step 1 on/off);
+    ``texture`` (0 = no step 3, 1 = its colours as they are, in between a blend);
+    ``patch_radius``, ``pm_iterations``, ``em_steps``, ``guide_weight``, ``copy``
+    (:func:`~photo3d.inpaint.exemplar.exemplar_fill`); ``support_factor``,
+    ``coherence`` and any other keyword of
+    :func:`~photo3d.inpaint.structure.continue_edges`; ``workers`` (threads; the
+    kernels release the GIL).
 
     Example:
         >>> from photo3d.inpaint import get_inpainter
@@ -82,7 +97,7 @@ class StructuredInpainter:
 
     def __init__(self, *, iterations: int = 300, tolerance: float = 1e-3,
                  workers: int | None = None, lines: bool = True, texture: float = 1.0,
-                 patch_radius: int = 2, pm_iterations: int = 4, em_steps: int = 2,
+                 patch_radius: int = 2, pm_iterations: int = 3, em_steps: int = 1,
                  guide_weight: float = 0.5, copy: bool = True, support_factor: float = 1.0,
                  coherence: float = 0.8, **structure) -> None:
         self.lines = lines
