@@ -30,6 +30,9 @@ BENCHMARKS = [
     ["bench_speed.py", "--runs", "3", "--backends", "learned-compact", "--weights",
      "src/photo3d/nets/compact", "--merge"],
     ["bench_quality.py"],
+    ["bench_quality.py", "--methods", "diffusion,structured", "--out", "benchmarks/results/fill"],
+    ["bench_fill.py", "--runs", "5"],
+    ["bench_fill_crops.py"],
     ["bench_learned.py"],
     ["bench_learned.py", "--edge-unit", "8", "--precision", "bf16"],
     ["bench_stereo.py"],
@@ -243,6 +246,64 @@ def section_quality() -> str:
     return "\n".join(out)
 
 
+def _fill_rows(rec: dict, group: str) -> list[tuple[str, dict, dict]]:
+    block = rec.get(group) or {}
+    rows = [(name, p["scores"]["diffusion"]["disoccluded"],
+             p["scores"]["structured"]["disoccluded"])
+            for name, p in block.get("pairs", {}).items()]
+    if "mean" in block:
+        mean = block["mean"]
+        rows.append((f"mean of {len(block['pairs'])} scenes", mean["diffusion"]["disoccluded"],
+                     mean["structured"]["disoccluded"]))
+    return rows
+
+
+def section_fill() -> str:
+    out = ["## The `structured` fill against diffusion (issue 14)", ""]
+    rec = load("fill/quality.json")
+    if rec is None:
+        return "\n".join(out) + "\n" + missing(
+            "python benchmarks/bench_quality.py --methods diffusion,structured "
+            "--out benchmarks/results/fill")
+    out += [f"Quality command: `{rec['command']}`. Machine: {machine_line(rec)}.", "",
+            "Disoccluded pixels of the right view (see the quality section for the method); "
+            "change = structured vs diffusion (LPIPS: lower is better).", "",
+            "| pair | diffusion PSNR | structured PSNR | change | diffusion LPIPS | "
+            "structured LPIPS | change |", "| --- | --- | --- | --- | --- | --- | --- |"]
+    for group in ("real", "synthetic"):
+        for name, d, t in _fill_rows(rec, group):
+            out.append(f"| {name} | {d['psnr']:.2f} | {t['psnr']:.2f} | "
+                       f"{t['psnr'] - d['psnr']:+.2f} dB | {d['lpips']:.4f} | {t['lpips']:.4f} | "
+                       f"{100 * (t['lpips'] / d['lpips'] - 1):+.1f} % |")
+    real = _fill_rows(rec, "real")
+    synth = [r for r in _fill_rows(rec, "synthetic") if r[0].startswith("mean")]
+    met = all(t["lpips"] <= 0.9 * d["lpips"] and t["psnr"] >= d["psnr"] - 0.3
+              for _, d, t in real) and all(t["lpips"] <= 0.9 * d["lpips"] for _, d, t in synth)
+    out += ["", "Issue 14's bar for a new default (LPIPS at least 10 % lower on each real pair "
+            "and on the synthetic mean, PSNR at most 0.3 dB lower on each real pair): "
+            + ("met." if met else "**not met**; diffusion stays the default.")]
+    out.append("")
+    speed = load("fill_speed.json")
+    if speed is None:
+        out.append(missing("python benchmarks/bench_fill.py"))
+    else:
+        out += [f"Speed command: `{speed['command']}` ({len(next(iter(speed['runs'].values())))} "
+                f"runs of each, alternating, fresh process each; machine shared with other "
+                f"jobs: {machine_line(speed)}). Motorcycle at {speed['size']} px:", "",
+                "| inpainter | make (median) | inpaint stage | CPU time | ratio to "
+                f"{speed['ratio_to']} | peak memory |", "| --- | --- | --- | --- | --- | --- |"]
+        for name, m in speed["median"].items():
+            out.append(f"| {name} | {m['make_s']:.2f} s | {m['inpaint_s']:.2f} s | "
+                       f"{m['cpu_s']:.2f} s | {speed['ratio'][name]:.2f}x | "
+                       f"{m['peak_rss_mb']:.0f} MB |")
+        out.append("")
+    crops = load("fill_crops.json")
+    if crops is not None:
+        out += [f"Crops: `{crops['command']}` -> `results/fill_crops.png` (real right view, "
+                "each fill, disoccluded mask).", ""]
+    return "\n".join(out)
+
+
 def section_learned() -> str:
     out = ["## Learned inpainter speed (issue 4)", ""]
     rec = load("learned.json")
@@ -397,7 +458,7 @@ def main() -> None:
         "benchmark first). Every number below comes from the command named in its section.",
         "",
         section_make(), section_render(), section_speed(), section_quality(),
-        section_learned(),
+        section_fill(), section_learned(),
         section_stereo(), section_viewer(),
         section_json("memory.json", "Peak memory of make (what --size can fit)",
                      "python benchmarks/bench_memory.py"),

@@ -43,7 +43,8 @@ def add_make_options(p: argparse.ArgumentParser, *, out_required: bool,
                    help="named configuration (default: %(default)s)")
     p.add_argument("--size", type=int, help="longer side of the working image in pixels "
                    "(default 1024; 0 keeps the input size)")
-    p.add_argument("--inpainter", help="inpainting backend: diffusion (default) or learned")
+    p.add_argument("--inpainter", help="inpainting backend: diffusion (default), structured "
+                   "or learned")
     p.add_argument("--weights", type=Path, metavar="DIR",
                    help="weights of the learned inpainter: the authors' edge-model.pth, "
                         "depth-model.pth, color-model.pth or photo3d *.safetensors "

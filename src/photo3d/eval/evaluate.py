@@ -5,6 +5,8 @@ Methods (all from the same left image and ground-truth depth):
 * ``forward-warp``: the left view splatted into the right view, holes left black;
 * ``stretch``: photo3d's mesh without cutting at discontinuities (no inpainting);
 * ``diffusion``: photo3d with the diffusion inpainter (the default);
+* ``structured``: photo3d with the structure-then-texture inpainter (continued
+  edges, piecewise diffusion, exemplar texture; :mod:`photo3d.inpaint.structured`);
 * ``learned``: photo3d with the learned inpainter (the given weights; when none
   are given the compact weights shipped with photo3d; ``weights="random"``: the
   authors' architectures with random weights, reported as such);
@@ -28,7 +30,8 @@ from photo3d.eval.metrics import psnr, ssim
 from photo3d.eval.stereo_pair import StereoPair
 from photo3d.eval.warp import forward_warp
 
-METHODS = ("forward-warp", "stretch", "diffusion", "learned", "opencv-telea", "opencv-ns")
+METHODS = ("forward-warp", "stretch", "diffusion", "structured", "learned", "opencv-telea",
+           "opencv-ns")
 
 
 @dataclass
@@ -82,8 +85,8 @@ def render_method(name: str, pair: StereoPair, *, config: Config | None = None,
     if name == "stretch":
         flat = replace(config, preprocess=PreprocessConfig(discontinuity=2.0))  # never cut
         return _photo3d_view(pair, flat), "no cuts, no inpainting"
-    if name == "diffusion":
-        return _photo3d_view(pair, config.with_(inpainter="diffusion")), ""
+    if name in ("diffusion", "structured"):
+        return _photo3d_view(pair, config.with_(inpainter=name)), ""
     if name == "learned":
         from photo3d.inpaint import get_inpainter
         from photo3d.inpaint.learned import LearnedInpainter, bundled_weights

@@ -113,5 +113,7 @@ def get_inpainter(name: str, **options) -> Inpainter:
 def _load_builtin() -> None:
     if "diffusion" not in _REGISTRY:
         from photo3d.inpaint import diffusion  # noqa: F401  (registers itself)
+    if "structured" not in _REGISTRY:
+        from photo3d.inpaint import structured  # noqa: F401  (registers itself)
     if "learned" not in _REGISTRY:
         from photo3d.inpaint import learned  # noqa: F401  (registers itself; torch lazily)
