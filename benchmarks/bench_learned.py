@@ -33,7 +33,7 @@ sys.path.insert(0, str(Path(__file__).parent))
 from _machine import machine_info, run_child  # noqa: E402
 
 CHILD = r"""
-import json, sys, time
+import json, resource, sys, time
 from collections import Counter
 import numpy as np, torch
 import photo3d
@@ -83,6 +83,7 @@ print(json.dumps({
     "nets_per_pass": backend.per_pass,
     "padded_shapes": dict(shapes.most_common()),
     "threads": torch.get_num_threads(),
+    "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
 }))
 """
 
@@ -151,7 +152,7 @@ def nets_only(repeats: int, onnx_path: str, out_path: Path) -> None:
 
 
 DIFFUSION = r"""
-import json, sys, time
+import json, resource, sys, time
 import numpy as np
 import photo3d
 from photo3d.data import motorcycle
@@ -159,7 +160,8 @@ s = motorcycle()
 t = time.perf_counter()
 photo = photo3d.make(s.left, depth=np.asarray(s.disparity),
                      config=photo3d.Config(size=int(sys.argv[1])))
-print(json.dumps({"make_s": time.perf_counter() - t, "stats": photo.stats}))
+print(json.dumps({"make_s": time.perf_counter() - t, "stats": photo.stats,
+                  "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}))
 """
 
 

@@ -180,6 +180,9 @@ class LearnedInpainter:
         share: fill the patches of a pass on shared canvases
             (:func:`~photo3d.inpaint.canvas.share_canvases`; False: one net run per
             patch).
+        joint_pixels: the joint edge-net run of a pass is split into horizontal bands
+            of about this many padded pixels (its memory: the authors' edge net needs
+            about 2.4 GB per Mpx).
 
     Attributes:
         units: per net (``"edge"``, ``"depth"``, ``"color"``), the multiple its
@@ -212,7 +215,7 @@ class LearnedInpainter:
                  edge_threshold: float = 0.002, edge_repeats: int = 2, edge_passes: int = 1,
                  edge_unit: int | None = None, precision: str = "fp32", color_size: int = 512,
                  batch_size: int = 8, batch_pixels: int = 8 * 256 * 256,
-                 share: bool = True) -> None:
+                 share: bool = True, joint_pixels: int = 600_000) -> None:
         if edge_unit is not None and (edge_unit <= 0 or edge_unit % 4):
             raise ConfigError(f"edge_unit must be a positive multiple of 4, not {edge_unit}")
         if precision not in PRECISIONS:
@@ -237,6 +240,7 @@ class LearnedInpainter:
         self.precision = precision
         self.color_size = color_size
         self.share = share
+        self.joint_pixels = joint_pixels
         self.batch = dict(batch_size=batch_size, batch_pixels=batch_pixels)
         self.mapping = DepthMapping()
         # Seconds spent in each net since construction (read by the benchmark).
@@ -299,41 +303,48 @@ class LearnedInpainter:
             result.append(np.clip(np.moveaxis(o, 0, 2), 0.0, 1.0).astype(np.float32))
         return result
 
-    def _joint_edges(self, patches: Sequence[Patch]):
+    def _joint_edges(self, patches: Sequence[Patch]) -> list | None:
         """New edges of all ``patches`` from edge-net runs over them together
         (:func:`~photo3d.inpaint.canvas.joint_patch` of those whose context edges touch
-        their synthesis): ``(new (H, W) bool, origin)``, ``(None, None)`` when none
-        needs the edge net, or None when their contexts cannot share one image."""
-        todo = [p for p in patches if NetInputs.touches(p)]
+        their synthesis), in horizontal bands of about ``joint_pixels`` padded pixels
+        (memory): a list of ``(new (H, W) bool, origin)`` per band (empty when none
+        needs the edge net), or None when their contexts cannot share one image."""
+        todo = sorted((p for p in patches if NetInputs.touches(p)),
+                      key=lambda p: 2 * p.origin[0] + p.shape[0])
         if not todo:
-            return None, None
-        joint = joint_patch(todo)
-        if joint is None:
+            return []
+        whole = joint_patch(todo)
+        if whole is None:
             return None
-        it = NetInputs(joint, self.mapping)
-        edges, new = it.edges, np.zeros(joint.shape, bool)
-        for r in range(1 + self.edge_repeats):
-            out = self._run("edge", [it.edge_input(edges)])[0][0]
-            new = (out > self.edge_threshold) & (it.syn > 0)
-            edges = np.maximum(it.edges, new.astype(np.float32))
-            if r == 0 and not new.any():
-                break
-        return new, joint.origin
+        area = np.prod(padded_shape(*whole.shape, self.units["edge"]))
+        bands = max(1, min(len(todo), math.ceil(area / self.joint_pixels)))
+        cuts = np.linspace(0, len(todo), bands + 1).round().astype(int)
+        out = []
+        for a, b in zip(cuts[:-1], cuts[1:], strict=True):
+            joint = whole if bands == 1 else joint_patch(todo[a:b])
+            it = NetInputs(joint, self.mapping)
+            edges, new = it.edges, np.zeros(joint.shape, bool)
+            for r in range(1 + self.edge_repeats):
+                res = self._run("edge", [it.edge_input(edges)])[0][0]
+                new = (res > self.edge_threshold) & (it.syn > 0)
+                edges = np.maximum(it.edges, new.astype(np.float32))
+                if r == 0 and not new.any():
+                    break
+            out.append((new, joint.origin))
+        return out
 
     @staticmethod
-    def _edges_of(p: Patch, joint) -> np.ndarray:
-        """``p``'s context edges plus the joint run's new edges in its synthesis."""
+    def _edges_of(p: Patch, joint: list) -> np.ndarray:
+        """``p``'s context edges plus the joint runs' new edges in its synthesis."""
         own = np.where(p.context, p.edges, 0).astype(np.float32)
-        new, origin = joint
-        if new is None:
-            return own
-        y0, x0 = p.origin[0] - origin[0], p.origin[1] - origin[1]
         h, w = p.shape
         crop = np.zeros((h, w), bool)
-        ys, xs = max(0, -y0), max(0, -x0)
-        ye, xe = min(h, new.shape[0] - y0), min(w, new.shape[1] - x0)
-        if ye > ys and xe > xs:
-            crop[ys:ye, xs:xe] = new[y0 + ys:y0 + ye, x0 + xs:x0 + xe]
+        for new, origin in joint:
+            y0, x0 = p.origin[0] - origin[0], p.origin[1] - origin[1]
+            ys, xs = max(0, -y0), max(0, -x0)
+            ye, xe = min(h, new.shape[0] - y0), min(w, new.shape[1] - x0)
+            if ye > ys and xe > xs:
+                crop[ys:ye, xs:xe] |= new[y0 + ys:y0 + ye, x0 + xs:x0 + xe]
         return np.maximum(own, (crop & p.synthesis & ~p.context).astype(np.float32))
 
     def _depths(self, items: list[NetInputs], edges: list[np.ndarray]) -> list[np.ndarray]:
@@ -398,7 +409,7 @@ class LearnedInpainter:
         (:func:`~photo3d.inpaint.canvas.share_canvases`); else once per patch."""
         run_edges = pass_index < self.edge_passes
         if self.share and patches:
-            joint = self._joint_edges(patches) if run_edges else (None, None)
+            joint = self._joint_edges(patches) if run_edges else []
             if joint is not None:
                 return self._shared(patches, joint, progress)
         order = sorted(range(len(patches)), key=lambda i: padded_shape(*patches[i].shape))
