@@ -358,13 +358,34 @@ def section_learned_shared() -> str:
             "load swamped the timing, and the edge net over the whole pass at once "
             "(1.15 Mpx) needs 2.7 GB by itself (measured alone: peak 3.1 GB from a 0.4 GB "
             "base). The joint edge run is now split into horizontal bands of about "
-            "0.6 Mpx (`joint_pixels`): counted with stub nets (an edge net that fires everywhere), 6 edge runs over "
+            "0.6 Mpx (`joint_pixels`): counted with stub nets (an edge net that fires "
+            "everywhere), 6 edge runs over "
             "4.4 Mpx, and the edge net alone on one band (640x1152) peaks at 2.1 GB from a "
             "0.4 GB base; the full run was not repeated in time. At the idle per-Mpx costs "
             "of the issue-4 section (edge ~10, depth ~3.5, colour ~2.9 s per Mpx) these "
             "pixel counts come to about 44 + 50 + 21 s of nets, well under a third of the "
             "authors' 596 s, but that is an estimate, not a measurement.", ""]
     return "\n".join(out)
+
+
+def section_compact_quality() -> str:
+    out = ["## Compact nets: the colour drift and shared canvases (issues 14, 18)", ""]
+    rec = load("compact_quality.json")
+    if rec is None:
+        return "\n".join(out) + "\n" + missing("python benchmarks/quality_variants.py")
+    out += [f"Command: `{rec['command']}` (one process per variant, run side by side on the "
+            "shared 2-core machine; scores do not depend on the load).", "",
+            "Disoccluded pixels of the right view (as in the quality section). "
+            "`old-perpatch`: the compact nets as shipped before issue 14 (the colour net "
+            "filled every hole orange-brown), one net run per patch; `new-perpatch`: the "
+            "centred, fine-tuned colour net, one run per patch; `new-shared`: the same nets "
+            "on shared canvases with thinner later contexts (the default now).", "",
+            "| variant | pair | PSNR | SSIM | LPIPS |", "| --- | --- | --- | --- | --- |"]
+    for variant, pairs in rec["variants"].items():
+        for pair, sc in pairs.items():
+            out.append(f"| {variant} | {pair} | {sc['psnr']:.2f} | {sc['ssim']:.3f} | "
+                       f"{sc['lpips']:.3f} |")
+    return "\n".join(out) + "\n"
 
 
 def section_stereo() -> str:
@@ -445,7 +466,7 @@ def main() -> None:
         "benchmark first). Every number below comes from the command named in its section.",
         "",
         section_make(), section_render(), section_speed(), section_quality(),
-        section_learned(), section_learned_shared(),
+        section_learned(), section_learned_shared(), section_compact_quality(),
         section_stereo(), section_viewer(),
     ]
     (HERE / "RESULTS.md").write_text("\n".join(parts).rstrip() + "\n")

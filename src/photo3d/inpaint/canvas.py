@@ -304,3 +304,32 @@ def joint_patch(patches: Sequence[Patch], *, reach: int = 8,
     keep = context & ~synthesis & ~foreground
     return Patch(color * keep[..., None], disparity * keep, edges * keep, keep, synthesis,
                  (y0, x0))
+
+
+def edges_in(p: Patch, joint: Sequence[tuple[np.ndarray, tuple[int, int]]]) -> np.ndarray:
+    """``p``'s context edges plus the new edges of joint edge-net runs in its synthesis.
+
+    Args:
+        p: a patch (or canvas).
+        joint: ``(new (H, W) bool, origin (y0, x0))`` per joint run.
+
+    Returns:
+        ``(h, w) float32`` 0/1.
+
+    Example:
+        >>> ctx = np.zeros((2, 4), bool); ctx[:, :2] = True
+        >>> p = Patch(np.zeros((2, 4, 3), np.float32), np.zeros((2, 4), np.float32),
+        ...           np.zeros((2, 4), np.float32), ctx, ~ctx, (0, 1))
+        >>> edges_in(p, [(np.ones((2, 8), bool), (0, 0))]).astype(int).tolist()
+        [[0, 0, 1, 1], [0, 0, 1, 1]]
+    """
+    own = np.where(p.context, p.edges, 0).astype(np.float32)
+    h, w = p.shape
+    crop = np.zeros((h, w), bool)
+    for new, origin in joint:
+        y0, x0 = p.origin[0] - origin[0], p.origin[1] - origin[1]
+        ys, xs = max(0, -y0), max(0, -x0)
+        ye, xe = min(h, new.shape[0] - y0), min(w, new.shape[1] - x0)
+        if ye > ys and xe > xs:
+            crop[ys:ye, xs:xe] |= new[y0 + ys:y0 + ye, x0 + xs:x0 + xe]
+    return np.maximum(own, (crop & p.synthesis & ~p.context).astype(np.float32))

@@ -29,6 +29,12 @@ Per patch, as the authors' inference does (their margin of 20 px is this backend
    the edge channel zeroed, as the authors' code does) and the result is resized
    back bicubically.
 
+The patches of a pass share work (issue 18; ``share=False`` turns it off): the edge
+net runs over all of them together (in bands of about ``joint_pixels``), the depth
+net on clusters and the colour net on groups of patches that do not conflict
+(:mod:`photo3d.inpaint.canvas`); after the first pass contexts are half as deep
+(``later_context``, the authors' 140 then 70 px).
+
 The authors' graph-based edge clean-up and depth smoothing between context and
 synthesis are not part of this backend. Patches of the same
 padded shape run as one batch (at most ``batch_size`` patches and about
@@ -55,7 +61,7 @@ import numpy as np
 from photo3d.camera import DepthMapping
 from photo3d.errors import ConfigError
 from photo3d.inpaint.base import InpaintResult, Patch, Progress, register
-from photo3d.inpaint.canvas import joint_patch, share_canvases
+from photo3d.inpaint.canvas import edges_in, joint_patch, share_canvases
 from photo3d.inpaint.netinputs import NetInputs, close_gaps
 
 if TYPE_CHECKING:  # torch is imported lazily: photo3d works without it
@@ -333,20 +339,6 @@ class LearnedInpainter:
             out.append((new, joint.origin))
         return out
 
-    @staticmethod
-    def _edges_of(p: Patch, joint: list) -> np.ndarray:
-        """``p``'s context edges plus the joint runs' new edges in its synthesis."""
-        own = np.where(p.context, p.edges, 0).astype(np.float32)
-        h, w = p.shape
-        crop = np.zeros((h, w), bool)
-        for new, origin in joint:
-            y0, x0 = p.origin[0] - origin[0], p.origin[1] - origin[1]
-            ys, xs = max(0, -y0), max(0, -x0)
-            ye, xe = min(h, new.shape[0] - y0), min(w, new.shape[1] - x0)
-            if ye > ys and xe > xs:
-                crop[ys:ye, xs:xe] |= new[y0 + ys:y0 + ye, x0 + xs:x0 + xe]
-        return np.maximum(own, (crop & p.synthesis & ~p.context).astype(np.float32))
-
     def _depths(self, items: list[NetInputs], edges: list[np.ndarray]) -> list[np.ndarray]:
         outs = self._run("depth", [np.stack([it.log_depth, e, it.ctx, it.hole])
                                    for it, e in zip(items, edges, strict=True)])
@@ -372,7 +364,7 @@ class LearnedInpainter:
             for s in range(0, len(order), step):
                 chunk = order[s:s + step]
                 items = [NetInputs(c.patch, self.mapping) for c in chunk]
-                es = [self._edges_of(c.patch, joint) for c in chunk]
+                es = [edges_in(c.patch, joint) for c in chunk]
                 outs = (self._depths if kind == "depth" else self._colors)(items, es)
                 for c, o, e in zip(chunk, outs, es, strict=True):
                     y0, x0 = c.patch.origin
