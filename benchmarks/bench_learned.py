@@ -15,7 +15,7 @@ onnxruntime's CPU provider; writes ``benchmarks/results/learned_nets.json``.
 ``--edge-unit 8 --precision bf16`` measures the backend's opt-in speed-ups
 (results in ``learned_fast.json``).
 
-Usage: python benchmarks/bench_learned.py [--runs 3] [--size 1024] [--edge-unit 8]
+Usage: python benchmarks/bench_learned.py [--runs 3] [--size 1024] [--per-patch] [--edge-unit 8]
            [--precision bf16]
        python benchmarks/bench_learned.py --nets [--repeats 8] [--onnx-path DIR]
 """
@@ -33,7 +33,7 @@ sys.path.insert(0, str(Path(__file__).parent))
 from _machine import machine_info, run_child  # noqa: E402
 
 CHILD = r"""
-import json, sys, time
+import json, resource, sys, time
 from collections import Counter
 import numpy as np, torch
 import photo3d
@@ -51,15 +51,23 @@ class Counted(torch.nn.Module):
         return self.net(x)
 
 class Recording(LearnedInpainter):
-    passes = []
+    passes, per_pass = [], []
     def inpaint(self, patches, *, progress=None, pass_index=0):
         self.passes.append([padded_shape(*p.shape) for p in patches])
-        return super().inpaint(patches, progress=progress, pass_index=pass_index)
+        before = {k: (n.items, n.mpx) for k, n in nets.items()}
+        out = super().inpaint(patches, progress=progress, pass_index=pass_index)
+        self.per_pass.append({k: {"runs": n.items - before[k][0],
+                                  "mpx": round(n.mpx - before[k][1], 2)}
+                              for k, n in nets.items()})
+        return out
 
 torch.manual_seed(0)
 nets = {k: Counted(build_net(k).eval()) for k in ("edge", "depth", "color")}
 backend = Recording(nets=InpaintingNets(**nets, device=torch.device("cpu"), sources={}),
-                    edge_unit=int(sys.argv[2]), precision=sys.argv[3])
+                    edge_unit=int(sys.argv[2]), precision=sys.argv[3],
+                    share=sys.argv[4] == "shared")
+if sys.argv[4] != "shared":
+    backend.later_context = 1.0
 s = motorcycle()
 cfg = photo3d.Config(size=int(sys.argv[1]), inpainter="learned")
 t = time.perf_counter()
@@ -72,8 +80,10 @@ print(json.dumps({
     "net_runs": {k: n.items for k, n in nets.items()},
     "net_mpx": {k: round(n.mpx, 2) for k, n in nets.items()},
     "patches_per_pass": [len(p) for p in backend.passes],
+    "nets_per_pass": backend.per_pass,
     "padded_shapes": dict(shapes.most_common()),
     "threads": torch.get_num_threads(),
+    "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
 }))
 """
 
@@ -141,8 +151,22 @@ def nets_only(repeats: int, onnx_path: str, out_path: Path) -> None:
         print(f"{key:12} {best['torch']:8.3f} {onnx or float('nan'):8.3f} {gain}")
 
 
-def run_once(size: int, edge_unit: int, precision: str) -> dict:
-    return run_child(CHILD, size, edge_unit, precision)
+DIFFUSION = r"""
+import json, resource, sys, time
+import numpy as np
+import photo3d
+from photo3d.data import motorcycle
+s = motorcycle()
+t = time.perf_counter()
+photo = photo3d.make(s.left, depth=np.asarray(s.disparity),
+                     config=photo3d.Config(size=int(sys.argv[1])))
+print(json.dumps({"make_s": time.perf_counter() - t, "stats": photo.stats,
+                  "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}))
+"""
+
+
+def run_once(size: int, edge_unit: int, precision: str, mode: str) -> dict:
+    return run_child(CHILD, size, edge_unit, precision, mode)
 
 
 def main() -> None:
@@ -155,6 +179,9 @@ def main() -> None:
     parser.add_argument("--edge-unit", type=int, default=128,
                         help="edge-net padding unit (authors: 128; opt-in speed-up: 8)")
     parser.add_argument("--precision", default="fp32", choices=("fp32", "bf16"))
+    parser.add_argument("--per-patch", action="store_true",
+                        help="one net run per patch, same context in every pass (before "
+                             "issue 18) instead of shared canvases")
     parser.add_argument("--out", type=Path, default=None)
     args = parser.parse_args()
     results = Path(__file__).parent / "results"
@@ -162,14 +189,21 @@ def main() -> None:
         nets_only(args.repeats, args.onnx_path, args.out or results / "learned_nets.json")
         return
     fast = args.edge_unit != 128 or args.precision != "fp32"
-    args.out = args.out or results / ("learned_fast.json" if fast else "learned.json")
+    name = "learned_fast" if fast else "learned"
+    args.out = args.out or results / (name + ("_per_patch" if args.per_patch else "") + ".json")
+    mode = "per-patch" if args.per_patch else "shared"
 
     # Warm-up: numba's cache for the pipeline's own kernels (the nets need none).
     subprocess.run([sys.executable, "-c", "import numpy as np, photo3d; photo3d.make("
                     "np.random.rand(64, 64, 3), depth=np.random.rand(64, 64) + 1)"],
                    check=True, capture_output=True)
-    runs = [run_once(args.size, args.edge_unit, args.precision) for _ in range(args.runs)]
+    runs, diffusion = [], []
+    for _ in range(args.runs):  # interleaved: both see the same machine load
+        diffusion.append(run_child(DIFFUSION, args.size))
+        runs.append(run_once(args.size, args.edge_unit, args.precision, mode))
     med = {
+        "diffusion_make_s": statistics.median(r["make_s"] for r in diffusion),
+        "diffusion_peak_rss_mb": max(r["peak_rss_mb"] for r in diffusion),
         "make_s": statistics.median(r["make_s"] for r in runs),
         "stages": {k: statistics.median(r["stages"][k] for r in runs) for k in runs[0]["stages"]},
         "net_s": {k: statistics.median(r["net_s"][k] for r in runs) for k in runs[0]["net_s"]},
@@ -178,7 +212,8 @@ def main() -> None:
     first = runs[0]
     patches = sum(first["patches_per_pass"])
     record = {"benchmark": "make_learned", "size": args.size,
-              "options": {"edge_unit": args.edge_unit, "precision": args.precision},
+              "options": {"edge_unit": args.edge_unit, "precision": args.precision,
+                          "mode": mode},
               "weights": "random, authors' architectures", "runs": runs, "median": med,
               "machine": machine_info(),
               "command": " ".join(["python", "benchmarks/bench_learned.py", *sys.argv[1:]])}
@@ -189,6 +224,8 @@ def main() -> None:
     print(f"motorcycle {ws[0]}x{ws[1]}, learned inpainter, random weights, "
           f"{args.runs} runs (median), {record['machine']['cpu']}, "
           f"{record['machine']['cores']} cores, {first['threads']} torch threads")
+    print(f"diffusion make in the same run: {med['diffusion_make_s']:.1f} s; learned / "
+          f"diffusion = {med['make_s'] / med['diffusion_make_s']:.1f}x")
     print(f"make: {med['make_s']:.1f} s  (" + ", ".join(
         f"{k} {v:.1f}" for k, v in med["stages"].items()) + ")")
     print(f"patches per pass {first['patches_per_pass']} (total {patches}); padded shapes "
@@ -198,6 +235,10 @@ def main() -> None:
         sec, n, mpx = med["net_s"][k], first["net_runs"][k], first["net_mpx"][k]
         print(f"{k:6} {n:6d} {mpx:8.1f} {sec:9.1f} {sec / max(n, 1):7.2f} "
               f"{sec / max(mpx, 1e-9):7.2f}")
+    for k, per in enumerate(first["nets_per_pass"]):
+        print(f"pass {k}: " + ", ".join(f"{n} {v['runs']} runs {v['mpx']:.2f} Mpx"
+                                        for n, v in per.items()))
+    print(f"edges per pass {first['stats']['edges']}")
     total = sum(med["net_s"].values())
     print(f"nets: {total:.1f} s = {total / max(patches, 1):.2f} s per patch; "
           f"peak memory {med['peak_rss_mb']:.0f} MB")

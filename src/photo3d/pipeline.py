@@ -216,10 +216,12 @@ def make(
     for k in range(reg.max_passes):
         if edge_pixels.size == 0:
             break
+        # a backend may want thinner contexts after the first pass (learned: the authors')
+        thin = 1.0 if k == 0 else getattr(backend, "later_context", 1.0)
         regions = find_regions(
             ldi, edge_ptr, edge_pixels,
             synthesis_iterations=px(reg.synthesis_iterations),
-            context_iterations=px(reg.context_iterations),
+            context_iterations=max(1, round(px(reg.context_iterations) * thin)),
             dilation=px(reg.edge_dilation) if k == 0 else 0,
             threshold=thr,
         )

@@ -186,3 +186,33 @@ def test_edge_training_step_updates_generator_and_discriminator():
     assert len(feats) == 5 and scores.shape == (2, 1, 2, 2)
     assert not torch.equal(before, gen.decoder_2[1].weight)
     assert np.isfinite(loss.item())
+
+
+def test_a_centred_colour_net_moves_its_output_with_the_context_colour(tmp_path):
+    """Issue 14: a centred colour net sees the context's colours minus their mean, so a
+    colour shift of the whole context shifts its fill by the same amount (where not
+    clamped); it keeps ``center`` through save and load."""
+    from photo3d.nets import build_net, save_safetensors
+    from photo3d.nets.weights import load_net
+
+    torch.manual_seed(0)
+    x = torch.zeros(2, 6, 32, 32)
+    x[:, 4, :, :14] = 1  # context
+    x[:, 5, :, 14:26] = 1  # synthesis
+    x[:, :3] = (0.4 + 0.1 * torch.rand(2, 3, 32, 32)) * x[:, 4:5]
+    shift = torch.tensor([0.1, -0.1, 0.05]).view(1, 3, 1, 1)
+    moved = x.clone()
+    moved[:, :3] += shift * x[:, 4:5]
+    for center in (True, False):
+        net = build_net("color", levels=3, width=0.125, center=center).eval()
+        with torch.no_grad():
+            a, b = net(x), net(moved)
+        inside = (a > 0.01) & (a < 0.99) & (b > 0.01) & (b < 0.99)
+        same = torch.allclose((b - a)[inside], (shift.expand_as(a))[inside], atol=1e-5)
+        assert same is center
+    save_safetensors(net := build_net("color", levels=3, width=0.125, center=True),
+                     tmp_path / "color.safetensors")
+    loaded, _ = load_net("color", tmp_path)
+    assert loaded.center and loaded.config == net.config
+    with pytest.raises(ValueError, match="colour net only"):
+        build_net("depth", levels=3, width=0.125, center=True)

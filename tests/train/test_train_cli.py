@@ -57,7 +57,7 @@ def test_two_steps_then_resume(folder, tmp_path, kind, capsys):
 def test_errors_are_one_line(folder, tmp_path, capsys):
     base = ["train", "depth", "--out", str(tmp_path / "run"), *TINY, "--steps", "1"]
     cases = [
-        (["--images", str(folder / "images")], "no region pairs"),
+        (["--images", str(folder / "images")], "the depth net needs training photos with depth"),
         (["--images", str(tmp_path / "nope")], "does not exist"),
         (["--images", str(folder / "images"), "--depth", str(folder / "depth"),
           "--size", "60"], "multiple of 8"),
@@ -79,4 +79,21 @@ def test_edge_and_depth_nets_need_photos_with_depth(folder, tmp_path, capsys):
             "--steps", "1", "-q"]
     assert main(["train", "color", "--out", str(tmp_path / "c"), *args]) == 0
     assert main(["train", "depth", "--out", str(tmp_path / "d"), *args]) == 2
+    assert "the depth net needs training photos with depth" in capsys.readouterr().err
+
+
+def test_colour_net_trains_on_photos_without_any_depth(tmp_path, capsys):
+    """Issue 14: photos only; the region shapes come from the built-in scenes."""
+    photos = write_folder(tmp_path / "photos", with_depth=0, without_depth=2)
+    run = tmp_path / "run"
+    args = ["train", "color", "--images", str(photos / "images"), "--out", str(run), *TINY]
+    assert main([*args, "--steps", "1"]) == 0
+    out = capsys.readouterr().out
+    assert "data: 2 photos (0 with depth)" in out and "trained 1 steps" in out
+    from photo3d.nets.weights import load_net
+
+    net, _ = load_net("color", run)
+    assert net.config.get("center") is True
+    assert main(["train", "depth", "--images", str(photos / "images"),
+                 "--out", str(tmp_path / "d"), *TINY, "--steps", "1"]) == 2
     assert "the depth net needs training photos with depth" in capsys.readouterr().err

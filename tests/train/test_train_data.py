@@ -214,3 +214,18 @@ def test_regions_are_never_pasted_onto_their_own_image():
     for seed in range(10):
         s = make_sample(two, "color", size=32, rng=np.random.default_rng(seed))
         assert (s.target_index, s.source_index) == (1, 0)
+
+
+def test_photos_without_depth_take_their_region_shapes_from_the_builtin_scenes(tmp_path):
+    photos = write_folder(tmp_path, with_depth=0, without_depth=2)
+    files = find_training_files(photos / "images")
+    assert prepare_data(files, crop=CROP, region_size=REGION_SIZE, builtin_shapes=0).pool == []
+    data = prepare_data(files, crop=CROP, region_size=REGION_SIZE, builtin_shapes=3)
+    sources = {p.source for p in data.pool}
+    assert data.pool and sources <= {2, 3, 4}  # after the two photos: never a target
+    data.check("color")
+    with pytest.raises(InputError, match="needs training photos with depth"):
+        data.check("edge")
+    s = make_sample(data, "color", size=CROP, rng=np.random.default_rng(0))
+    assert s.target_index in (0, 1) and s.source_index in sources
+    assert s.synthesis.any() and not s.inputs[:3][:, s.synthesis].any()

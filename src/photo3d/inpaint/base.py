@@ -70,6 +70,8 @@ class Inpainter(Protocol):
     name: str
     margin: int
     """Pixels of context-free margin the backend wants around each patch."""
+    # Optional: ``later_context`` (float), the context depth after the first pass as a
+    # fraction of the first pass's (the pipeline reads it with getattr; default 1).
 
     def inpaint(
         self, patches: Sequence[Patch], *, progress: Progress | None = None,

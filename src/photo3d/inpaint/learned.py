@@ -29,6 +29,12 @@ Per patch, as the authors' inference does (their margin of 20 px is this backend
    the edge channel zeroed, as the authors' code does) and the result is resized
    back bicubically.
 
+The patches of a pass share work (issue 18; ``share=False`` turns it off): the edge
+net runs over all of them together (in bands of about ``joint_pixels``), the depth
+net on clusters and the colour net on groups of patches that do not conflict
+(:mod:`photo3d.inpaint.canvas`); after the first pass contexts are half as deep
+(``later_context``, the authors' 140 then 70 px).
+
 The authors' graph-based edge clean-up and depth smoothing between context and
 synthesis are not part of this backend. Patches of the same
 padded shape run as one batch (at most ``batch_size`` patches and about
@@ -51,11 +57,12 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
-from scipy.ndimage import binary_dilation, maximum_filter, minimum_filter
 
 from photo3d.camera import DepthMapping
 from photo3d.errors import ConfigError
 from photo3d.inpaint.base import InpaintResult, Patch, Progress, register
+from photo3d.inpaint.canvas import edges_in, joint_patch, share_canvases
+from photo3d.inpaint.netinputs import NetInputs, close_gaps
 
 if TYPE_CHECKING:  # torch is imported lazily: photo3d works without it
     import torch
@@ -121,33 +128,6 @@ def color_scale(h: int, w: int, size: int = 512) -> float:
     return math.floor(max(h, w) * frac / 128) * 128 / max(h, w)
 
 
-def close_gaps(context: np.ndarray, synthesis: np.ndarray, *, size: int = 41,
-               iterations: int = 3) -> np.ndarray:
-    """The hole mask the depth and colour nets see (the authors' ``open_small_mask``).
-
-    ``context | synthesis`` is closed ``iterations`` times (dilation then erosion by a
-    ``size`` x ``size`` square; outside the patch counts as empty for the dilation and
-    as full for the erosion); the pixels this adds outside the context join the hole.
-
-    Args:
-        context, synthesis: ``(h, w) bool``.
-
-    Returns:
-        ``(h, w) bool``, a superset of ``synthesis`` disjoint from ``context``.
-
-    Example:
-        >>> ctx = np.zeros((1, 9), bool); ctx[0, :3] = True
-        >>> syn = np.zeros((1, 9), bool); syn[0, 5:] = True
-        >>> close_gaps(ctx, syn, size=3).astype(int).tolist()  # the 2-pixel gap closes
-        [[0, 0, 0, 1, 1, 1, 1, 1, 1]]
-    """
-    closed = (context | synthesis).astype(np.uint8)
-    for _ in range(iterations):
-        closed = maximum_filter(closed, size, mode="constant", cval=0)
-        closed = minimum_filter(closed, size, mode="constant", cval=1)
-    return synthesis | (closed.astype(bool) & ~context)
-
-
 def _run_batched(net: Callable, inputs: Sequence[np.ndarray], *, device, batch_size: int = 8,
                 batch_pixels: int = 8 * 256 * 256, unit: int = UNIT,
                 autocast: torch.dtype | None = None) -> list[np.ndarray]:
@@ -182,48 +162,6 @@ def _run_batched(net: Callable, inputs: Sequence[np.ndarray], *, device, batch_s
     return out  # type: ignore[return-value]
 
 
-class NetInputs:
-    """Per-patch net inputs, everything zero outside the context (the training data
-    builds its inputs with this class too, so they match inference).
-
-    Attributes (all ``(h, w) float32`` unless noted): ``ctx``, ``syn`` masks;
-    ``hole`` (:func:`close_gaps`, depth and colour nets); ``rgb`` ``(3, h, w)``;
-    ``edges``; ``disp`` (inverse depth / its maximum, edge net); ``log_depth`` (log
-    depth minus ``log_mean``, its mean over the context); ``needs_edges`` (bool: a
-    context edge touches the synthesis region).
-
-    Example:
-        >>> ctx = np.zeros((4, 6), bool); ctx[:, :3] = True
-        >>> p = Patch(np.full((4, 6, 3), 0.5, np.float32) * ctx[..., None],
-        ...           np.full((4, 6), 0.25, np.float32) * ctx, np.zeros((4, 6), np.float32),
-        ...           ctx, ~ctx, (0, 0))
-        >>> it = NetInputs(p, DepthMapping())
-        >>> it.edge_input(it.edges).shape, float(it.disp.max()), it.needs_edges
-        ((7, 4, 6), 1.0, False)
-    """
-
-    def __init__(self, p: Patch, mapping: DepthMapping) -> None:
-        ctx = p.context.astype(bool)
-        self.ctx = ctx.astype(np.float32)
-        syn = p.synthesis.astype(bool) & ~ctx
-        self.syn = syn.astype(np.float32)
-        self.hole = close_gaps(ctx, syn).astype(np.float32)  # depth and colour nets
-        self.rgb = np.where(ctx[None], np.moveaxis(p.color, 2, 0), 0).astype(np.float32)
-        self.edges = np.where(ctx, p.edges, 0).astype(np.float32)
-        depth = mapping.depth(np.where(ctx, p.disparity, 0))
-        inv = np.where(ctx, 1.0 / depth, 0).astype(np.float32)
-        self.disp = inv / inv.max() if ctx.any() else inv
-        log = np.where(ctx, np.log(depth + 1e-8), 0)
-        self.log_mean = float(log[ctx].mean()) if ctx.any() else 0.0
-        self.log_depth = np.where(ctx, log - self.log_mean, 0).astype(np.float32)
-        dilated = binary_dilation(self.syn > 0, structure=np.ones((3, 3), bool))
-        self.needs_edges = bool((self.edges[dilated] > 0).any())
-
-    def edge_input(self, edges: np.ndarray) -> np.ndarray:
-        """``(7, h, w)`` edge-net input: rgb, disparity, ``edges``, context, synthesis."""
-        return np.concatenate([self.rgb, np.stack([self.disp, edges, self.ctx, self.syn])])
-
-
 class LearnedInpainter:
     """Backend ``"learned"``: edge, depth and colour nets (see the module docstring).
 
@@ -245,6 +183,12 @@ class LearnedInpainter:
         precision: ``"fp32"`` or ``"bf16"`` (autocast, opt-in speed-up).
         color_size: target ``sqrt(area)`` of the colour net's input (shrinking only).
         batch_size, batch_pixels: batch limits (patches, padded pixels).
+        share: fill the patches of a pass on shared canvases
+            (:func:`~photo3d.inpaint.canvas.share_canvases`; False: one net run per
+            patch).
+        joint_pixels: the joint edge-net run of a pass is split into horizontal bands
+            of about this many padded pixels (its memory: the authors' edge net needs
+            about 2.4 GB per Mpx).
 
     Attributes:
         units: per net (``"edge"``, ``"depth"``, ``"color"``), the multiple its
@@ -268,12 +212,16 @@ class LearnedInpainter:
 
     name = "learned"
     margin = 20
+    later_context = 0.5
+    """Context depth after the first pass, as a fraction of the first pass's (read by the
+    pipeline; the authors' code: 140 px, then 70 px)."""
 
     def __init__(self, *, weights: str | Path | None = None,
                  device: str | torch.device | None = None, nets: InpaintingNets | None = None,
                  edge_threshold: float = 0.002, edge_repeats: int = 2, edge_passes: int = 1,
                  edge_unit: int | None = None, precision: str = "fp32", color_size: int = 512,
-                 batch_size: int = 8, batch_pixels: int = 8 * 256 * 256) -> None:
+                 batch_size: int = 8, batch_pixels: int = 8 * 256 * 256,
+                 share: bool = True, joint_pixels: int = 600_000) -> None:
         if edge_unit is not None and (edge_unit <= 0 or edge_unit % 4):
             raise ConfigError(f"edge_unit must be a positive multiple of 4, not {edge_unit}")
         if precision not in PRECISIONS:
@@ -297,6 +245,8 @@ class LearnedInpainter:
             self.units["edge"] = edge_unit
         self.precision = precision
         self.color_size = color_size
+        self.share = share
+        self.joint_pixels = joint_pixels
         self.batch = dict(batch_size=batch_size, batch_pixels=batch_pixels)
         self.mapping = DepthMapping()
         # Seconds spent in each net since construction (read by the benchmark).
@@ -359,38 +309,111 @@ class LearnedInpainter:
             result.append(np.clip(np.moveaxis(o, 0, 2), 0.0, 1.0).astype(np.float32))
         return result
 
+    def _joint_edges(self, patches: Sequence[Patch]) -> list | None:
+        """New edges of all ``patches`` from edge-net runs over them together
+        (:func:`~photo3d.inpaint.canvas.joint_patch` of those whose context edges touch
+        their synthesis), in horizontal bands of about ``joint_pixels`` padded pixels
+        (memory): a list of ``(new (H, W) bool, origin)`` per band (empty when none
+        needs the edge net), or None when their contexts cannot share one image."""
+        todo = sorted((p for p in patches if NetInputs.touches(p)),
+                      key=lambda p: 2 * p.origin[0] + p.shape[0])
+        if not todo:
+            return []
+        whole = joint_patch(todo)
+        if whole is None:
+            return None
+        area = np.prod(padded_shape(*whole.shape, self.units["edge"]))
+        bands = max(1, min(len(todo), math.ceil(area / self.joint_pixels)))
+        cuts = np.linspace(0, len(todo), bands + 1).round().astype(int)
+        out = []
+        for a, b in zip(cuts[:-1], cuts[1:], strict=True):
+            joint = whole if bands == 1 else joint_patch(todo[a:b])
+            it = NetInputs(joint, self.mapping)
+            edges, new = it.edges, np.zeros(joint.shape, bool)
+            for r in range(1 + self.edge_repeats):
+                res = self._run("edge", [it.edge_input(edges)])[0][0]
+                new = (res > self.edge_threshold) & (it.syn > 0)
+                edges = np.maximum(it.edges, new.astype(np.float32))
+                if r == 0 and not new.any():
+                    break
+            out.append((new, joint.origin))
+        return out
+
+    def _depths(self, items: list[NetInputs], edges: list[np.ndarray]) -> list[np.ndarray]:
+        outs = self._run("depth", [np.stack([it.log_depth, e, it.ctx, it.hole])
+                                   for it, e in zip(items, edges, strict=True)])
+        result = []
+        for it, d in zip(items, outs, strict=True):
+            z = np.exp(np.clip(d[0].astype(np.float64) + it.log_mean, -30.0, 30.0))
+            disp = (1.0 / z - self.mapping.offset) / self.mapping.scale
+            result.append(np.clip(disp, 0, 1).astype(np.float32))
+        return result
+
+    def _shared(self, patches: Sequence[Patch], joint, progress: Progress | None):
+        """Depth on clusters of non-conflicting patches, colour on whole groups (so
+        the colour size limit shrinks them), edges from the joint run."""
+        color = [None] * len(patches)
+        disparity = [None] * len(patches)
+        edges = [None] * len(patches)
+        stages = (("depth", share_canvases(patches, unit=self.units["depth"])),
+                  ("color", share_canvases(patches, cluster=False)))
+        done = 0
+        for kind, canvases in stages:
+            order = sorted(canvases, key=lambda c: padded_shape(*c.patch.shape))
+            step = self.batch["batch_size"]
+            for s in range(0, len(order), step):
+                chunk = order[s:s + step]
+                items = [NetInputs(c.patch, self.mapping) for c in chunk]
+                es = [edges_in(c.patch, joint) for c in chunk]
+                outs = (self._depths if kind == "depth" else self._colors)(items, es)
+                for c, o, e in zip(chunk, outs, es, strict=True):
+                    y0, x0 = c.patch.origin
+                    for i in c.members:
+                        q = patches[i]
+                        win = (slice(q.origin[0] - y0, q.origin[0] - y0 + q.shape[0]),
+                               slice(q.origin[1] - x0, q.origin[1] - x0 + q.shape[1]))
+                        if kind == "depth":
+                            disparity[i], edges[i] = o[win], e[win]
+                        else:
+                            color[i] = o[win]
+                            done += 1
+                            if progress is not None:
+                                progress(done, len(patches))
+        return [InpaintResult(c, d, e) for c, d, e in zip(color, disparity, edges, strict=True)]
+
     def _chunk(self, patches: Sequence[Patch], *, run_edges: bool) -> list[InpaintResult]:
         items = [NetInputs(p, self.mapping) for p in patches]
         edges = self._edges(items, run=run_edges)
-        depth_out = self._run("depth", [np.stack([it.log_depth, e, it.ctx, it.hole])
-                                        for it, e in zip(items, edges, strict=True)])
+        disparity = self._depths(items, edges)
         colors = self._colors(items, edges)
-        results = []
-        for it, e, d, c in zip(items, edges, depth_out, colors, strict=True):
-            z = np.exp(np.clip(d[0].astype(np.float64) + it.log_mean, -30.0, 30.0))
-            disp = (1.0 / z - self.mapping.offset) / self.mapping.scale
-            results.append(InpaintResult(color=c, disparity=np.clip(disp, 0, 1).astype(np.float32),
-                                         edges=e.astype(np.float32)))
-        return results
+        return [InpaintResult(color=c, disparity=d, edges=e.astype(np.float32))
+                for e, d, c in zip(edges, disparity, colors, strict=True)]
 
     def inpaint(self, patches: Sequence[Patch], *, progress: Progress | None = None,
                 pass_index: int = 0) -> list[InpaintResult]:
         """Fill every patch's synthesis region; one result per patch, same order.
 
-        The edge net runs only when ``pass_index < edge_passes``."""
+        The edge net runs only when ``pass_index < edge_passes``. With ``share``
+        (unless the patches' contexts hold different layers at one position while
+        the edge net runs) it runs once over all patches together
+        (:func:`~photo3d.inpaint.canvas.joint_patch`), the depth net on clusters and
+        the colour net on groups of non-conflicting patches
+        (:func:`~photo3d.inpaint.canvas.share_canvases`); else once per patch."""
+        run_edges = pass_index < self.edge_passes
+        if self.share and patches:
+            joint = self._joint_edges(patches) if run_edges else []
+            if joint is not None:
+                return self._shared(patches, joint, progress)
         order = sorted(range(len(patches)), key=lambda i: padded_shape(*patches[i].shape))
         results: list[InpaintResult | None] = [None] * len(patches)
         step = self.batch["batch_size"]
-        done = 0
         for s in range(0, len(order), step):
             chunk = order[s:s + step]
-            results_chunk = self._chunk([patches[i] for i in chunk],
-                                        run_edges=pass_index < self.edge_passes)
-            for i, r in zip(chunk, results_chunk, strict=True):
+            for i, r in zip(chunk, self._chunk([patches[i] for i in chunk], run_edges=run_edges),
+                            strict=True):
                 results[i] = r
-                done += 1
-                if progress is not None:
-                    progress(done, len(patches))
+            if progress is not None:
+                progress(min(s + step, len(order)), len(patches))
         return results  # type: ignore[return-value]
 
 

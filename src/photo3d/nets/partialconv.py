@@ -20,6 +20,14 @@ LeakyReLU 0.2), and a final 3x3 partial convolution without BN or activation. Th
 input mask is ``clamp(context + synthesis, 0, 1)`` taken from the last two input
 channels. Inputs are ``(B, C, H, W)`` float32 with ``H, W`` multiples of
 ``2**levels``.
+
+photo3d's own colour nets may be *centred* (``center=True``; never the authors'
+nets): the net subtracts the mean colour of the context (``rgb`` under the context
+channel, per image) from its RGB input, adds 0.5, and adds the mean back to its
+sigmoid output (``clamp(sigmoid - 0.5 + mean, 0, 1)``). A fill then starts from the
+context's own colour instead of a colour the training photos taught it (issue 14:
+a briefly trained net filled every hole with its training set's orange-brown).
+Because the net does it itself, training and inference cannot disagree about it.
 """
 
 from __future__ import annotations
@@ -188,6 +196,8 @@ class PartialConvUNet(nn.Module):
         layout: ``"depth"`` or ``"color"``: the authors' key names, key order and
             which encoder convolutions carry a bias (depth: the first two; colour:
             none; both: the last decoder). ``"color"`` ends with a sigmoid.
+        center: centre the colour on the context's mean (colour layout only; see
+            the module docstring). Not part of the weights: stored in ``config``.
 
     ``forward(x)``: ``(B, in_channels, H, W)`` -> ``(B, out_channels, H, W)``.
 
@@ -199,13 +209,18 @@ class PartialConvUNet(nn.Module):
     """
 
     def __init__(self, in_channels: int, out_channels: int, *, levels: int = 7,
-                 width: float = 1.0, layout: Literal["depth", "color"] = "depth") -> None:
+                 width: float = 1.0, layout: Literal["depth", "color"] = "depth",
+                 center: bool = False) -> None:
         super().__init__()
         if layout not in ("depth", "color"):
             raise ValueError(f"layout must be 'depth' or 'color', not {layout!r}")
+        if center and (layout != "color" or in_channels != 6 or out_channels != 3):
+            raise ValueError("center applies to the colour net only (6 inputs, 3 outputs)")
         self.config = dict(in_channels=in_channels, out_channels=out_channels, levels=levels,
                            width=width, layout=layout)
-        self.levels, self.layout = levels, layout
+        if center:  # only when set, so older files' metadata stays what it was
+            self.config["center"] = True
+        self.levels, self.layout, self.center = levels, layout, bool(center)
         self.input_multiple = 2**levels  # input height and width must be multiples of it
         ch = [in_channels] + [_channels(i, width) for i in range(1, levels + 1)]
         biased = 2 if layout == "depth" else 0
@@ -235,6 +250,12 @@ class PartialConvUNet(nn.Module):
         if x.shape[-1] % unit or x.shape[-2] % unit:
             raise ValueError(f"input is {x.shape[-2]}x{x.shape[-1]}; height and width must "
                              f"be multiples of {unit}")
+        mean = None
+        if self.center:
+            ctx = x[:, -2:-1]
+            mean = (x[:, :3] * ctx).sum((2, 3), keepdim=True) / ctx.sum(
+                (2, 3), keepdim=True).clamp(min=1.0)
+            x = torch.cat([(x[:, :3] - mean + 0.5) * ctx, x[:, 3:]], 1)
         mask = (x[:, -2:-1] + x[:, -1:]).clamp(0, 1)
         h = x * mask
         skips = [(h, mask)]
@@ -248,7 +269,9 @@ class PartialConvUNet(nn.Module):
             skip, skip_mask = skips[i - 1]
             count = mask * h.shape[1] + skip_mask * skip.shape[1]
             h, mask = getattr(self, names[i])(torch.cat([h, skip], 1), count)
-        return torch.sigmoid(h) if self.layout == "color" else h
+        if self.layout != "color":
+            return h
+        return torch.sigmoid(h) if mean is None else (torch.sigmoid(h) - 0.5 + mean).clamp(0, 1)
 
 
 def depth_net(*, levels: int = 7, width: float = 1.0) -> PartialConvUNet:

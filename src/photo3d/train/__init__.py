@@ -16,7 +16,7 @@
 Example:
     >>> from photo3d.train import TrainConfig
     >>> TrainConfig("color", width=0.25, levels=5, size=128).net_config()
-    {'levels': 5, 'width': 0.25}
+    {'levels': 5, 'width': 0.25, 'center': True}
 """
 
 try:

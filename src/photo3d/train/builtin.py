@@ -9,6 +9,10 @@
   source: its region shapes join the pool, its pixels are never a training target
   (the motorcycle pair is the real novel-view benchmark).
 
+:func:`scene_disparity` gives a scene's disparity alone (no colour: cheap): the region
+shapes of a colour-net training on photos without depth (see
+:func:`photo3d.train.data.prepare_data`).
+
 The synthetic scenes' textures are four of the photos, so colour statistics overlap;
 real training wants a large photo collection with estimated depth (the paper: COCO
 with MegaDepth).
@@ -86,3 +90,30 @@ def write_builtin(folder: str | Path, *, scenes: int = 48, width: int = 512, hei
         write_pfm(folder / "shapes" / "motorcycle.pfm", np.asarray(motorcycle().disparity))
     report("builtin data", 1.0)
     return folder
+
+
+def scene_disparity(seed: int, width: int, height: int) -> np.ndarray:
+    """The disparity ``1 / z`` of :func:`photo3d.eval.synthetic.random_scene` ``(seed)``
+    seen from the origin with the default intrinsics (focal ``max(width, height)``),
+    at pixel centres; no colour is rendered.
+
+    Returns:
+        ``(height, width) float32``, > 0.
+
+    Example:
+        >>> d = scene_disparity(FIRST_SEED, 32, 24)
+        >>> d.shape, bool(d.max() > d.min() > 0)
+        ((24, 32), True)
+    """
+    from photo3d.eval.synthetic import random_scene
+
+    k = Intrinsics.default(width, height)
+    yy, xx = np.mgrid[0:height, 0:width].astype(np.float64)
+    rx, ry = (xx + 0.5 - k.cx) / k.fx, (yy + 0.5 - k.cy) / k.fy
+    z = np.full((height, width), np.inf)
+    for p in random_scene(seed):
+        x, y = rx * p.z, ry * p.z
+        hit = (x >= p.x0) & (x <= p.x1) & (y >= p.y0) & (y <= p.y1) & (p.z < z)
+        z[hit] = p.z
+    z[~np.isfinite(z)] = max(p.z for p in random_scene(seed))
+    return (1.0 / z).astype(np.float32)

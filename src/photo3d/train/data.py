@@ -12,6 +12,12 @@ is depth, runs the pipeline's preprocessing (normalised, sharpened disparity and
 background silhouettes of linked depth edges, exactly what inference sees) and
 extracts at most 3 region pairs (:mod:`photo3d.train.pairs`). Every image is a
 paste *target*; images with depth (and shape-only maps) are also region *sources*.
+
+A folder of photos alone (no depth map, no shape-only map) can train the colour net:
+its region shapes then come from ``builtin_shapes`` synthetic scenes
+(:func:`photo3d.train.builtin.scene_disparity`, seeds from
+:data:`~photo3d.train.builtin.FIRST_SEED` on, at the working size), shape-only
+sources whose pixels are never drawn.
 """
 
 from __future__ import annotations
@@ -37,6 +43,8 @@ from photo3d.train.pairs import RegionPair, extract_region_pairs
 
 KINDS = ("edge", "depth", "color")
 CACHE_VERSION = 1
+BUILTIN_SHAPES = 12
+"""Synthetic scenes that give the region shapes of a folder without any depth."""
 
 Progress = Callable[[str, float], None]
 """``progress(stage, fraction)``."""
@@ -130,24 +138,46 @@ def target_shape(shape: tuple[int, int], *, region_size: int, crop: int) -> tupl
     return working_shape((h, w), long_side)
 
 
+def _pairs(disparity: np.ndarray, image: np.ndarray | None, index: int, *,
+           region_size: int, crop: int, depth_kind: str, max_pairs: int, seed: int):
+    """``(preprocessed, pairs)`` of one depth map (and its photo, if any)."""
+    dep = prepare_depth(disparity, image.shape[:2] if image is not None else disparity.shape,
+                        kind=depth_kind)
+    if image is None:
+        image = np.zeros((*dep.disparity.shape, 3), np.float32)
+    shape = target_shape(image.shape[:2], region_size=region_size, crop=crop)
+    config = Config(size=max(shape))
+    pre = preprocess(image, dep.disparity, config=config)
+    pairs = extract_region_pairs(pre, config=config, source=index, max_pairs=max_pairs,
+                                 rng=np.random.default_rng([seed, index]))
+    return pre, pairs
+
+
 def _prepare_one(f: TrainingFile, index: int, *, region_size: int, crop: int, depth_kind: str,
                  max_pairs: int, seed: int) -> tuple[Target | None, list[RegionPair]]:
     img = read_image(f.image) if f.image is not None else None
     if f.depth is None:
         shape = target_shape(img.shape[:2], region_size=region_size, crop=crop)
         return Target(np.clip(resize(img, shape), 0, 1), None, None), []
-    raw = read_depth(f.depth)
-    dep = prepare_depth(raw, img.shape[:2] if img is not None else raw.shape, kind=depth_kind)
-    if img is None:
-        img = np.zeros((*dep.disparity.shape, 3), np.float32)
-    shape = target_shape(img.shape[:2], region_size=region_size, crop=crop)
-    config = Config(size=max(shape))
-    pre = preprocess(img, dep.disparity, config=config)
-    pairs = extract_region_pairs(pre, config=config, source=index, max_pairs=max_pairs,
-                                 rng=np.random.default_rng([seed, index]))
+    pre, pairs = _pairs(read_depth(f.depth), img, index, region_size=region_size, crop=crop,
+                        depth_kind=depth_kind, max_pairs=max_pairs, seed=seed)
     if f.image is None:
         return None, pairs
     return Target(pre.image, pre.disparity, pre.edges.labels > 0), pairs
+
+
+def _builtin_pairs(count: int, first: int, *, region_size: int, crop: int, max_pairs: int,
+                   seed: int) -> list[RegionPair]:
+    """Region pairs of ``count`` synthetic scenes, sources ``first, first + 1, ...``."""
+    from photo3d.train.builtin import FIRST_SEED, scene_disparity
+
+    width = max(region_size, crop * 4 // 3)
+    pairs: list[RegionPair] = []
+    for i in range(count):
+        disparity = scene_disparity(FIRST_SEED + i, width, width * 3 // 4)
+        pairs += _pairs(disparity, None, first + i, region_size=region_size, crop=crop,
+                        depth_kind="disparity", max_pairs=max_pairs, seed=seed)[1]
+    return pairs
 
 
 class TrainingData:
@@ -252,7 +282,7 @@ def _load_pool(path: Path) -> list[RegionPair]:
 
 def prepare_data(files: list[TrainingFile], *, crop: int, region_size: int,
                  depth_kind: str = "disparity", max_pairs: int = 3, seed: int = 0,
-                 cache: str | Path | None = None,
+                 builtin_shapes: int = BUILTIN_SHAPES, cache: str | Path | None = None,
                  progress: Progress | None = None) -> TrainingData:
     """Prepare targets and the pool; reuse ``cache`` if it was made from the same
     files (path, size, mtime) and options.
@@ -264,6 +294,8 @@ def prepare_data(files: list[TrainingFile], *, crop: int, region_size: int,
         depth_kind: what the depth maps hold, ``"disparity"`` or ``"depth"``.
         max_pairs: region pairs per image (paper: at most 3).
         seed: seeds the choice of pairs.
+        builtin_shapes: synthetic scenes giving the region shapes when no file has a
+            depth map (see the module docstring; 0: none).
         cache: folder for the prepared data (None: keep everything in memory).
         progress: ``progress("prepare", fraction)``.
 
@@ -275,12 +307,18 @@ def prepare_data(files: list[TrainingFile], *, crop: int, region_size: int,
         >>> from photo3d.io.images import write_image
         >>> d = Path(tempfile.mkdtemp())
         >>> write_image(d / "a.png", np.full((32, 48, 3), 0.5, np.float32))
-        >>> data = prepare_data(find_training_files(d), crop=32, region_size=48)
+        >>> data = prepare_data(find_training_files(d), crop=32, region_size=48,
+        ...                     builtin_shapes=0)
         >>> data.target(0).image.shape, len(data.pool)
         ((32, 48, 3), 0)
+        >>> data = prepare_data(find_training_files(d), crop=32, region_size=48,
+        ...                     builtin_shapes=2)  # shapes from two synthetic scenes
+        >>> len(data.pool) > 0, data.eligible("color").tolist(), data.eligible("depth").size
+        (True, [0], 0)
     """
+    builtin = builtin_shapes if not any(f.depth is not None for f in files) else 0
     options = dict(crop=crop, region_size=region_size, depth_kind=depth_kind,
-                   max_pairs=max_pairs, seed=seed)
+                   max_pairs=max_pairs, seed=seed, builtin_shapes=builtin)
     report = progress or (lambda stage, fraction: None)
     photos = [f for f in files if f.image is not None]
     files = photos + [f for f in files if f.image is None]  # target i = file i
@@ -314,7 +352,11 @@ def prepare_data(files: list[TrainingFile], *, crop: int, region_size: int,
                     arrays.update(disparity=target.disparity, edges=target.edges)
                 np.savez(path, **arrays)
                 targets.append(path)
-        report("prepare", (i + 1) / len(files))
+        report("prepare", (i + 1) / (len(files) + builtin))
+    if builtin:
+        pool += _builtin_pairs(builtin, len(files), region_size=region_size, crop=crop,
+                               max_pairs=max_pairs, seed=seed)
+        report("prepare", 1.0)
     if cache is not None:
         _save_pool(cache / "pool.npz", pool)
         tmp = cache / "index.json.tmp"

@@ -79,11 +79,13 @@ def check_resumable(run_dir: Path, config: TrainConfig) -> None:
     if not path.is_file():
         return
     old = json.loads(path.read_text())
-    unused = ("levels",) if config.kind == "edge" else ("blocks", "gan")
+    unused = ("levels", "center") if config.kind == "edge" else ("blocks", "gan")
+    if config.kind == "depth":
+        unused += ("center",)
     for name in ARCHITECTURE:
         if name in unused:
             continue
-        if old.get(name) != getattr(config, name):
+        if old.get(name, False if name == "center" else None) != getattr(config, name):
             raise ConfigError(f"{run_dir} holds a {old.get('kind')} run with {name} "
                               f"{old.get(name)}, not {getattr(config, name)}: resume with the "
                               "same options or use a new --out folder")

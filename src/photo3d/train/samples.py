@@ -6,7 +6,10 @@ random (left-right, up-down), swap its context and synthesis with probability 1/
 (the paper's augmentation), and place it in a ``size x size`` window around a random
 synthesis pixel. The target is cropped at random (and flipped left-right at random).
 Under the pasted context the target's pixels are known; under the synthesis region
-they are the ground truth of the simulated occlusion.
+they are the ground truth of the simulated occlusion. For the colour net the crop's
+colour channels are also put in a random order (photo3d's addition: a small photo set
+has a colour cast, orange-brown and grey for the built-in one, that a briefly trained
+net otherwise learns as the colour of every hole; issue 14).
 
 Net inputs are built by the learned backend's own code
 (:class:`photo3d.inpaint.learned.NetInputs` on a :class:`~photo3d.inpaint.base.Patch`
@@ -169,6 +172,8 @@ def make_sample(data: TrainingData, kind: str, *, size: int, rng: np.random.Gene
     window = (slice(y0, y0 + size), slice(x0, x0 + size))
     flip = (slice(None), slice(None, None, -1)) if rng.random() < 0.5 else (slice(None),) * 2
     image = np.ascontiguousarray(target.image[window][flip], np.float32)
+    if kind == "color":
+        image = np.ascontiguousarray(image[..., rng.permutation(3)])
     if target.disparity is not None:
         disparity = np.ascontiguousarray(target.disparity[window][flip], np.float32)
         edges = np.ascontiguousarray(target.edges[window][flip], bool)

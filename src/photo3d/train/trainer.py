@@ -34,7 +34,7 @@ from photo3d.train import losses
 from photo3d.train.data import KINDS
 from photo3d.train.samples import Sample
 
-ARCHITECTURE = ("kind", "width", "levels", "blocks", "gan")
+ARCHITECTURE = ("kind", "width", "levels", "blocks", "gan", "center")
 """Fields a resumed run must share with its checkpoint."""
 
 
@@ -50,6 +50,9 @@ class TrainConfig:
     """U-Net levels of the depth and colour nets (authors: 7)."""
     blocks: int = 8
     """Residual blocks of the edge net (authors: 8)."""
+    center: bool = True
+    """Colour net only: centre its colours on the context's mean (photo3d's nets; see
+    :class:`~photo3d.nets.partialconv.PartialConvUNet`; False = the authors' net)."""
     size: int = 256
     """Crop side in pixels (a multiple of ``2**levels``, and of 4 for the edge net)."""
     batch: int = 8
@@ -106,6 +109,8 @@ class TrainConfig:
         """Keyword arguments of :func:`photo3d.nets.build_net` for this net."""
         if self.kind == "edge":
             return dict(width=self.width, blocks=self.blocks)
+        if self.kind == "color" and self.center:
+            return dict(levels=self.levels, width=self.width, center=True)
         return dict(levels=self.levels, width=self.width)
 
     def to_dict(self) -> dict:
