@@ -39,6 +39,8 @@ from photo3d.ldi import LDI
 from photo3d.mesh import Mesh, build_mesh
 
 _GUTTER = 1
+LIGHT_ERROR = 0.25
+"""Default error bound of the light mesh, pixels (benchmarks/RESULTS.md: light mesh)."""
 
 
 @dataclass(frozen=True)
@@ -112,7 +114,7 @@ class TexturedMesh:
         return t[row, col]
 
 
-def build_light_mesh(ldi: LDI, *, max_error: float = 0.25, parallax: float = 0.03,
+def build_light_mesh(ldi: LDI, *, max_error: float = LIGHT_ERROR, parallax: float = 0.03,
                      block: int = 64, full: Mesh | None = None) -> TexturedMesh:
     """Simplify the LDI's mesh to an error bound, with its colours in a texture.
 

@@ -1,9 +1,11 @@
 """Saving and reloading 3D photos as a folder, atomically.
 
 A 3D photo folder holds ``photo3d.npz`` (the LDI, lossless), ``mesh.ply``
-(binary by default, the authors' header), ``mesh.glb``, ``viewer.html`` (interactive,
-self-contained) and ``config.json`` (the resolved configuration plus stats and
-timings), and videos in ``video/``. Everything is written into a
+(binary by default, the authors' header; one vertex per LDI pixel), ``mesh.glb``
+(the light textured mesh of :mod:`photo3d.light`, or the full vertex-coloured mesh
+with ``full_glb``), ``viewer.html`` (interactive, self-contained) and ``config.json``
+(the resolved configuration plus stats and timings), and videos in ``video/``
+(rendered from the light mesh: faster at the same look, see benchmarks/RESULTS.md). Everything is written into a
 temporary sibling folder first and moved into place at the end, so an interrupted
 or failed run never leaves a half-written output folder.
 """
@@ -20,9 +22,10 @@ from typing import TYPE_CHECKING
 
 from photo3d.config import Config
 from photo3d.errors import InputError, OutputError
-from photo3d.io.gltf import write_glb
+from photo3d.io.gltf import write_glb, write_textured_glb
 from photo3d.io.ply import write_ply
 from photo3d.ldi import load_npz, save_npz
+from photo3d.light import LIGHT_ERROR, build_light_mesh
 
 if TYPE_CHECKING:
     from photo3d.pipeline import Photo3D
@@ -45,19 +48,25 @@ def check_output(out: str | Path, *, overwrite: bool) -> Path:
 def save_photo(photo: Photo3D, out: str | Path, *, overwrite: bool = False,
                ply: str | None = "binary", glb: bool = True, viewer: bool = True,
                videos: Sequence[VideoSpec] = (), render_settings: RenderSettings | None = None,
-               progress: Callable[[str, float], None] | None = None) -> Path:
+               progress: Callable[[str, float], None] | None = None, full_glb: bool = False,
+               light_error: float = LIGHT_ERROR) -> Path:
     """Write a 3D photo folder atomically.
 
     Args:
         photo: the 3D photo.
         out: destination folder; must not exist or be empty unless ``overwrite``.
         ply: ``"binary"``, ``"ascii"`` or None (no PLY).
-        glb: also write ``mesh.glb``.
+        glb: also write ``mesh.glb``: the light textured mesh
+            (:func:`~photo3d.light.build_light_mesh`) unless ``full_glb``.
         viewer: also write ``viewer.html`` (the interactive, self-contained viewer).
         videos: videos to render into ``out/video/`` (see
             :class:`~photo3d.render.animate.VideoSpec`).
         render_settings: how videos are rendered.
         progress: ``progress(stage, fraction)`` with stages ``save`` and ``video``.
+        full_glb: write the full vertex-coloured mesh (one vertex per LDI pixel) as
+            ``mesh.glb`` instead of the light one.
+        light_error: error bound in pixels of the light mesh (see
+            :func:`~photo3d.light.build_light_mesh`).
 
     Returns:
         ``out`` as a :class:`~pathlib.Path`.
@@ -81,18 +90,23 @@ def save_photo(photo: Photo3D, out: str | Path, *, overwrite: bool = False,
         save_npz(photo.ldi, tmp / LDI_FILE, meta=meta)
         (tmp / "config.json").write_text(json.dumps(meta, indent=2))
         mesh = photo.mesh() if ply or glb or viewer or videos else None
+        light = None
+        if (glb and not full_glb) or viewer or videos:
+            light = build_light_mesh(photo.ldi, full=mesh, max_error=light_error)
         if ply:
             write_ply(tmp / "mesh.ply", mesh, binary=ply == "binary")
-        if glb:
+        if glb and full_glb:
             write_glb(tmp / "mesh.glb", mesh)
+        elif glb:
+            write_textured_glb(tmp / "mesh.glb", light)
         if viewer:
             from photo3d.viewer import write_viewer
 
-            write_viewer(mesh, tmp / "viewer.html", title=out.name)
+            write_viewer(light, tmp / "viewer.html", title=out.name)
         if progress:
             progress("save", 1.0)
         if videos:
-            write_videos(photo, mesh, tmp, videos, settings=render_settings, progress=progress)
+            write_videos(photo, light, tmp, videos, settings=render_settings, progress=progress)
         if out.exists():
             old = out.with_name(f".{out.name}.old")
             shutil.rmtree(old, ignore_errors=True)
@@ -110,13 +124,18 @@ def save_photo(photo: Photo3D, out: str | Path, *, overwrite: bool = False,
 def write_videos(photo: Photo3D, mesh, folder: Path, videos: Sequence[VideoSpec], *,
                  settings: RenderSettings | None = None,
                  progress: Callable[[str, float], None] | None = None) -> list[Path]:
-    """Render ``videos`` of ``photo`` into ``folder/video/`` (one renderer for all)."""
+    """Render ``videos`` of ``photo`` into ``folder/video/`` (one renderer for all).
+
+    ``mesh``: the mesh to draw (a :class:`~photo3d.light.TexturedMesh` or a full
+    :class:`~photo3d.mesh.Mesh`); None builds the light mesh."""
     from photo3d.render.animate import render_video
     from photo3d.render.renderer import Renderer
 
     (folder / "video").mkdir(exist_ok=True)
     written = []
-    with Renderer(mesh if mesh is not None else photo.mesh(), settings) as renderer:
+    if mesh is None:
+        mesh = build_light_mesh(photo.ldi, max_error=LIGHT_ERROR)
+    with Renderer(mesh, settings) as renderer:
         for i, spec in enumerate(videos):
             def on_frame(done: int, total: int, i: int = i) -> None:
                 if progress:

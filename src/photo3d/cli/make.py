@@ -66,6 +66,7 @@ def run_make(args: argparse.Namespace, image, depth, config: Config) -> int:
         t = time.perf_counter()
         photo.save(args.out, overwrite=args.overwrite,
                    ply=None if args.ply == "none" else args.ply, glb=not args.no_glb,
+                   full_glb=args.full_glb,
                    viewer=not args.no_viewer, videos=videos, render_settings=settings,
                    progress=bar)
         photo.timings["save + video" if videos else "save"] = time.perf_counter() - t
