@@ -86,7 +86,7 @@ def main() -> None:
     parser.add_argument("--frames", type=int, default=24)
     parser.add_argument("--size", type=lambda t: tuple(int(v) for v in t.split("x")),
                         default=(1280, 720))
-    parser.add_argument("--max-error", type=float, default=0.25)
+    parser.add_argument("--max-error", type=float, default=0.5)
     parser.add_argument("--out", type=Path,
                         default=Path(__file__).parent / "results" / "light.json")
     args = parser.parse_args()

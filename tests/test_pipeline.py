@@ -52,7 +52,7 @@ def test_failed_save_leaves_no_folder(tmp_path, monkeypatch):
     def boom(*args, **kwargs):
         raise OSError("disk full")
 
-    monkeypatch.setattr("photo3d.output.write_glb", boom)
+    monkeypatch.setattr("photo3d.output.write_textured_glb", boom)
     with pytest.raises(OSError, match="disk full"):
         photo.save(tmp_path / "out")
     assert list(tmp_path.iterdir()) == []

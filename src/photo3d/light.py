@@ -39,7 +39,7 @@ from photo3d.ldi import LDI
 from photo3d.mesh import Mesh, build_mesh
 
 _GUTTER = 1
-LIGHT_ERROR = 0.25
+LIGHT_ERROR = 0.5
 """Default error bound of the light mesh, pixels (benchmarks/RESULTS.md: light mesh)."""
 
 
