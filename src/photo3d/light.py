@@ -76,7 +76,7 @@ class TexturedMesh:
         """``(vertices, uv, labels, faces)`` in the documented dtypes, validated.
 
         Example:
-            >>> m = TexturedMesh(np.zeros((3, 3)), np.zeros((3, 2)), np.zeros((1, 1, 3)),
+            >>> m = TexturedMesh(np.zeros((3, 3)), np.zeros((3, 2)), np.zeros((1, 1, 3), np.uint8),
             ...                  np.ones(3), np.array([[0, 1, 2]]), 1, 4, 4, 1.0, 1.0)
             >>> [a.dtype.name for a in m.checked()]
             ['float32', 'float32', 'uint8', 'int32']
@@ -209,9 +209,7 @@ def _textured(ldi: LDI, full: Mesh, faces: np.ndarray, face_layer: np.ndarray,
     chart = np.full(len(faces), -1, np.int64)
     chart[hidden] = chart_of
     slot = block + 1 + 2 * _GUTTER
-    per_row = max(1, cols // slot)
-    n_slot_rows = -(-len(charts) // per_row)
-    tex_h, tex_w = rows + n_slot_rows * slot, max(cols, slot)
+    slot_y, slot_x, tex_h, tex_w = _pack(len(charts), slot, rows, cols)
     # vertices: one per (pixel, chart)
     vkey = faces * (len(charts) + 1) + (chart[:, None] + 1)
     uniq, inverse = np.unique(vkey.ravel(), return_inverse=True)
@@ -233,9 +231,8 @@ def _textured(ldi: LDI, full: Mesh, faces: np.ndarray, face_layer: np.ndarray,
     hid = vchart >= 0
     c_layer, c_rest = np.divmod(charts, (-(-rows // block)) * nbx)
     c_by, c_bx = np.divmod(c_rest, nbx)
-    s_row, s_col = np.divmod(np.arange(len(charts)), per_row)
-    origin_y = rows + s_row * slot + _GUTTER - c_by * block  # texel row = lattice row + origin
-    origin_x = s_col * slot + _GUTTER - c_bx * block
+    origin_y = slot_y + _GUTTER - c_by * block  # texel row = lattice row + origin
+    origin_x = slot_x + _GUTTER - c_bx * block
     tx[hid] += origin_x[vchart[hid]]
     ty[hid] += origin_y[vchart[hid]]
     uv = np.stack([(tx + 0.5) / tex_w, (ty + 0.5) / tex_h], 1).astype(np.float32)
@@ -249,15 +246,40 @@ def _textured(ldi: LDI, full: Mesh, faces: np.ndarray, face_layer: np.ndarray,
         flat = ly[:, :, None] * cols + lx[:, None, :]  # (C, slot, slot)
         src = images[c_layer[:, None, None], flat]
         texels = _fill_charts(src, colors)
-        tiles = np.zeros((n_slot_rows * per_row, slot, slot, 3), np.uint8)
-        tiles[: len(charts)] = texels
-        tiles = tiles.reshape(n_slot_rows, per_row, slot, slot, 3).transpose(0, 2, 1, 3, 4)
-        texture[rows:, : per_row * slot] = tiles.reshape(n_slot_rows * slot, per_row * slot, 3)
+        ty_ = slot_y[:, None, None] + np.arange(slot)[None, :, None]
+        tx_ = slot_x[:, None, None] + np.arange(slot)[None, None, :]
+        texture[ty_, tx_] = texels
     return TexturedMesh(
         vertices=full.vertices[pixel], uv=uv, texture=texture, labels=full.labels[pixel],
         faces=faces.astype(np.int32), n_input=n_input, width=full.width,
         height=full.height, hfov=full.hfov, vfov=full.vfov,
     )
+
+
+def _pack(n: int, slot: int, rows: int, cols: int) -> tuple[np.ndarray, np.ndarray, int, int]:
+    """Places of ``n`` square slots beside and below a ``rows x cols`` block at the
+    top-left, in a texture about as wide as it is high.
+
+    Returns:
+        ``(slot_y (n,), slot_x (n,))`` top-left texels, and the texture height, width.
+
+    Example:
+        >>> y, x, h, w = _pack(3, 10, 20, 20)
+        >>> (h, w), y.tolist(), x.tolist()
+        ((30, 30), [0, 10, 20], [20, 20, 0])
+    """
+    side = int(np.ceil(np.sqrt(rows * cols + n * slot * slot)))
+    width = max(cols + slot * max(0, -(-(side - cols) // slot)), slot)
+    right = (width - cols) // slot  # slot columns beside the block
+    beside = right * (rows // slot)
+    index = np.arange(n)
+    first = index < beside
+    r, c = np.divmod(index, max(right, 1))
+    below_r, below_c = np.divmod(index - beside, width // slot)
+    slot_y = np.where(first, r * slot, rows + below_r * slot)
+    slot_x = np.where(first, cols + c * slot, below_c * slot)
+    height = max(rows, int(slot_y.max()) + slot if n else rows)
+    return slot_y.astype(np.int64), slot_x.astype(np.int64), height, width
 
 
 def _filled(image: np.ndarray, colors: np.ndarray, rows: int, cols: int) -> np.ndarray:

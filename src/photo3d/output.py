@@ -5,9 +5,10 @@ A 3D photo folder holds ``photo3d.npz`` (the LDI, lossless), ``mesh.ply``
 (the light textured mesh of :mod:`photo3d.light`, or the full vertex-coloured mesh
 with ``full_glb``), ``viewer.html`` (interactive, self-contained) and ``config.json``
 (the resolved configuration plus stats and timings), and videos in ``video/``
-(rendered from the light mesh: faster at the same look, see benchmarks/RESULTS.md). Everything is written into a
-temporary sibling folder first and moved into place at the end, so an interrupted
-or failed run never leaves a half-written output folder.
+(rendered from the full mesh: the light one is not faster on the CPU at video sizes,
+see benchmarks/RESULTS.md). Everything is written into a temporary sibling folder
+first and moved into place at the end, so an interrupted or failed run never leaves a
+half-written output folder.
 """
 
 from __future__ import annotations
@@ -91,7 +92,7 @@ def save_photo(photo: Photo3D, out: str | Path, *, overwrite: bool = False,
         (tmp / "config.json").write_text(json.dumps(meta, indent=2))
         mesh = photo.mesh() if ply or glb or viewer or videos else None
         light = None
-        if (glb and not full_glb) or viewer or videos:
+        if (glb and not full_glb) or viewer:
             light = build_light_mesh(photo.ldi, full=mesh, max_error=light_error)
         if ply:
             write_ply(tmp / "mesh.ply", mesh, binary=ply == "binary")
@@ -106,7 +107,7 @@ def save_photo(photo: Photo3D, out: str | Path, *, overwrite: bool = False,
         if progress:
             progress("save", 1.0)
         if videos:
-            write_videos(photo, light, tmp, videos, settings=render_settings, progress=progress)
+            write_videos(photo, mesh, tmp, videos, settings=render_settings, progress=progress)
         if out.exists():
             old = out.with_name(f".{out.name}.old")
             shutil.rmtree(old, ignore_errors=True)
@@ -126,16 +127,14 @@ def write_videos(photo: Photo3D, mesh, folder: Path, videos: Sequence[VideoSpec]
                  progress: Callable[[str, float], None] | None = None) -> list[Path]:
     """Render ``videos`` of ``photo`` into ``folder/video/`` (one renderer for all).
 
-    ``mesh``: the mesh to draw (a :class:`~photo3d.light.TexturedMesh` or a full
-    :class:`~photo3d.mesh.Mesh`); None builds the light mesh."""
+    ``mesh``: the mesh to draw, a full :class:`~photo3d.mesh.Mesh` (None: built
+    here) or a light :class:`~photo3d.light.TexturedMesh`."""
     from photo3d.render.animate import render_video
     from photo3d.render.renderer import Renderer
 
     (folder / "video").mkdir(exist_ok=True)
     written = []
-    if mesh is None:
-        mesh = build_light_mesh(photo.ldi, max_error=LIGHT_ERROR)
-    with Renderer(mesh, settings) as renderer:
+    with Renderer(mesh if mesh is not None else photo.mesh(), settings) as renderer:
         for i, spec in enumerate(videos):
             def on_frame(done: int, total: int, i: int = i) -> None:
                 if progress:

@@ -109,9 +109,8 @@ class Photo3D:
 
         See :func:`photo3d.output.save_photo`.
         """
-        from photo3d.output import save_photo
-
         from photo3d.light import LIGHT_ERROR
+        from photo3d.output import save_photo
 
         return save_photo(self, out, overwrite=overwrite, ply=ply, glb=glb, viewer=viewer,
                           videos=videos, render_settings=render_settings, progress=progress,

@@ -187,8 +187,9 @@ def test_bad_meshes_and_paths(tmp_path):
 def test_textured_glb_round_trip_and_independent_reader(tmp_path):
     """The light mesh as GLB: our reader gets it back, trimesh sees the texture and
     the unlit material, the input camera is a camera node."""
-    import photo3d
     from conftest import exact_config, texture
+
+    import photo3d
     from photo3d.io.gltf import read_textured_glb, write_textured_glb
 
     disp = np.ones((32, 40), np.float32)
