@@ -118,7 +118,7 @@ def main() -> None:
     allp = np.concatenate([np.asarray(v) for v in r["psnr"].values()])
     med = {k: float(np.median(v)) for k, v in r["save_s"].items()}
     ft = {k: float(np.median(v)) for k, v in r["frame_s"].items()}
-    record = {"benchmark": "light", **r, "mean_psnr": float(allp.mean()),
+    record = {"benchmark": "light", **r, "size": [w, h], "mean_psnr": float(allp.mean()),
               "min_psnr": float(allp.min()), "median_save_s": med, "median_frame_s": ft,
               "machine": machine_info(),
               "command": " ".join(["python", "benchmarks/bench_light.py", *sys.argv[1:]])}

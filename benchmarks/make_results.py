@@ -17,9 +17,13 @@ import sys
 from pathlib import Path
 
 HERE = Path(__file__).parent
+sys.path.insert(0, str(HERE))
+from results_light import section_light  # noqa: E402
+
 RESULTS = HERE / "results"
 BENCHMARKS = [
     ["bench_make.py", "--runs", "5"],
+    ["bench_light.py", "--runs", "3", "--frames", "12"],
     ["bench_render.py", "--runs", "3"],
     ["bench_render.py", "--runs", "3", "--ssaa", "1", "--out",
      "benchmarks/results/render_ssaa1.json"],
@@ -397,6 +401,7 @@ def main() -> None:
         section_make(), section_render(), section_speed(), section_quality(),
         section_learned(),
         section_stereo(), section_viewer(),
+        section_light(load, machine_line, missing),
     ]
     (HERE / "RESULTS.md").write_text("\n".join(parts).rstrip() + "\n")
     print(f"wrote {HERE / 'RESULTS.md'}")
