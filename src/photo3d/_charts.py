@@ -48,3 +48,63 @@ def claim_faces(faces, pos, rank, images, n_layers):
             images[chosen, pos[faces[f, c]]] = faces[f, c]
         layer[f] = chosen
     return layer, n_layers
+
+
+@njit(cache=True)
+def fill_charts(src, colors):
+    """``(C, S, S, 3) uint8`` chart texels from pixel indices ``src (C, S, S)`` (-1:
+    none) and ``colors (N, 3) uint8``: holes take the mean of their known
+    8-neighbours, twice (each round from the previous one), then the chart's mean."""
+    n, s = src.shape[0], src.shape[1]
+    out = np.zeros((n, s, s, 3), np.uint8)
+    val = np.zeros((s, s, 3), np.float64)
+    known = np.zeros((s, s), np.bool_)
+    grown = np.zeros((s, s), np.bool_)
+    new = np.zeros((s, s, 3), np.float64)
+    for c in range(n):
+        for y in range(s):
+            for x in range(s):
+                p = src[c, y, x]
+                known[y, x] = p >= 0
+                for ch in range(3):
+                    val[y, x, ch] = colors[p, ch] if p >= 0 else 0.0
+        for _ in range(2):
+            for y in range(s):
+                for x in range(s):
+                    grown[y, x] = False
+                    if known[y, x]:
+                        continue
+                    cnt = 0
+                    acc0 = acc1 = acc2 = 0.0
+                    for yy in range(max(y - 1, 0), min(y + 2, s)):
+                        for xx in range(max(x - 1, 0), min(x + 2, s)):
+                            if known[yy, xx]:
+                                cnt += 1
+                                acc0 += val[yy, xx, 0]
+                                acc1 += val[yy, xx, 1]
+                                acc2 += val[yy, xx, 2]
+                    if cnt:
+                        grown[y, x] = True
+                        new[y, x, 0] = acc0 / cnt
+                        new[y, x, 1] = acc1 / cnt
+                        new[y, x, 2] = acc2 / cnt
+            for y in range(s):
+                for x in range(s):
+                    if grown[y, x]:
+                        known[y, x] = True
+                        for ch in range(3):
+                            val[y, x, ch] = new[y, x, ch]
+        cnt = 0
+        mean = np.zeros(3)
+        for y in range(s):
+            for x in range(s):
+                if known[y, x]:
+                    cnt += 1
+                    for ch in range(3):
+                        mean[ch] += val[y, x, ch]
+        for y in range(s):
+            for x in range(s):
+                for ch in range(3):
+                    v = val[y, x, ch] if known[y, x] else mean[ch] / max(cnt, 1)
+                    out[c, y, x, ch] = np.uint8(min(max(np.rint(v), 0.0), 255.0))
+    return out

@@ -32,8 +32,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from photo3d._charts import claim_faces
-from photo3d.camera import unproject
+from photo3d._charts import claim_faces, fill_charts
 from photo3d.errors import InputError
 from photo3d.ldi import LDI
 from photo3d.mesh import Mesh, build_mesh
@@ -245,7 +244,7 @@ def _textured(ldi: LDI, full: Mesh, faces: np.ndarray, face_layer: np.ndarray,
         lx = np.clip(c_bx[:, None] * block + g[None, :], 0, cols - 1)
         flat = ly[:, :, None] * cols + lx[:, None, :]  # (C, slot, slot)
         src = images[c_layer[:, None, None], flat]
-        texels = _fill_charts(src, colors)
+        texels = fill_charts(src, colors)
         ty_ = slot_y[:, None, None] + np.arange(slot)[None, :, None]
         tx_ = slot_x[:, None, None] + np.arange(slot)[None, None, :]
         texture[ty_, tx_] = texels
@@ -293,39 +292,3 @@ def _filled(image: np.ndarray, colors: np.ndarray, rows: int, cols: int) -> np.n
         return out.reshape(rows, cols, 3).astype(np.uint8)
     filled = fill_holes(out.reshape(rows, cols, 3), known.reshape(rows, cols).astype(np.float32))
     return np.clip(np.rint(filled), 0, 255).astype(np.uint8)
-
-
-def _fill_charts(src: np.ndarray, colors: np.ndarray) -> np.ndarray:
-    """``(C, S, S, 3) uint8`` chart texels from pixel indices ``src`` (-1: none), holes
-    taking the mean of known 8-neighbours (twice), then the chart's mean."""
-    known = src >= 0
-    out = np.zeros((*src.shape, 3), np.float32)
-    out[known] = colors[src[known]]
-    for _ in range(2):
-        w = known.astype(np.float32)
-        pc = np.pad(out * w[..., None], ((0, 0), (1, 1), (1, 1), (0, 0)))
-        pw = np.pad(w, ((0, 0), (1, 1), (1, 1)))
-        s = src.shape[1]
-        acc = sum(pc[:, dy:dy + s, dx:dx + s] for dy in range(3) for dx in range(3))
-        cnt = sum(pw[:, dy:dy + s, dx:dx + s] for dy in range(3) for dx in range(3))
-        grow = ~known & (cnt > 0)
-        out[grow] = acc[grow] / cnt[grow][:, None]
-        known = known | grow
-    w = known.astype(np.float32)
-    mean = (out * w[..., None]).sum((1, 2)) / np.maximum(w.sum((1, 2)), 1)[:, None]
-    out = np.where(known[..., None], out, mean[:, None, None, :])
-    return np.clip(np.rint(out), 0, 255).astype(np.uint8)
-
-
-def light_vertices_check(light: TexturedMesh, ldi: LDI) -> bool:
-    """True if every vertex of ``light`` is an LDI pixel's point (tests).
-
-    Example:
-        >>> from photo3d.ldi import from_image
-        >>> ldi = from_image(np.zeros((8, 8, 3), np.float32), np.ones((8, 8), np.float32))
-        >>> light_vertices_check(build_light_mesh(ldi), ldi)
-        True
-    """
-    points = unproject(ldi.x, ldi.y, ldi.depth(), ldi.intrinsics)
-    found = {tuple(p) for p in points.round(5).tolist()}
-    return all(tuple(p) in found for p in light.vertices.round(5).tolist())
