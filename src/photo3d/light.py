@@ -1,27 +1,37 @@
 """LDI -> light textured mesh: geometry to an error bound, colours in a texture.
 
-The full mesh (:func:`photo3d.mesh.build_mesh`) has one vertex per LDI pixel. Every
-LDI layer is a height field seen from the input camera, so it can be triangulated
-directly in image space to a bound on the on-screen error (as terrain renderers
-do), instead of running a general mesh simplifier over 3 million triangles:
+The full mesh (:func:`photo3d.mesh.build_mesh`) has one vertex per LDI pixel: 3
+million triangles for a 1024 px photo. The light mesh keeps its look from the
+camera positions a 3D photo is seen from, at a few percent of the triangles:
 
-* Layers: the pixels at a lattice position are ranked in LDI order; rank ``k`` of
-  every position forms layer image ``k`` (layer 0 is the input view and its
-  extrapolated border). A *plain quad* of a layer is a unit cell whose four pixels
-  all belong to the layer and are linked to each other (two triangles of the full
-  mesh).
-* Geometry: plain quads are re-triangulated by an error-bounded right-triangulated
-  irregular network (:mod:`photo3d._rtin`) in blocks of the lattice. A vertex stays
-  when dropping it would move the surface by more than ``max_error`` pixels of
-  parallax for a camera shift of ``parallax`` (depth units), or move the texture by
-  as much; vertices on depth edges, silhouettes and layer seams always stay (so
-  thin structures keep their full-resolution outline). Every other face of the full
-  mesh (partial quads along depth edges, quads across layers) is kept as it is.
-  Vertices are a subset of the LDI pixels, exactly where the full mesh has them.
-* Texture: one sRGB image. Its top part is the photo itself on the lattice (with
-  the extrapolated border around it), texture coordinates are the pixel positions
-  (the camera projection); hidden layers are cut into ``block x block`` charts of
-  the lattice and packed below it, with a one-texel gutter.
+* Charts: faces whose three pixels are all the first pixel at their lattice
+  position (the input view and its extrapolated border) use the photo itself as
+  texture, with the pixel positions (the camera projection) as texture
+  coordinates. Every other face is given a *layer image* that holds its three
+  pixels at their positions (:func:`photo3d._charts.claim_faces`), and a chart: its
+  layer image's ``block x block`` square of the lattice. Vertices are duplicated
+  per chart, so chart borders are texture seams.
+* Geometry: meshoptimizer's edge-collapse simplification (vertices stay where they
+  are; open borders and seams only collapse along themselves) on the points
+  ``(column, row, f * parallax / z)``: image position and parallax in pixels of the
+  input view, with an absolute error bound ``max_error``. So a flat area becomes a
+  few large triangles while depth edges, silhouettes and thin structures keep their
+  outline to within the bound, for any camera shift up to ``parallax``. Every vertex
+  is an LDI pixel, exactly where the full mesh has it.
+* Texture: one sRGB image, the photo on the lattice at the top left, the charts
+  (each with a one-texel gutter, holes filled from their neighbours) beside and
+  below it.
+
+A large triangle's texture is interpolated perspective-correctly (linear in 3D)
+while the photo maps onto it projectively: where depth varies across a triangle the
+two differ slightly; the benchmark (``benchmarks/bench_light.py``) measures the
+whole effect on rendered frames.
+
+Why meshoptimizer and not a height-field triangulation of our own: an
+error-bounded right-triangulated irregular network (Martini-style) over each layer
+was tried first; it is fast, but it cannot simplify a staircase outline, so every
+pixel on a depth edge, silhouette or layer seam stays a vertex: 650-760k triangles
+for the sample against meshoptimizer's 86k at a finer bound.
 
 The result's faces list the input layer first, as the full mesh does.
 """
