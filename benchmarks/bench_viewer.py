@@ -13,7 +13,10 @@ slower than on any laptop (the page turns multisampling off on such software
 renderers). Last, the frame rate while the camera animates (one
 run of 10 s). Prints a table and writes ``benchmarks/results/viewer.json``.
 
-Usage: python benchmarks/bench_viewer.py [--runs 3] [--size 1024]
+The page is built from the light textured mesh, as ``save`` writes it;
+``--full-mesh`` builds it from the full mesh (one vertex per LDI pixel), as before.
+
+Usage: python benchmarks/bench_viewer.py [--runs 3] [--size 1024] [--full-mesh --out F]
 """
 
 from __future__ import annotations
@@ -99,6 +102,8 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--runs", type=int, default=3)
     parser.add_argument("--size", type=int, default=1024)
+    parser.add_argument("--full-mesh", action="store_true",
+                        help="the viewer of the full mesh (before the light mesh)")
     parser.add_argument("--out", type=Path,
                         default=Path(__file__).parent / "results" / "viewer.json")
     args = parser.parse_args()
@@ -108,14 +113,14 @@ def main() -> None:
         sys.exit("bench_viewer needs playwright: pip install playwright (and apt chromium)")
     if not Path(CHROMIUM).is_file():
         sys.exit(f"bench_viewer needs Chromium at {CHROMIUM} (apt-get install chromium)")
-    from photo3d.io.gltf import write_glb
+    from photo3d.io.gltf import write_glb, write_textured_glb
     from photo3d.viewer import write_viewer
 
     photo = make_photo(args.size)
-    mesh = photo.mesh()
+    mesh = photo.mesh() if args.full_mesh else photo.light_mesh()
     with tempfile.TemporaryDirectory() as tmp:
         html, glb = Path(tmp) / "viewer.html", Path(tmp) / "mesh.glb"
-        write_glb(glb, mesh)
+        (write_glb if args.full_mesh else write_textured_glb)(glb, mesh)
         write_times = []
         for _ in range(args.runs):
             t = time.perf_counter()
@@ -136,6 +141,7 @@ def main() -> None:
     machine = machine_info()
     machine["chromium"] = version.strip()
     record = {"benchmark": "viewer", "size": args.size,
+              "mesh": "full" if args.full_mesh else "light",
               "photo": {"width": mesh.width, "height": mesh.height,
                         "vertices": len(mesh.vertices), "faces": len(mesh.faces)},
               "sizes": sizes, "viewport": VIEWPORT, "canvas": runs[0]["canvas"],

@@ -212,3 +212,20 @@ def test_learned_only_flags_are_refused_for_diffusion(files, capsys):
     err = capsys.readouterr().err
     assert code == 2 and "--fast-nets only apply to --inpainter learned" in err
     assert not (files / "nope").exists()
+
+
+def test_mesh_glb_is_light_and_textured_unless_full_glb(files):
+    from photo3d.io.gltf import read_glb, read_textured_glb
+    from photo3d.ldi import load_npz
+
+    base = ["make", str(files / "photo.png"), "--depth", str(files / "depth.png"), "--size",
+            "96", "--no-video", "-q"]
+    assert main(base + ["-o", str(files / "light")]) == 0
+    assert main(base + ["-o", str(files / "full"), "--full-glb"]) == 0
+    light = read_textured_glb(files / "light" / "mesh.glb")
+    full = read_glb(files / "full" / "mesh.glb")
+    ldi, _ = load_npz(files / "full" / "photo3d.npz")
+    assert len(full.vertices) == ldi.size  # one vertex per LDI pixel
+    assert len(light.faces) < len(full.faces) / 4 and light.texture.ndim == 3
+    with pytest.raises(Exception, match="TEXCOORD_0|textured"):
+        read_textured_glb(files / "full" / "mesh.glb")

@@ -57,7 +57,7 @@ def test_failed_save_leaves_no_folder(tmp_path, monkeypatch):
     def boom(*args, **kwargs):
         raise OSError("disk full")
 
-    monkeypatch.setattr("photo3d.output.write_glb", boom)
+    monkeypatch.setattr("photo3d.output.write_textured_glb", boom)
     with pytest.raises(OutputError, match="cannot write .*out: disk full"):
         photo.save(tmp_path / "out")
     assert list(tmp_path.iterdir()) == []

@@ -1,13 +1,15 @@
 """Saving and reloading 3D photos as a folder, atomically.
 
 A 3D photo folder holds ``photo3d.npz`` (the LDI, lossless), ``mesh.ply``
-(binary by default, the authors' header), ``mesh.glb``, ``viewer.html`` (interactive,
-self-contained) and ``config.json`` (the resolved configuration plus stats and
-timings), and videos in ``video/``. Everything is written into a hidden
-temporary sibling folder first and moved into place at the end
-(:mod:`photo3d.io.safeout`), so an interrupted or failed run never leaves a
-half-written output folder, and ``overwrite`` only ever replaces a folder holding
-nothing but these files.
+(binary by default, the authors' header; one vertex per LDI pixel), ``mesh.glb``
+(the light textured mesh of :mod:`photo3d.light`, or the full vertex-coloured mesh
+with ``full_glb``), ``viewer.html`` (interactive, self-contained) and ``config.json``
+(the resolved configuration plus stats and timings), and videos in ``video/``
+(rendered from the full mesh: the light one is not faster on the CPU at video sizes,
+see benchmarks/RESULTS.md). Everything is written into a temporary sibling folder
+first and moved into place at the end (:mod:`photo3d.io.safeout`), so an interrupted
+or failed run never leaves a half-written output folder, and ``overwrite`` only ever
+replaces a folder holding nothing but these files.
 """
 
 from __future__ import annotations
@@ -19,10 +21,11 @@ from typing import TYPE_CHECKING
 
 from photo3d.config import Config
 from photo3d.errors import InputError, OutputError
-from photo3d.io.gltf import write_glb
+from photo3d.io.gltf import write_glb, write_textured_glb
 from photo3d.io.ply import write_ply
 from photo3d.io.safeout import Staging, owned_by_names, stage_output
 from photo3d.ldi import load_npz, save_npz
+from photo3d.light import LIGHT_ERROR, build_light_mesh
 
 if TYPE_CHECKING:
     from photo3d.pipeline import Photo3D
@@ -77,7 +80,8 @@ def stage_photo(out: str | Path, *, overwrite: bool, inputs: Sequence[str | Path
 def save_photo(photo: Photo3D, out: str | Path | Staging, *, overwrite: bool = False,
                ply: str | None = "binary", glb: bool = True, viewer: bool = True,
                videos: Sequence[VideoSpec] = (), render_settings: RenderSettings | None = None,
-               progress: Callable[[str, float], None] | None = None) -> Path:
+               progress: Callable[[str, float], None] | None = None, full_glb: bool = False,
+               light_error: float = LIGHT_ERROR) -> Path:
     """Write a 3D photo folder atomically.
 
     Args:
@@ -86,12 +90,17 @@ def save_photo(photo: Photo3D, out: str | Path | Staging, *, overwrite: bool = F
             (which only replaces a 3D photo folder). Or the :class:`Staging` that
             :func:`stage_photo` returned before the work.
         ply: ``"binary"``, ``"ascii"`` or None (no PLY).
-        glb: also write ``mesh.glb``.
+        glb: also write ``mesh.glb``: the light textured mesh
+            (:func:`~photo3d.light.build_light_mesh`) unless ``full_glb``.
         viewer: also write ``viewer.html`` (the interactive, self-contained viewer).
         videos: videos to render into ``out/video/`` (see
             :class:`~photo3d.render.animate.VideoSpec`).
         render_settings: how videos are rendered.
         progress: ``progress(stage, fraction)`` with stages ``save`` and ``video``.
+        full_glb: write the full vertex-coloured mesh (one vertex per LDI pixel) as
+            ``mesh.glb`` instead of the light one.
+        light_error: error bound in pixels of the light mesh (see
+            :func:`~photo3d.light.build_light_mesh`).
 
     Returns:
         ``out`` as a :class:`~pathlib.Path`.
@@ -111,7 +120,7 @@ def save_photo(photo: Photo3D, out: str | Path | Staging, *, overwrite: bool = F
         try:
             _write_photo(photo, staging.path, title=staging.final.name, ply=ply, glb=glb,
                          viewer=viewer, videos=videos, render_settings=render_settings,
-                         progress=progress)
+                         progress=progress, full_glb=full_glb, light_error=light_error)
         except OSError as err:
             raise OutputError(f"cannot write {staging.out}: {err.strerror or err}") from None
         staging.commit()
@@ -119,21 +128,26 @@ def save_photo(photo: Photo3D, out: str | Path | Staging, *, overwrite: bool = F
 
 
 def _write_photo(photo: Photo3D, tmp: Path, *, title: str, ply, glb, viewer, videos,
-                 render_settings, progress) -> None:
+                 render_settings, progress, full_glb, light_error) -> None:
     """Write the files of a 3D photo folder into ``tmp``."""
     meta = {"config": photo.config.to_dict(), "stats": photo.stats,
             "timings": photo.timings}
     save_npz(photo.ldi, tmp / LDI_FILE, meta=meta)
     (tmp / "config.json").write_text(json.dumps(meta, indent=2))
     mesh = photo.mesh() if ply or glb or viewer or videos else None
+    light = None
+    if (glb and not full_glb) or viewer:
+        light = build_light_mesh(photo.ldi, full=mesh, max_error=light_error)
     if ply:
         write_ply(tmp / "mesh.ply", mesh, binary=ply == "binary")
-    if glb:
+    if glb and full_glb:
         write_glb(tmp / "mesh.glb", mesh)
+    elif glb:
+        write_textured_glb(tmp / "mesh.glb", light)
     if viewer:
         from photo3d.viewer import write_viewer
 
-        write_viewer(mesh, tmp / "viewer.html", title=title)
+        write_viewer(light, tmp / "viewer.html", title=title)
     if progress:
         progress("save", 1.0)
     if videos:
@@ -143,7 +157,10 @@ def _write_photo(photo: Photo3D, tmp: Path, *, title: str, ply, glb, viewer, vid
 def write_videos(photo: Photo3D, mesh, folder: Path, videos: Sequence[VideoSpec], *,
                  settings: RenderSettings | None = None,
                  progress: Callable[[str, float], None] | None = None) -> list[Path]:
-    """Render ``videos`` of ``photo`` into ``folder/video/`` (one renderer for all)."""
+    """Render ``videos`` of ``photo`` into ``folder/video/`` (one renderer for all).
+
+    ``mesh``: the mesh to draw, a full :class:`~photo3d.mesh.Mesh` (None: built
+    here) or a light :class:`~photo3d.light.TexturedMesh`."""
     from photo3d.render.animate import render_video
     from photo3d.render.renderer import Renderer
 

@@ -28,6 +28,7 @@ from photo3d.regions import find_regions
 from photo3d.resources import check_memory
 
 if TYPE_CHECKING:
+    from photo3d.light import TexturedMesh
     from photo3d.render.renderer import RenderSettings, View
 
 Progress = Callable[[str, float], None]
@@ -55,6 +56,21 @@ class Photo3D:
     def mesh(self) -> Mesh:
         """The triangle mesh of the LDI (see :func:`photo3d.mesh.build_mesh`)."""
         return build_mesh(self.ldi)
+
+    def light_mesh(self, *, max_error: float | None = None) -> TexturedMesh:
+        """The light textured mesh (see :func:`photo3d.light.build_light_mesh`).
+
+        Example:
+            >>> import photo3d
+            >>> photo = photo3d.make(np.full((32, 32, 3), 0.5), depth=np.ones((32, 32)),
+            ...                      config=photo3d.Config(size=None))
+            >>> len(photo.light_mesh().faces) < len(photo.mesh().faces)
+            True
+        """
+        from photo3d.light import LIGHT_ERROR, build_light_mesh
+
+        return build_light_mesh(self.ldi, max_error=LIGHT_ERROR if max_error is None
+                                else max_error)
 
     def render(self, camera: Camera, *, settings: RenderSettings | None = None) -> View:
         """Render a novel view.
@@ -87,17 +103,20 @@ class Photo3D:
 
     def save(self, out: str | Path, *, overwrite: bool = False, ply: str | None = "binary",
              glb: bool = True, viewer: bool = True, videos=(), render_settings=None,
-             progress=None) -> Path:
+             progress=None, full_glb: bool = False, light_error: float | None = None) -> Path:
         """Write ``photo3d.npz``, ``mesh.ply``, ``mesh.glb``, ``viewer.html``,
         ``config.json`` and the requested videos (``video/NAME.mp4``) to ``out``,
         atomically.
 
         See :func:`photo3d.output.save_photo`.
         """
+        from photo3d.light import LIGHT_ERROR
         from photo3d.output import save_photo
 
         return save_photo(self, out, overwrite=overwrite, ply=ply, glb=glb, viewer=viewer,
-                          videos=videos, render_settings=render_settings, progress=progress)
+                          videos=videos, render_settings=render_settings, progress=progress,
+                          full_glb=full_glb,
+                          light_error=LIGHT_ERROR if light_error is None else light_error)
 
     @classmethod
     def load(cls, path: str | Path) -> Photo3D:

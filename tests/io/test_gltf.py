@@ -182,3 +182,36 @@ def test_bad_meshes_and_paths(tmp_path):
         write_glb(tmp_path / "m.glb", replace(mesh, vertices=vertices))
     with pytest.raises(InputError, match="colors"):
         write_glb(tmp_path / "m.glb", replace(mesh, colors=mesh.colors[:, :2]))
+
+
+def test_textured_glb_round_trip_and_independent_reader(tmp_path):
+    """The light mesh as GLB: our reader gets it back, trimesh sees the texture and
+    the unlit material, the input camera is a camera node."""
+    from conftest import exact_config, texture
+
+    import photo3d
+    from photo3d.io.gltf import read_textured_glb, write_textured_glb
+
+    disp = np.ones((32, 40), np.float32)
+    disp[8:24, 10:30] = 2.0
+    photo = photo3d.make(texture(32, 40, seed=2), depth=disp, config=exact_config(border=4))
+    light = photo.light_mesh()
+    write_textured_glb(tmp_path / "m.glb", light)
+    back = read_textured_glb(tmp_path / "m.glb")
+    np.testing.assert_array_equal(back.vertices, light.vertices)
+    np.testing.assert_array_equal(back.faces, light.faces)
+    np.testing.assert_array_equal(back.uv, light.uv)
+    np.testing.assert_array_equal(back.labels, light.labels)
+    assert np.abs(back.texture.astype(int) - light.texture).mean() < 3  # JPEG
+    doc, _, _ = split_glb((tmp_path / "m.glb").read_bytes())
+    assert doc["extensionsUsed"] == ["KHR_materials_unlit"]
+    material = doc["materials"][0]
+    assert material["pbrMetallicRoughness"]["baseColorTexture"] == {"index": 0}
+    assert doc["images"][0]["mimeType"] == "image/jpeg"
+    (node,) = [n for n in doc["nodes"] if "camera" in n]
+    assert doc["nodes"].index(node) in doc["scenes"][0]["nodes"]
+    assert doc["cameras"][0]["perspective"]["yfov"] == pytest.approx(light.vfov)
+    scene = trimesh.load(tmp_path / "m.glb", process=False, force="mesh")
+    assert isinstance(scene.visual, trimesh.visual.TextureVisuals)
+    assert scene.visual.material.baseColorTexture.size == light.texture.shape[1::-1]
+    assert len(scene.faces) == len(light.faces)

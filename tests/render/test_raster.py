@@ -396,3 +396,28 @@ def test_fused_resolve_equals_rendering_then_averaging(factor):
     np.testing.assert_array_equal(fused[2], near.astype(np.float32))
     with pytest.raises(InputError, match="not a multiple"):
         r.render_resolved(Intrinsics.default(65, 48), 2)
+
+
+def test_texture_lookup_is_bilinear_at_texel_centres():
+    """A screen-aligned quad whose texture coordinates put texel centres on pixel
+    centres shows the texture exactly; halfway between two texels, their mean."""
+    from photo3d.camera import Intrinsics as K_
+    from photo3d.render.raster import CPURasterizer
+
+    tex = np.zeros((4, 4, 3), np.uint8)
+    tex[..., 0] = np.arange(4) * 60  # red ramp along columns
+    tex[..., 1] = (np.arange(4) * 50)[:, None]  # green ramp along rows
+    k = K_(1.0, 1.0, 0.0, 0.0, 4, 4)  # pixel (u, v) = (x / z, y / z)
+    # corners at pixel centres 0.5 .. 3.5 <-> texel centres (0.5 / 4 .. 3.5 / 4)
+    v = np.array([[0.5, 0.5, 1], [3.5, 0.5, 1], [0.5, 3.5, 1], [3.5, 3.5, 1]], np.float32)
+    uv = np.array([[0.125, 0.125, 0], [0.875, 0.125, 0], [0.125, 0.875, 0],
+                   [0.875, 0.875, 0]], np.float32)
+    faces = np.array([[0, 2, 1], [1, 2, 3]], np.int32)
+    r = CPURasterizer(v, uv, faces, texture=tex)
+    frag = r.render(k)
+    got = np.rint(frag.color[:3, :3] * 255)
+    np.testing.assert_array_equal(got, tex[:3, :3].astype(float))
+    color, _, _ = r.render_resolved(K_(2.0, 2.0, 0.0, 0.0, 8, 8), 2)  # samples at +-0.25
+    assert color[1, 1, 0] * 255 == pytest.approx(60, abs=0.6)
+    with pytest.raises(InputError, match="texture"):
+        CPURasterizer(v, uv, faces, texture=np.zeros((4, 4), np.uint8))

@@ -260,3 +260,28 @@ def test_fallback_message_without_webgl2(browser, page_file):
         assert page.is_visible("#photo3d-message") and not page.is_visible("canvas")
     finally:
         page.close()
+
+
+def test_textured_page_matches_photo3d_renderer(browser, tmp_path):
+    """The light textured mesh in the page looks like photo3d's own render of it."""
+    from photo3d.light import build_light_mesh
+
+    light = build_light_mesh(box_photo().ldi)
+    path = write_viewer(light, tmp_path / "viewer.html")
+    position = (0.03, -0.02, 0.05)
+    page, errors = open_page(browser, path.as_uri() + "#static=1&camera=" +
+                             ",".join(map(str, position)))
+    try:
+        assert page.evaluate("photo3dViewer.error") is None and not errors
+        got = pixels(page)
+    finally:
+        page.close()
+    camera = Camera.translated(Intrinsics.default(WIDTH, HEIGHT), position)
+    settings = RenderSettings(ssaa=1, fill_holes=False, backend="numba")
+    with Renderer(light, settings) as renderer:
+        view = renderer.render(camera)
+    covered = view.mask
+    assert covered.mean() > 0.95
+    assert psnr(got[covered], view.color[covered]) > 25
+    other, _ = reference((-0.05, 0.0, 0.0))
+    assert psnr(got[covered], other[covered]) < psnr(got[covered], view.color[covered]) - 3

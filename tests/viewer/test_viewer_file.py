@@ -115,3 +115,17 @@ def test_unwritable_path_and_foreign_files(tmp_path):
         read_viewer(tmp_path / "other.html")
     with pytest.raises(InputError, match="not found"):
         read_viewer(tmp_path / "nothing.html")
+
+
+def test_textured_mesh_round_trip(tmp_path):
+    """A light textured mesh: uv within 1/65535, texture as JPEG, faces and labels exact."""
+    from photo3d.light import TexturedMesh
+
+    light = box_photo().light_mesh()
+    back = read_viewer(write_viewer(light, tmp_path / "viewer.html"))
+    assert isinstance(back, TexturedMesh)
+    assert np.abs(back.uv - light.uv).max() <= 0.5 / 65535 + 1e-7
+    assert np.abs(back.texture.astype(int) - light.texture).mean() < 3
+    np.testing.assert_array_equal(back.labels, light.labels)
+    np.testing.assert_array_equal(canonical_faces(back.faces), canonical_faces(light.faces))
+    assert np.abs(back.vertices - light.vertices).max() < 1e-3

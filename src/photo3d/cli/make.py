@@ -75,7 +75,8 @@ def run_make(args: argparse.Namespace, image, depth, config: Config) -> int:
             bar("mesh", 0.0)
             t = time.perf_counter()
             photo.save(staging, ply=None if args.ply == "none" else args.ply,
-                       glb=not args.no_glb, viewer=not args.no_viewer, videos=videos,
+                       glb=not args.no_glb, full_glb=args.full_glb,
+                       viewer=not args.no_viewer, videos=videos,
                        render_settings=settings, progress=bar)
             photo.timings["save + video" if videos else "save"] = time.perf_counter() - t
             bar("video", 1.0)

@@ -56,6 +56,9 @@ def add_make_options(p: argparse.ArgumentParser, *, out_required: bool,
     p.add_argument("--ply", choices=["binary", "ascii", "none"], default="binary",
                    help="PLY mesh encoding (default: %(default)s)")
     p.add_argument("--no-glb", action="store_true", help="do not write mesh.glb")
+    p.add_argument("--full-glb", action="store_true",
+                   help="mesh.glb with every LDI pixel as a vertex-coloured vertex (large) "
+                        "instead of the light textured mesh")
     p.add_argument("--no-viewer", action="store_true", help="do not write viewer.html")
     p.add_argument("--no-video", action="store_true",
                    help="do not render the four standard videos")

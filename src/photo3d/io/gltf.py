@@ -20,14 +20,19 @@ What :func:`write_glb` puts in the file:
 
 from __future__ import annotations
 
+import io
 import json
 import os
 import struct
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from photo3d.errors import InputError, OutputError
 from photo3d.mesh import Mesh
+
+if TYPE_CHECKING:
+    from photo3d.light import TexturedMesh
 
 PathLike = str | os.PathLike[str]
 
@@ -76,6 +81,9 @@ def write_glb(path: PathLike, mesh: Mesh) -> None:
     Example:
         >>> import numpy as np, tempfile, pathlib
         >>> from photo3d.mesh import Mesh
+
+if TYPE_CHECKING:
+    from photo3d.light import TexturedMesh
         >>> mesh = Mesh(np.eye(3, dtype=np.float32), np.zeros((3, 3), np.uint8),
         ...             np.ones(3, np.uint8), np.array([[0, 2, 1]], np.int32),
         ...             4, 3, 0.5, 0.4)
@@ -85,13 +93,70 @@ def write_glb(path: PathLike, mesh: Mesh) -> None:
         b'glTF'
     """
     vertices, colors, labels, faces = _checked_arrays(mesh)
+    arrays = [(_SRGB_TO_LINEAR[colors], "VEC3", _ARRAY_BUFFER, None)]
+    _write(path, mesh, vertices, labels, faces, arrays, _PRIMITIVE, _MATERIAL)
+
+
+def write_textured_glb(path: PathLike, mesh: TexturedMesh, *, quality: int = 90) -> None:
+    """Write a textured mesh as a binary glTF 2.0 file (texture embedded as JPEG).
+
+    The file holds ``POSITION``, ``TEXCOORD_0`` and ``_LABEL`` as :func:`write_glb`
+    does, one sRGB base-colour texture (linear filtering, clamped; no mipmaps, so
+    atlas charts do not bleed into each other) on an unlit material, and the input
+    camera as a camera node.
+
+    Args:
+        path: file to create (overwritten if it exists).
+        mesh: :class:`~photo3d.light.TexturedMesh` with ``N >= 1``, ``M >= 1``.
+        quality: JPEG quality of the texture (1-95).
+
+    Raises:
+        InputError: the mesh is empty or inconsistent.
+        OutputError: ``path`` cannot be written.
+
+    Example:
+        >>> import numpy as np, tempfile, pathlib
+        >>> from photo3d.light import TexturedMesh
+        >>> mesh = TexturedMesh(np.eye(3, dtype=np.float32) + [0, 0, 1],
+        ...                     np.array([[0, 0], [1, 0], [0, 1]], np.float32),
+        ...                     np.zeros((4, 4, 3), np.uint8), np.ones(3, np.uint8),
+        ...                     np.array([[0, 2, 1]], np.int32), 1, 4, 3, 0.5, 0.4)
+        >>> path = pathlib.Path(tempfile.mkdtemp()) / "mesh.glb"
+        >>> write_textured_glb(path, mesh)
+        >>> read_textured_glb(path).texture.shape
+        (4, 4, 3)
+    """
+    vertices, uv, labels, faces = mesh.checked()
+    if len(vertices) == 0 or len(faces) == 0:
+        raise InputError("mesh has no vertices or no faces; glTF cannot store it")
+    if not np.isfinite(vertices).all() or not np.isfinite(uv).all():
+        raise InputError("mesh.vertices or mesh.uv has NaN or infinite values")
+    image = encode_jpeg(np.asarray(mesh.texture), quality=quality)
+    arrays = [(uv, "VEC2", _ARRAY_BUFFER, None)]
+    primitive = {"attributes": {"POSITION": 0, "TEXCOORD_0": 1, "_LABEL": 2}, "indices": 3,
+                 "material": 0, "mode": _TRIANGLES}
+    material = {
+        "name": "unlit photo texture",
+        "pbrMetallicRoughness": {"baseColorFactor": _WHITE, "baseColorTexture": {"index": 0},
+                                 "metallicFactor": 0.0, "roughnessFactor": 1.0},
+        "extensions": {_UNLIT: {}},
+        "doubleSided": False,
+    }
+    _write(path, mesh, vertices, labels, faces, arrays, primitive, material, image=image)
+
+
+def _write(path: PathLike, mesh, vertices: np.ndarray, labels: np.ndarray, faces: np.ndarray,
+           attributes: list, primitive: dict, material: dict, *, image: bytes | None = None
+           ) -> None:
+    """Assemble and write a GLB: POSITION, ``attributes`` (accessor 1), _LABEL,
+    indices, one material, optionally one embedded JPEG texture, the camera node."""
     positions = vertices * _TO_GLTF
     strided_labels = np.zeros((len(labels), 4), np.uint8)  # attributes are 4-byte aligned
     strided_labels[:, 0] = labels
     indices = faces.ravel().astype(np.uint16 if len(vertices) <= 0xFFFF else np.uint32)
     arrays = [  # (data, accessor type, bufferView target, byteStride)
         (positions, "VEC3", _ARRAY_BUFFER, None),
-        (_SRGB_TO_LINEAR[colors], "VEC3", _ARRAY_BUFFER, None),
+        *attributes,
         (strided_labels, "SCALAR", _ARRAY_BUFFER, 4),
         (indices, "SCALAR", _ELEMENT_ARRAY_BUFFER, None),
     ]
@@ -113,12 +178,20 @@ def write_glb(path: PathLike, mesh: Mesh) -> None:
         "scene": 0,
         "scenes": [{"nodes": [0]}],
         "nodes": [{"name": "photo3d", "mesh": 0}],
-        "meshes": [{"name": "photo3d", "extras": _view_extras(mesh), "primitives": [_PRIMITIVE]}],
-        "materials": [_MATERIAL],
+        "meshes": [{"name": "photo3d", "extras": _view_extras(mesh), "primitives": [primitive]}],
+        "materials": [material],
         "accessors": accessors,
         "bufferViews": views,
-        "buffers": [{"byteLength": offset}],
     }
+    if image is not None:
+        views.append({"buffer": 0, "byteOffset": offset, "byteLength": len(image)})
+        chunks.append(image + bytes(-len(image) % 4))
+        offset += len(chunks[-1])
+        document["images"] = [{"bufferView": len(views) - 1, "mimeType": "image/jpeg"}]
+        document["samplers"] = [{"magFilter": 9729, "minFilter": 9729,  # LINEAR
+                                 "wrapS": 33071, "wrapT": 33071}]  # CLAMP_TO_EDGE
+        document["textures"] = [{"sampler": 0, "source": 0}]
+    document["buffers"] = [{"byteLength": offset}]
     if mesh.vfov > 0 and mesh.width > 0 and mesh.height > 0:
         aspect = mesh.width / mesh.height
         perspective = {"yfov": float(mesh.vfov), "aspectRatio": aspect, "znear": 0.01}
@@ -137,6 +210,44 @@ def write_glb(path: PathLike, mesh: Mesh) -> None:
                 file.write(chunk)
     except OSError as err:
         raise OutputError(f"cannot write glTF {path}: {err.strerror or err}") from err
+
+
+def read_textured_glb(path: PathLike) -> TexturedMesh:
+    """Read a ``.glb`` written by :func:`write_textured_glb` (tests, tools).
+
+    Returns:
+        :class:`~photo3d.light.TexturedMesh` (texture decoded from its JPEG).
+
+    Raises:
+        InputError: the file is not such a GLB.
+    """
+    from photo3d.light import TexturedMesh
+
+    try:
+        with open(path, "rb") as file:
+            data = file.read()
+    except OSError as err:
+        raise InputError(f"cannot read glTF {path}: {err.strerror or err}") from err
+    document, binary = _split_chunks(data, path)
+    try:
+        primitive = document["meshes"][0]["primitives"][0]
+        attributes = primitive["attributes"]
+        positions = _accessor(document, binary, attributes["POSITION"], path)
+        uv = _accessor(document, binary, attributes["TEXCOORD_0"], path)
+        faces = _accessor(document, binary, primitive["indices"], path).reshape(-1, 3)
+        labels = _accessor(document, binary, attributes["_LABEL"], path)[:, 0]
+        view = document["bufferViews"][document["images"][0]["bufferView"]]
+        start = view.get("byteOffset", 0)
+        texture = decode_jpeg(binary[start:start + view["byteLength"]])
+        extras = document["meshes"][0].get("extras", {})
+    except (KeyError, IndexError, TypeError, ValueError) as err:
+        raise InputError(f"glTF {path} is not a photo3d textured mesh ({err!r})") from err
+    return TexturedMesh(
+        vertices=(positions * _TO_GLTF).astype(np.float32), uv=uv.astype(np.float32),
+        texture=texture, labels=labels.astype(np.uint8), faces=faces.astype(np.int32),
+        n_input=0, width=int(extras.get("width", 0)), height=int(extras.get("height", 0)),
+        hfov=float(extras.get("hfov", 0.0)), vfov=float(extras.get("vfov", 0.0)),
+    )
 
 
 def read_glb(path: PathLike) -> Mesh:
@@ -161,6 +272,9 @@ def read_glb(path: PathLike) -> Mesh:
     Example:
         >>> import numpy as np, tempfile, pathlib
         >>> from photo3d.mesh import Mesh
+
+if TYPE_CHECKING:
+    from photo3d.light import TexturedMesh
         >>> colors = np.array([[0, 1, 2], [128, 200, 255], [7, 7, 7]], np.uint8)
         >>> mesh = Mesh(np.eye(3, dtype=np.float32), colors, np.full(3, 4, np.uint8),
         ...             np.array([[0, 2, 1]], np.int32), 4, 3, 0.5, 0.4)
@@ -289,3 +403,28 @@ def _checked_arrays(mesh: Mesh) -> tuple[np.ndarray, ...]:
     if not np.isfinite(arrays[0]).all():
         raise InputError("mesh.vertices has NaN or infinite values")
     return arrays
+
+
+def encode_jpeg(image: np.ndarray, *, quality: int = 90) -> bytes:
+    """``(H, W, 3) uint8`` sRGB -> baseline JPEG bytes (4:2:0, optimised tables).
+
+    Example:
+        >>> decode_jpeg(encode_jpeg(np.full((8, 8, 3), 200, np.uint8))).shape
+        (8, 8, 3)
+    """
+    from PIL import Image
+
+    if not 1 <= quality <= 95:
+        raise InputError(f"JPEG quality must be in [1, 95], got {quality}")
+    buffer = io.BytesIO()
+    Image.fromarray(np.ascontiguousarray(image, np.uint8)).save(
+        buffer, format="JPEG", quality=int(quality), optimize=True)
+    return buffer.getvalue()
+
+
+def decode_jpeg(data: bytes) -> np.ndarray:
+    """JPEG (or PNG) bytes -> ``(H, W, 3) uint8``."""
+    from PIL import Image
+
+    with Image.open(io.BytesIO(data)) as im:
+        return np.asarray(im.convert("RGB"))

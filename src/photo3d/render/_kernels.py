@@ -297,9 +297,44 @@ def resolve(color, depth, factor):
     return out_color, out_cov, out_depth
 
 
+@njit(cache=True, error_model="numpy", inline="always")
+def _texture_rows(color, depth, texture, y_lo, y_hi):
+    """Deferred texturing of rows ``y_lo..y_hi-1``: every covered sample's colour
+    holds ``(u, v, 0)`` texture coordinates (glTF convention: texel ``(row, col)``
+    has its centre at ``((col + 0.5) / U, (row + 0.5) / T)``); replace them by the
+    bilinear ``(T, U, 3) uint8`` texture value in [0, 1], clamped at the edges."""
+    th, tw = texture.shape[0], texture.shape[1]
+    inv = 1.0 / 255.0
+    for y in range(y_lo, y_hi):
+        for x in range(color.shape[1]):
+            if depth[y, x] == np.inf:
+                continue
+            fx = min(max(color[y, x, 0] * tw - 0.5, 0.0), tw - 1.0)
+            fy = min(max(color[y, x, 1] * th - 0.5, 0.0), th - 1.0)
+            x0, y0 = min(int(fx), tw - 2), min(int(fy), th - 2)
+            x0, y0 = max(x0, 0), max(y0, 0)
+            ax, ay = fx - x0, fy - y0
+            x1, y1 = min(x0 + 1, tw - 1), min(y0 + 1, th - 1)
+            for ch in range(3):
+                top = texture[y0, x0, ch] * (1.0 - ax) + texture[y0, x1, ch] * ax
+                bottom = texture[y1, x0, ch] * (1.0 - ax) + texture[y1, x1, ch] * ax
+                color[y, x, ch] = (top * (1.0 - ay) + bottom * ay) * inv
+
+
+@njit(parallel=True, cache=True, error_model="numpy", nogil=True)
+def apply_texture(color, depth, texture):
+    """:func:`_texture_rows` over a whole ``(H, W)`` frame, in place (OpenGL path)."""
+    rows = 8
+    h = depth.shape[0]
+    for i in prange((h + rows - 1) // rows):
+        _texture_rows(color, depth, texture, i * rows, min(h, (i + 1) * rows))
+    return color
+
+
 @njit(parallel=True, cache=True, error_model="numpy", nogil=True)
 def _raster(sv, col, scale, faces, n_first, bounds, block, xsv, xcol, xfaces, height, width,
-            bands, background, count, color, depth, mask, factor, out_color, out_cov, out_depth):
+            bands, background, count, color, depth, mask, factor, out_color, out_cov, out_depth,
+            texture):
     """Z-buffer render of ``faces`` over ``sv`` and ``xfaces`` over ``xsv``.
 
     ``col``: ``(N, 3)`` vertex colours (times ``scale`` in [0, 1]); ``xcol``:
@@ -310,7 +345,9 @@ def _raster(sv, col, scale, faces, n_first, bounds, block, xsv, xcol, xfaces, he
     band is resolved as it finishes (:func:`_resolve_rows`, bands aligned to
     ``factor``) into ``out_color``, ``out_cov`` and ``out_depth`` at ``1 / factor``
     the size, while the samples are still in cache, and ``mask`` and the background
-    are left unwritten; ``factor = 0``: no resolve.
+    are left unwritten; ``factor = 0``: no resolve. ``texture``: ``(T, U, 3) uint8``
+    when ``col`` holds texture coordinates (deferred texturing per band, see
+    :func:`_texture_rows`), ``(0, 0, 3)`` for vertex colours.
 
     ``faces[:n_first]`` are drawn first; later faces and blocks (``bounds`` from
     :func:`_block_bounds`) are skipped when they lie behind the farthest depth drawn
@@ -356,6 +393,8 @@ def _raster(sv, col, scale, faces, n_first, bounds, block, xsv, xcol, xfaces, he
         for t in range(xfaces.shape[0]):
             i0, i1, i2 = xfaces[t, 0], xfaces[t, 1], xfaces[t, 2]
             _draw(xsv, xcol, 1.0, i0, i1, i2, y_lo, y_hi, width, color, depth, count)
+        if texture.shape[0] > 0:
+            _texture_rows(color, depth, texture, y_lo, y_hi)
         if factor > 0:
             _resolve_rows(color, depth, factor, y_lo // factor, y_hi // factor, out_color,
                           out_cov, out_depth)

@@ -45,7 +45,7 @@ import numpy as np
 
 from photo3d.camera import Intrinsics
 from photo3d.errors import InputError
-from photo3d.render.raster import Fragments, _prepare
+from photo3d.render.raster import Fragments, _check_texture, _prepare
 
 __all__ = ["GLRasterizer", "gl_available", "gl_renderer", "is_software_renderer"]
 
@@ -182,6 +182,9 @@ class GLRasterizer:
         faces: ``(M, 3)`` integer vertex indices, either winding (no culling).
         device_index: EGL device to use; None = the default (or
             ``GLCONTEXT_DEVICE_INDEX``, which takes precedence when set).
+        texture: ``(T, U, 3) uint8`` sRGB; then ``colors`` are texture coordinates
+            ``(u, v, 0)`` rendered into the float target and looked up on the CPU
+            afterwards (deferred texturing, as the numba rasterizer does).
 
     Raises:
         ImportError: moderngl is not installed.
@@ -194,8 +197,10 @@ class GLRasterizer:
             frames = [gl.render(intrinsics, pose=pose) for pose in poses]
     """
 
-    def __init__(self, vertices, colors, faces, *, device_index: int | None = None):
+    def __init__(self, vertices, colors, faces, *, device_index: int | None = None,
+                 texture: np.ndarray | None = None):
         vertices, colors, scale, faces, _, _ = _prepare(vertices, colors, faces, None)
+        self._texture = _check_texture(texture)
         if not np.all(np.isfinite(vertices)):
             raise InputError("vertices have non-finite coordinates")
         bounds = np.stack([vertices.min(0), vertices.max(0)]) if len(vertices) else np.zeros((2, 3))
@@ -282,7 +287,8 @@ class GLRasterizer:
         depth = out[:, :, 3]
         mask = depth < _EMPTY_Z * 0.5
         depth = np.where(mask, depth, np.float32(np.inf))
-        return Fragments(color=np.ascontiguousarray(out[:, :, :3]), depth=depth, mask=mask)
+        color = self._textured(np.ascontiguousarray(out[:, :, :3]), depth)
+        return Fragments(color=color, depth=depth, mask=mask)
 
     def render_resolved(self, intrinsics: Intrinsics, factor: int, *, pose=None,
                         near: float = 1e-3) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -292,6 +298,14 @@ class GLRasterizer:
 
         frag = self.render(intrinsics, pose=pose, near=near)
         return resolve(frag.color, frag.depth, int(factor))
+
+    def _textured(self, color: np.ndarray, depth: np.ndarray) -> np.ndarray:
+        """Deferred texturing on the CPU (the same lookup as the numba rasterizer)."""
+        if self._texture.shape[0] == 0:
+            return color
+        from photo3d.render._kernels import apply_texture
+
+        return apply_texture(color, depth, self._texture)
 
     def _release_fbo(self) -> None:
         if self._fbo is not None:

@@ -57,6 +57,7 @@ class Fragments:
 
 
 _NO_COUNT = np.zeros((0, 0), np.int32)
+_NO_TEXTURE = np.zeros((0, 0, 3), np.uint8)
 
 
 def _check_array(name: str, array: np.ndarray, shape: str) -> None:
@@ -100,6 +101,18 @@ def _check_pose(pose) -> tuple[np.ndarray, np.ndarray]:
     if pose.shape != (4, 4) or not np.all(np.isfinite(pose)):
         raise InputError(f"pose must be a finite 4x4 camera-from-world matrix, got {pose.shape}")
     return np.ascontiguousarray(pose[:3, :3]), np.ascontiguousarray(pose[:3, 3])
+
+
+def _check_texture(texture) -> np.ndarray:
+    """``(T, U, 3) uint8`` C-contiguous texture (None: no texture, ``(0, 0, 3)``)."""
+    if texture is None:
+        return _NO_TEXTURE
+    texture = np.ascontiguousarray(texture)
+    if texture.ndim != 3 or texture.shape[2] != 3 or texture.dtype != np.uint8 or min(
+            texture.shape[:2]) < 2:
+        raise InputError(f"texture must be (T >= 2, U >= 2, 3) uint8, got {texture.shape} "
+                         f"{texture.dtype}")
+    return texture
 
 
 def default_bands() -> int:
@@ -183,11 +196,13 @@ class _Buffers:
 
 
 def _render(vertices, colors, scale, faces, rot, trans, k, near, height, width, bands, bg, count,
-            n_first=None, buffers: _Buffers | None = None, blocks=None, factor: int = 0):
+            n_first=None, buffers: _Buffers | None = None, blocks=None, factor: int = 0,
+            texture: np.ndarray = _NO_TEXTURE):
     """Vertex stage, clipping and rasterization on validated inputs (``blocks``:
     :func:`block_vertices` of ``faces``, computed when None). ``factor > 0``: return
     the supersampling resolve ``(color, coverage, depth)`` at ``1 / factor`` the size
-    (fresh arrays) instead of the samples."""
+    (fresh arrays) instead of the samples. ``texture``: ``(T, U, 3) uint8`` when
+    ``colors`` are texture coordinates ``(u, v, 0)``."""
     n_first = len(faces) if n_first is None else n_first
     blocks = block_vertices(faces, BLOCK) if blocks is None else blocks
     buffers = buffers or _Buffers()
@@ -209,7 +224,7 @@ def _render(vertices, colors, scale, faces, rot, trans, k, near, height, width, 
     resolved = (np.empty((*small, 3), np.float32), np.empty(small, np.float32),
                 np.empty(small, np.float32))
     frame = _raster(sv, colors, scale, faces, n_first, bounds, BLOCK, xsv, xcol, xfaces, *image,
-                    *out, factor, *resolved)
+                    *out, factor, *resolved, texture)
     return resolved if factor else frame
 
 
@@ -228,11 +243,14 @@ class CPURasterizer:
     renderer = "numba (CPU)"
 
     def __init__(self, vertices, colors, faces, *, first: int | None = None,
-                 reuse: bool = False) -> None:
+                 reuse: bool = False, texture: np.ndarray | None = None) -> None:
         """``first``: see :func:`rasterize`. ``reuse``: return the same arrays from every
         :meth:`render` call (each call overwrites the previous result): no
-        allocation per frame, for callers that consume a frame before the next."""
+        allocation per frame, for callers that consume a frame before the next.
+        ``texture``: ``(T, U, 3) uint8`` sRGB; then ``colors`` are ``(N, 3) float32``
+        texture coordinates ``(u, v, 0)`` (glTF convention, origin top-left)."""
         self._prepared = _prepare(vertices, colors, faces, None)[:4]
+        self._texture = _check_texture(texture)
         n = len(self._prepared[3])
         self._first = n if first is None else int(np.clip(first, 0, n))
         self._buffers = _Buffers() if reuse else None
@@ -245,7 +263,7 @@ class CPURasterizer:
         color, depth, mask = _render(
             *self._prepared, *view, min(default_bands(), view[-2]),
             np.asarray(background, np.float32), _NO_COUNT, n_first=self._first,
-            buffers=self._buffers, blocks=self._blocks,
+            buffers=self._buffers, blocks=self._blocks, texture=self._texture,
         )
         return Fragments(color=color, depth=depth, mask=mask)
 
@@ -282,7 +300,7 @@ class CPURasterizer:
         return _render(
             *self._prepared, *view, min(default_bands(), height // factor),
             np.zeros(3, np.float32), _NO_COUNT, n_first=self._first, buffers=self._buffers,
-            blocks=self._blocks, factor=factor,
+            blocks=self._blocks, factor=factor, texture=self._texture,
         )
 
     def release(self) -> None:

@@ -21,6 +21,7 @@ import numpy as np
 
 from photo3d.camera import Camera, Intrinsics
 from photo3d.errors import ConfigError
+from photo3d.light import TexturedMesh
 from photo3d.mesh import Mesh
 from photo3d.render._resolve import grow_fill
 
@@ -149,24 +150,37 @@ class Renderer:
         ((8, 8, 3), 0.502)
     """
 
-    def __init__(self, mesh: Mesh, settings: RenderSettings | None = None) -> None:
+    def __init__(self, mesh: Mesh | TexturedMesh, settings: RenderSettings | None = None
+                 ) -> None:
+        """``mesh``: a vertex-coloured :class:`~photo3d.mesh.Mesh` or a
+        :class:`~photo3d.light.TexturedMesh` (drawn with its texture)."""
         self.settings = settings or RenderSettings()
         self.mesh = mesh
-        self._vertices, self._colors, _, self._faces = mesh.checked()
-        self.backend = select_backend(self.settings.backend)
-        if self.backend == "gl":
-            from photo3d.render.gl import GLRasterizer
-
-            self._raster = GLRasterizer(self._vertices, self._colors, self._faces)
+        texture = None
+        if isinstance(mesh, TexturedMesh):
+            self._vertices, uv, _, self._faces = mesh.checked()
+            self._colors = np.zeros((len(uv), 3), np.float32)
+            self._colors[:, :2] = uv
+            texture = np.asarray(mesh.texture)
+            first = int(mesh.n_input)
         else:
-            from photo3d.render.raster import CPURasterizer
-
+            self._vertices, self._colors, _, self._faces = mesh.checked()
             # photo3d meshes list the faces of the input layer first (build_mesh):
             # drawing those first lets hidden layers be culled cheaply.
             n_input = mesh.width * mesh.height
             first = int(np.count_nonzero(self._faces.max(axis=1) < n_input))
+        self.backend = select_backend(self.settings.backend)
+        if self.backend == "gl":
+            from photo3d.render.gl import GLRasterizer
+
+            self._raster = GLRasterizer(self._vertices, self._colors, self._faces,
+                                        texture=texture)
+        else:
+            from photo3d.render.raster import CPURasterizer
+
             self._raster = CPURasterizer(self._vertices, self._colors, self._faces, first=first,
-                                         reuse=True)  # frames are resolved into new arrays
+                                         reuse=True,  # frames are resolved into new arrays
+                                         texture=texture)
 
     def close(self) -> None:
         """Release GPU resources (if any)."""

@@ -13,7 +13,11 @@ four sections, each starting at a multiple of 4 bytes (offsets in the header):
   than x, y, z, keeps the error uniform on screen: about ``(hi - lo) * f / 131070``
   pixels (0.01 px for the 1024 px sample) and a parallax error of ``f * shift *
   (hi - lo) / 131070`` (under 0.001 px for the authors' shifts).
-* ``color``: ``(N, 3)`` uint8 sRGB, interleaved.
+* ``color``: ``(N, 3)`` uint8 sRGB, interleaved (vertex-coloured meshes), or
+* ``uv`` and ``texture`` (textured meshes, :class:`~photo3d.light.TexturedMesh`):
+  two planes of ``N`` uint16, ``u * 65535`` and ``v * 65535`` (glTF texture
+  coordinates, origin top-left), and the texture as JPEG bytes; the header's
+  ``texture`` gives its ``width``, ``height`` and ``mime``.
 * ``label``: ``(N,)`` uint8, the authors' labels (unused by the page; kept so the
   file is a faithful copy of the mesh).
 * ``faces``: each face rotated so that its largest index ``m`` comes last (a
@@ -33,20 +37,26 @@ import zlib
 import numpy as np
 
 from photo3d.errors import InputError
+from photo3d.io.gltf import decode_jpeg, encode_jpeg
+from photo3d.light import TexturedMesh
 from photo3d.mesh import Mesh
 
-VERSION = 1
+VERSION = 2
 SECTIONS = ("position", "color", "label", "faces")
+TEXTURED_SECTIONS = ("position", "uv", "label", "faces", "texture")
+TEXTURE_QUALITY = 85
+"""JPEG quality of the viewer's texture."""
 _LEVELS = 65535.0
 
 
-def encode_mesh(mesh: Mesh, *, level: int = 6) -> tuple[dict, bytes]:
+def encode_mesh(mesh: Mesh | TexturedMesh, *, level: int = 6) -> tuple[dict, bytes]:
     """Encode ``mesh`` for the viewer.
 
     Args:
         mesh: vertices ``(N, 3) float32`` with ``z > 0`` (in front of the input
-            camera, as every photo3d mesh), colors ``(N, 3) uint8``, labels ``(N,)``,
-            faces ``(M, 3) int32``; ``N, M >= 1``.
+            camera, as every photo3d mesh), colors ``(N, 3) uint8`` (or uv and a
+            texture: :class:`~photo3d.light.TexturedMesh`), labels ``(N,)``, faces
+            ``(M, 3) int32``; ``N, M >= 1``.
         level: zlib compression level (1 fastest .. 9 smallest).
 
     Returns:
@@ -64,6 +74,7 @@ def encode_mesh(mesh: Mesh, *, level: int = 6) -> tuple[dict, bytes]:
         >>> header["vertices"], header["faces"], header["position"]["hi"][2]
         (3, 1, 1.0)
     """
+    textured = isinstance(mesh, TexturedMesh)
     vertices, colors, labels, faces = mesh.checked()
     if len(vertices) == 0 or len(faces) == 0:
         raise InputError("mesh has no vertices or no faces; the viewer needs both")
@@ -82,12 +93,17 @@ def encode_mesh(mesh: Mesh, *, level: int = 6) -> tuple[dict, bytes]:
     ]
     blobs = {
         "position": np.concatenate(quantised).tobytes(),
-        "color": colors.tobytes(),
         "label": labels.tobytes(),
         "faces": _encode_faces(faces),
     }
+    if textured:
+        uv = np.rint(np.clip(colors, 0.0, 1.0) * _LEVELS).astype("<u2")
+        blobs["uv"] = np.ascontiguousarray(uv.T).tobytes()
+        blobs["texture"] = encode_jpeg(np.asarray(mesh.texture), quality=TEXTURE_QUALITY)
+    else:
+        blobs["color"] = colors.tobytes()
     raw, sections, offset = [], {}, 0
-    for name in SECTIONS:
+    for name in TEXTURED_SECTIONS if textured else SECTIONS:
         data = blobs[name]
         sections[name] = [offset, len(data)]
         raw.append(data + bytes(-len(data) % 4))
@@ -100,10 +116,14 @@ def encode_mesh(mesh: Mesh, *, level: int = 6) -> tuple[dict, bytes]:
         "position": {"lo": lo, "hi": hi}, "sections": sections,
         "compression": "deflate", "size": offset,
     }
+    if textured:
+        t = np.asarray(mesh.texture)
+        header["texture"] = {"width": int(t.shape[1]), "height": int(t.shape[0]),
+                             "mime": "image/jpeg"}
     return header, zlib.compress(b"".join(raw), level)
 
 
-def decode_mesh(header: dict, payload: bytes) -> Mesh:
+def decode_mesh(header: dict, payload: bytes) -> Mesh | TexturedMesh:
     """Inverse of :func:`encode_mesh` (positions within the quantisation error).
 
     Faces come back rotated so that their largest index is last (same winding).
@@ -130,6 +150,17 @@ def decode_mesh(header: dict, payload: bytes) -> Mesh:
     hi = np.asarray(header["position"]["hi"], np.float64)[:, None]
     a, b, d = lo + q / _LEVELS * (hi - lo)
     vertices = np.stack([a / d, b / d, 1.0 / d], axis=1).astype(np.float32)
+    if "texture" in header:
+        from photo3d.light import TexturedMesh
+
+        uv = np.frombuffer(section("uv"), "<u2").reshape(2, n).T / _LEVELS
+        return TexturedMesh(
+            vertices=vertices, uv=uv.astype(np.float32), texture=decode_jpeg(section("texture")),
+            labels=np.frombuffer(section("label"), np.uint8).copy(),
+            faces=_decode_faces(section("faces"), count), n_input=0,
+            width=int(header["width"]), height=int(header["height"]),
+            hfov=float(header["hfov"]), vfov=float(header["vfov"]),
+        )
     return Mesh(
         vertices=vertices,
         colors=np.frombuffer(section("color"), np.uint8).reshape(n, 3).copy(),

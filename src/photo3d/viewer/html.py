@@ -34,6 +34,7 @@ from importlib import resources
 from pathlib import Path
 
 from photo3d.errors import InputError, OutputError
+from photo3d.light import TexturedMesh
 from photo3d.mesh import Mesh
 from photo3d.viewer._codec import decode_mesh, encode_mesh
 
@@ -43,7 +44,7 @@ VIEWER_FILE = "viewer.html"
 _SCRIPT_RE = r'<script type="{kind}" id="{id}">(.*?)</script>'
 
 
-def write_viewer(mesh: Mesh, path: PathLike, *, title: str = "photo3d",
+def write_viewer(mesh: Mesh | TexturedMesh, path: PathLike, *, title: str = "photo3d",
                  animate: bool = True) -> Path:
     """Write the interactive viewer page of ``mesh``.
 
@@ -51,7 +52,8 @@ def write_viewer(mesh: Mesh, path: PathLike, *, title: str = "photo3d",
         mesh: vertices ``(N, 3) float32`` OpenCV camera frame of the input view with
             ``z > 0``, colors ``(N, 3) uint8`` sRGB, labels ``(N,) uint8``, faces
             ``(M, 3) int32``; ``width``, ``height``, ``hfov``, ``vfov`` give the
-            camera (principal point at the centre).
+            camera (principal point at the centre). A
+            :class:`~photo3d.light.TexturedMesh` is embedded with its texture (JPEG).
         path: file to create (overwritten), usually ``OUT/viewer.html``.
         title: page title (plain text; escaped).
         animate: start with the camera moving along the authors' ``circle`` path
@@ -90,7 +92,7 @@ def write_viewer(mesh: Mesh, path: PathLike, *, title: str = "photo3d",
     return path
 
 
-def read_viewer(path: PathLike) -> Mesh:
+def read_viewer(path: PathLike) -> Mesh | TexturedMesh:
     """Read the mesh back from a page written by :func:`write_viewer`.
 
     Positions come back within the quantisation error (see

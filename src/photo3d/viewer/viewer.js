@@ -5,8 +5,9 @@
  *   #photo3d-header (application/json): sizes, fields of view, quantisation bounds,
  *       section offsets, whether to animate
  *   #photo3d-data (application/octet-stream): base64 of one zlib stream: positions
- *       (3 planes of uint16), colours (RGB uint8), labels (uint8), faces (byte
- *       planes of uint32 deltas)
+ *       (3 planes of uint16), colours (RGB uint8) or texture coordinates (2 planes
+ *       of uint16) plus a JPEG texture (header.texture), labels (uint8), faces
+ *       (byte planes of uint32 deltas)
  *
  * Conventions (photo3d.camera): OpenCV axes (x right, y down, z forward); world = the
  * input camera's frame; a pose is a 4x4 camera-from-world matrix. Camera motion here
@@ -109,11 +110,23 @@
     const s = header.sections, n = header.vertices;
     const result = {
       position: new Uint16Array(raw, s.position[0], 3 * n),
-      color: new Uint8Array(raw, s.color[0], 3 * n),
       faces: decodeFaces(raw, s.faces[0], header.faces),
     };
+    const t3 = performance.now();
+    if (header.texture) {
+      result.uv = new Uint16Array(raw, s.uv[0], 2 * n);
+      const jpeg = new Blob([new Uint8Array(raw, s.texture[0], s.texture[1])],
+        { type: header.texture.mime });
+      // decoded without colour management: the texels are the file's sRGB values
+      result.texture = await createImageBitmap(jpeg, {
+        imageOrientation: 'none', premultiplyAlpha: 'none', colorSpaceConversion: 'none',
+      });
+    } else {
+      result.color = new Uint8Array(raw, s.color[0], 3 * n);
+    }
     Object.assign(viewer.timings, {
-      base64Ms: t1 - t0, inflateMs: t2 - t1, facesMs: performance.now() - t2,
+      base64Ms: t1 - t0, inflateMs: t2 - t1, facesMs: t3 - t2,
+      textureMs: performance.now() - t3,
     });
     return result;
   }
@@ -145,6 +158,19 @@
     in vec3 v_color;
     out vec4 o_color;
     void main() { o_color = vec4(v_color, 1.0); }`;
+  // Textured meshes: the colour attribute becomes texture coordinates (u, v, 0),
+  // origin at the texture's top-left (glTF), sampled bilinearly; sRGB values are
+  // used as they are, like the vertex colours above.
+  const TEXTURED_VERTEX_SHADER = VERTEX_SHADER
+    .replace('in vec3 a_color;', 'in vec2 a_uv;')
+    .replace('out vec3 v_color;', 'out vec2 v_uv;')
+    .replace('v_color = a_color;', 'v_uv = a_uv;');
+  const TEXTURED_FRAGMENT_SHADER = `#version 300 es
+    precision highp float;
+    uniform sampler2D u_texture;
+    in vec2 v_uv;
+    out vec4 o_color;
+    void main() { o_color = vec4(texture(u_texture, v_uv).rgb, 1.0); }`;
 
   function compile(type, source) {
     const shader = gl.createShader(type);
@@ -158,8 +184,11 @@
 
   function upload() {
     const program = gl.createProgram();
-    gl.attachShader(program, compile(gl.VERTEX_SHADER, VERTEX_SHADER));
-    gl.attachShader(program, compile(gl.FRAGMENT_SHADER, FRAGMENT_SHADER));
+    const textured = Boolean(mesh.texture);
+    gl.attachShader(program, compile(gl.VERTEX_SHADER,
+      textured ? TEXTURED_VERTEX_SHADER : VERTEX_SHADER));
+    gl.attachShader(program, compile(gl.FRAGMENT_SHADER,
+      textured ? TEXTURED_FRAGMENT_SHADER : FRAGMENT_SHADER));
     gl.linkProgram(program);
     if (!gl.getProgramParameter(program, gl.LINK_STATUS)) {
       throw new Error(gl.getProgramInfoLog(program));
@@ -180,8 +209,25 @@
     attribute('a_d', 1, gl.UNSIGNED_SHORT, 4 * n);
     const colors = gl.createBuffer();
     gl.bindBuffer(gl.ARRAY_BUFFER, colors);
-    gl.bufferData(gl.ARRAY_BUFFER, mesh.color, gl.STATIC_DRAW);
-    attribute('a_color', 3, gl.UNSIGNED_BYTE, 0);
+    if (textured) {
+      const uvs = new Uint16Array(2 * n); // planes (all u, then all v) -> pairs
+      for (let i = 0; i < n; i++) { uvs[2 * i] = mesh.uv[i]; uvs[2 * i + 1] = mesh.uv[n + i]; }
+      gl.bufferData(gl.ARRAY_BUFFER, uvs, gl.STATIC_DRAW);
+      attribute('a_uv', 2, gl.UNSIGNED_SHORT, 0);
+      const texture = gl.createTexture();
+      gl.activeTexture(gl.TEXTURE0);
+      gl.bindTexture(gl.TEXTURE_2D, texture);
+      gl.pixelStorei(gl.UNPACK_FLIP_Y_WEBGL, false);
+      gl.pixelStorei(gl.UNPACK_COLORSPACE_CONVERSION_WEBGL, gl.NONE);
+      gl.texImage2D(gl.TEXTURE_2D, 0, gl.RGB8, gl.RGB, gl.UNSIGNED_BYTE, mesh.texture);
+      gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MIN_FILTER, gl.LINEAR);
+      gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MAG_FILTER, gl.LINEAR);
+      gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_WRAP_S, gl.CLAMP_TO_EDGE);
+      gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_WRAP_T, gl.CLAMP_TO_EDGE);
+    } else {
+      gl.bufferData(gl.ARRAY_BUFFER, mesh.color, gl.STATIC_DRAW);
+      attribute('a_color', 3, gl.UNSIGNED_BYTE, 0);
+    }
     const indices = gl.createBuffer();
     gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, indices);
     gl.bufferData(gl.ELEMENT_ARRAY_BUFFER, mesh.faces, gl.STATIC_DRAW);
@@ -191,6 +237,7 @@
       uniform[name] = gl.getUniformLocation(program, name);
     }
     gl.useProgram(program);
+    if (textured) gl.uniform1i(gl.getUniformLocation(program, 'u_texture'), 0);
     const lo = header.position.lo, hi = header.position.hi;
     gl.uniform3fv(uniform.u_lo, lo);
     gl.uniform3fv(uniform.u_span, hi.map((h, i) => h - lo[i]));

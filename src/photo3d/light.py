@@ -1,0 +1,304 @@
+"""LDI -> light textured mesh: geometry to an error bound, colours in a texture.
+
+The full mesh (:func:`photo3d.mesh.build_mesh`) has one vertex per LDI pixel: 3
+million triangles for a 1024 px photo. The light mesh keeps its look from the
+camera positions a 3D photo is seen from, at a few percent of the triangles:
+
+* Charts: faces whose three pixels are all the first pixel at their lattice
+  position (the input view and its extrapolated border) use the photo itself as
+  texture, with the pixel positions (the camera projection) as texture
+  coordinates. Every other face is given a *layer image* that holds its three
+  pixels at their positions (:func:`photo3d._charts.claim_faces`), and a chart: its
+  layer image's ``block x block`` square of the lattice. Vertices are duplicated
+  per chart, so chart borders are texture seams.
+* Geometry: meshoptimizer's edge-collapse simplification (vertices stay where they
+  are; open borders and seams only collapse along themselves) on the points
+  ``(column, row, f * parallax / z)``: image position and parallax in pixels of the
+  input view, with an absolute error bound ``max_error``. So a flat area becomes a
+  few large triangles while depth edges, silhouettes and thin structures keep their
+  outline to within the bound, for any camera shift up to ``parallax``. Every vertex
+  is an LDI pixel, exactly where the full mesh has it.
+* Texture: one sRGB image, the photo on the lattice at the top left, the charts
+  (each with a one-texel gutter, holes filled from their neighbours) beside and
+  below it.
+
+A large triangle's texture is interpolated perspective-correctly (linear in 3D)
+while the photo maps onto it projectively: where depth varies across a triangle the
+two differ slightly; the benchmark (``benchmarks/bench_light.py``) measures the
+whole effect on rendered frames.
+
+Why meshoptimizer and not a height-field triangulation of our own: an
+error-bounded right-triangulated irregular network (Martini-style) over each layer
+was tried first; it is fast, but it cannot simplify a staircase outline, so every
+pixel on a depth edge, silhouette or layer seam stays a vertex: 650-760k triangles
+for the sample against meshoptimizer's 86k at the same 0.5 px bound.
+
+The result's faces list the input layer first, as the full mesh does.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from photo3d._charts import claim_faces, fill_charts
+from photo3d.errors import InputError
+from photo3d.ldi import LDI
+from photo3d.mesh import Mesh, build_mesh
+
+_GUTTER = 1
+LIGHT_ERROR = 0.5
+"""Default error bound of the light mesh, pixels (benchmarks/RESULTS.md: light mesh)."""
+
+
+@dataclass(frozen=True)
+class TexturedMesh:
+    """A textured triangle mesh in the input camera's frame.
+
+    Attributes:
+        vertices: ``(N, 3) float32`` OpenCV camera coordinates of the input view.
+        uv: ``(N, 2) float32`` texture coordinates in [0, 1], origin at the
+            texture's top-left corner (glTF's convention), ``(u, v) = ((col + 0.5) /
+            width, (row + 0.5) / height)`` of the texel holding the vertex colour.
+        texture: ``(T, U, 3) uint8`` sRGB.
+        labels: ``(N,) uint8`` the authors' vertex labels (see :class:`Mesh`).
+        faces: ``(M, 3) int32`` counter-clockwise seen from the camera; the first
+            ``n_input`` belong to the input layer.
+        n_input: number of input-layer faces at the start of ``faces``.
+        width, height: size in pixels of the input view.
+        hfov, vfov: field of view of the input view, radians.
+    """
+
+    vertices: np.ndarray
+    uv: np.ndarray
+    texture: np.ndarray
+    labels: np.ndarray
+    faces: np.ndarray
+    n_input: int
+    width: int
+    height: int
+    hfov: float
+    vfov: float
+
+    def checked(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """``(vertices, uv, labels, faces)`` in the documented dtypes, validated.
+
+        Example:
+            >>> m = TexturedMesh(np.zeros((3, 3)), np.zeros((3, 2)), np.zeros((1, 1, 3), np.uint8),
+            ...                  np.ones(3), np.array([[0, 1, 2]]), 1, 4, 4, 1.0, 1.0)
+            >>> [a.dtype.name for a in m.checked()]
+            ['float32', 'float32', 'uint8', 'int32']
+        """
+        vertices = np.asarray(self.vertices, np.float32)
+        arrays = (vertices, np.asarray(self.uv, np.float32),
+                  np.asarray(self.labels, np.uint8), np.asarray(self.faces, np.int32))
+        n = len(vertices)
+        shapes = ((n, 3), (n, 2), (n,), (len(arrays[3]), 3))
+        for name, array, shape in zip(("vertices", "uv", "labels", "faces"), arrays, shapes,
+                                      strict=True):
+            if array.shape != shape:
+                raise InputError(f"mesh.{name} has shape {array.shape}, expected {shape}")
+        if arrays[3].size and (arrays[3].min() < 0 or arrays[3].max() >= n):
+            raise InputError(f"mesh.faces has indices outside [0, {n})")
+        texture = np.asarray(self.texture)
+        if texture.ndim != 3 or texture.shape[2] != 3 or texture.dtype != np.uint8:
+            raise InputError(f"mesh.texture must be (T, U, 3) uint8, got {texture.shape} "
+                             f"{texture.dtype}")
+        return arrays
+
+    def sample(self) -> np.ndarray:
+        """``(N, 3) uint8`` the texture at each vertex (its colour as a vertex mesh).
+
+        Example:
+            >>> m = TexturedMesh(np.zeros((1, 3)), np.array([[0.75, 0.25]]),
+            ...                  np.arange(12, dtype=np.uint8).reshape(2, 2, 3), np.ones(1),
+            ...                  np.zeros((0, 3), int), 0, 4, 4, 1.0, 1.0)
+            >>> m.sample().tolist()
+            [[3, 4, 5]]
+        """
+        t = np.asarray(self.texture)
+        col = np.clip((self.uv[:, 0] * t.shape[1]).astype(np.int64), 0, t.shape[1] - 1)
+        row = np.clip((self.uv[:, 1] * t.shape[0]).astype(np.int64), 0, t.shape[0] - 1)
+        return t[row, col]
+
+
+def build_light_mesh(ldi: LDI, *, max_error: float = LIGHT_ERROR, parallax: float = 0.03,
+                     block: int = 64, full: Mesh | None = None) -> TexturedMesh:
+    """Simplify the LDI's mesh to an error bound, with its colours in a texture.
+
+    Args:
+        ldi: the layered depth image.
+        max_error: bound in pixels of the input view on how far the light surface
+            may move from the full mesh's (measured in image position and in
+            parallax for a camera shift of ``parallax``); 0 keeps every vertex.
+        parallax: the camera shift (depth units) the bound is stated for; the
+            authors' paths move by at most 0.05 forward and 0.015 sideways.
+        block: side of the hidden layers' texture charts, in pixels.
+        full: :func:`build_mesh` of ``ldi`` if already built (saves its time).
+
+    Returns:
+        :class:`TexturedMesh` whose vertices are LDI pixels (labels and positions
+        those of :func:`build_mesh`).
+
+    Raises:
+        ImportError: ``meshoptimizer`` is not installed.
+
+    Example:
+        >>> from photo3d.ldi import from_image
+        >>> ldi = from_image(np.full((40, 40, 3), 0.5, np.float32),
+        ...                  np.full((40, 40), 0.5, np.float32))
+        >>> light = build_light_mesh(ldi)
+        >>> len(light.faces) < len(build_mesh(ldi).faces) // 10
+        True
+    """
+    if not max_error >= 0 or not parallax > 0:
+        raise InputError(f"need max_error >= 0 and parallax > 0, got {max_error}, {parallax}")
+    if block < 2:
+        raise InputError(f"block must be >= 2, got {block}")
+    full = build_mesh(ldi) if full is None else full
+    rows, cols = ldi.lattice_shape
+    pos = ldi.positions()
+    rank = _ranks(pos, rows * cols)
+    n_layers = int(rank.max()) + 1 if ldi.size else 1
+    images = np.full((2 * n_layers + 16, rows * cols), -1, np.int32)
+    images[rank, pos] = np.arange(ldi.size)
+    faces = full.faces.astype(np.int64)
+    face_layer = np.zeros(len(faces), np.int64)
+    hidden = rank[faces].max(axis=1) > 0
+    face_layer[hidden], n_layers = claim_faces(faces[hidden], pos, rank, images, n_layers)
+    return _textured(ldi, full, faces, face_layer, images[:n_layers], block,
+                     max_error=float(max_error), parallax=float(parallax))
+
+
+def _simplify(points: np.ndarray, faces: np.ndarray, max_error: float) -> np.ndarray:
+    """``(F', 3) int64`` faces of ``points (N, 3)`` simplified by edge collapses
+    (meshoptimizer: vertices keep their places; open borders and texture seams,
+    i.e. vertices sharing a position, collapse only along themselves)."""
+    try:
+        import meshoptimizer
+    except ImportError as err:  # pragma: no cover - core dependency
+        raise ImportError("the light mesh needs meshoptimizer: pip install meshoptimizer") from err
+    if max_error <= 0 or not len(faces):
+        return faces
+    indices = np.ascontiguousarray(faces.ravel(), np.uint32)
+    out = np.empty_like(indices)
+    n = meshoptimizer.simplify(out, indices, np.ascontiguousarray(points, np.float32),
+                               target_index_count=0, target_error=max_error,
+                               options=meshoptimizer.SIMPLIFY_ERROR_ABSOLUTE)
+    return out[:n].reshape(-1, 3).astype(np.int64)
+
+
+def _ranks(pos: np.ndarray, n_positions: int) -> np.ndarray:
+    """``(N,) int64`` index of each pixel among the pixels at its position (LDI order)."""
+    order = np.argsort(pos, kind="stable")
+    starts = np.zeros(n_positions + 1, np.int64)
+    np.cumsum(np.bincount(pos, minlength=n_positions), out=starts[1:])
+    rank = np.empty(len(pos), np.int64)
+    rank[order] = np.arange(len(pos)) - np.repeat(starts[:-1], np.diff(starts))
+    return rank
+
+
+def _textured(ldi: LDI, full: Mesh, faces: np.ndarray, face_layer: np.ndarray,
+              images: np.ndarray, block: int, *, max_error: float,
+              parallax: float) -> TexturedMesh:
+    """Charts, per-chart vertices, simplification and texture of ``faces``."""
+    rows, cols = ldi.lattice_shape
+    order = np.argsort(face_layer > 0, kind="stable")  # input layer first
+    faces, face_layer = faces[order], face_layer[order]
+    pos = ldi.positions()
+    py, px = np.divmod(pos, cols)
+    # chart of each hidden face: its layer and the block holding its centroid
+    hidden = face_layer > 0
+    cy = py[faces[hidden]].sum(axis=1) // 3 // block
+    cx = px[faces[hidden]].sum(axis=1) // 3 // block
+    nbx = -(-cols // block)
+    key = (face_layer[hidden] * (-(-rows // block)) + cy) * nbx + cx
+    charts, chart_of = np.unique(key, return_inverse=True)
+    chart = np.full(len(faces), -1, np.int64)
+    chart[hidden] = chart_of
+    slot = block + 1 + 2 * _GUTTER
+    slot_y, slot_x, tex_h, tex_w = _pack(len(charts), slot, rows, cols)
+    # vertices: one per (pixel, chart)
+    vkey = faces * (len(charts) + 1) + (chart[:, None] + 1)
+    uniq, inverse = np.unique(vkey.ravel(), return_inverse=True)
+    pixel, vchart = np.divmod(uniq, len(charts) + 1)
+    k = ldi.intrinsics
+    points = np.stack([px[pixel], py[pixel],
+                       max(k.fx, k.fy) * parallax / full.vertices[pixel, 2]], 1)
+    faces = _simplify(points, inverse.reshape(-1, 3), max_error)
+    input_face = vchart[faces[:, 0]] == 0
+    faces = faces[np.argsort(~input_face, kind="stable")]  # input layer first
+    n_input = int(np.count_nonzero(input_face))
+    used = np.zeros(len(pixel), bool)
+    used[faces] = True
+    renumber = np.cumsum(used) - 1
+    faces = renumber[faces]
+    pixel, vchart = pixel[used], vchart[used] - 1
+    tx = px[pixel].astype(np.float64)
+    ty = py[pixel].astype(np.float64)
+    hid = vchart >= 0
+    c_layer, c_rest = np.divmod(charts, (-(-rows // block)) * nbx)
+    c_by, c_bx = np.divmod(c_rest, nbx)
+    origin_y = slot_y + _GUTTER - c_by * block  # texel row = lattice row + origin
+    origin_x = slot_x + _GUTTER - c_bx * block
+    tx[hid] += origin_x[vchart[hid]]
+    ty[hid] += origin_y[vchart[hid]]
+    uv = np.stack([(tx + 0.5) / tex_w, (ty + 0.5) / tex_h], 1).astype(np.float32)
+    texture = np.zeros((tex_h, tex_w, 3), np.uint8)
+    colors = full.colors
+    texture[:rows, :cols] = _filled(images[0], colors, rows, cols)
+    if len(charts):
+        g = np.arange(-_GUTTER, block + 1 + _GUTTER)
+        ly = np.clip(c_by[:, None] * block + g[None, :], 0, rows - 1)  # (C, slot)
+        lx = np.clip(c_bx[:, None] * block + g[None, :], 0, cols - 1)
+        flat = ly[:, :, None] * cols + lx[:, None, :]  # (C, slot, slot)
+        src = images[c_layer[:, None, None], flat]
+        texels = fill_charts(src, colors)
+        ty_ = slot_y[:, None, None] + np.arange(slot)[None, :, None]
+        tx_ = slot_x[:, None, None] + np.arange(slot)[None, None, :]
+        texture[ty_, tx_] = texels
+    return TexturedMesh(
+        vertices=full.vertices[pixel], uv=uv, texture=texture, labels=full.labels[pixel],
+        faces=faces.astype(np.int32), n_input=n_input, width=full.width,
+        height=full.height, hfov=full.hfov, vfov=full.vfov,
+    )
+
+
+def _pack(n: int, slot: int, rows: int, cols: int) -> tuple[np.ndarray, np.ndarray, int, int]:
+    """Places of ``n`` square slots beside and below a ``rows x cols`` block at the
+    top-left, in a texture about as wide as it is high.
+
+    Returns:
+        ``(slot_y (n,), slot_x (n,))`` top-left texels, and the texture height, width.
+
+    Example:
+        >>> y, x, h, w = _pack(3, 10, 20, 20)
+        >>> (h, w), y.tolist(), x.tolist()
+        ((30, 30), [0, 10, 20], [20, 20, 0])
+    """
+    side = int(np.ceil(np.sqrt(rows * cols + n * slot * slot)))
+    width = max(cols + slot * max(0, -(-(side - cols) // slot)), slot)
+    right = (width - cols) // slot  # slot columns beside the block
+    beside = right * (rows // slot)
+    index = np.arange(n)
+    first = index < beside
+    r, c = np.divmod(index, max(right, 1))
+    below_r, below_c = np.divmod(index - beside, width // slot)
+    slot_y = np.where(first, r * slot, rows + below_r * slot)
+    slot_x = np.where(first, cols + c * slot, below_c * slot)
+    height = max(rows, int(slot_y.max()) + slot if n else rows)
+    return slot_y.astype(np.int64), slot_x.astype(np.int64), height, width
+
+
+def _filled(image: np.ndarray, colors: np.ndarray, rows: int, cols: int) -> np.ndarray:
+    """``(rows, cols, 3) uint8`` colours of a layer image, holes filled smoothly."""
+    from photo3d.render.renderer import fill_holes
+
+    known = image >= 0
+    out = np.zeros((rows * cols, 3), np.float32)
+    out[known] = colors[image[known]]
+    if known.all():
+        return out.reshape(rows, cols, 3).astype(np.uint8)
+    filled = fill_holes(out.reshape(rows, cols, 3), known.reshape(rows, cols).astype(np.float32))
+    return np.clip(np.rint(filled), 0, 255).astype(np.uint8)

@@ -1,0 +1,106 @@
+"""The light textured mesh: error bound, texture, exact vertices, and its renders."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+from conftest import exact_config, texture
+
+import photo3d
+from photo3d.camera import Camera, Intrinsics, unproject
+from photo3d.errors import InputError
+from photo3d.ldi import from_image
+from photo3d.light import TexturedMesh, build_light_mesh
+from photo3d.mesh import build_mesh
+from photo3d.render.renderer import Renderer, RenderSettings
+
+
+def psnr(a: np.ndarray, b: np.ndarray) -> float:
+    return float(10 * np.log10(1.0 / max(np.mean((a - b) ** 2), 1e-12)))
+
+
+def box_photo(border: int = 8) -> photo3d.Photo3D:
+    """80x64 textured background (disparity 1) with a box in front (disparity 2.5)."""
+    disp = np.ones((64, 80), np.float32)
+    disp[16:44, 24:56] = 2.5
+    return photo3d.make(texture(64, 80, seed=5), depth=disp, config=exact_config(border=border))
+
+
+def render(mesh, position, size=(80, 64), ssaa=2) -> np.ndarray:
+    camera = Camera.translated(Intrinsics.default(*size), position)
+    with Renderer(mesh, RenderSettings(ssaa=ssaa, backend="numba")) as renderer:
+        return renderer.render(camera).color
+
+
+def test_a_plane_becomes_two_triangles_with_the_photo_as_texture():
+    image = texture(48, 64, seed=1)
+    ldi = from_image(image, np.full((48, 64), 0.5, np.float32))
+    light = build_light_mesh(ldi)
+    assert len(light.faces) <= 4 and len(build_mesh(ldi).faces) == 2 * 47 * 63
+    # the photo itself is the texture of the input layer, texel for pixel
+    np.testing.assert_array_equal(light.texture[:48, :64], np.rint(image * 255).astype(np.uint8))
+    # the input view shows the photo (bilinear texture at the pixel centres); the
+    # last column and row lie exactly on the right / bottom edge, which the fill rule
+    # leaves to the (absent) neighbour, so they are hole-filled
+    got = render(light, (0.0, 0.0, 0.0), size=(64, 48), ssaa=1)
+    assert np.abs(got - image)[:-1, :-1].max() < 0.5 / 255 + 1e-6
+
+
+def test_vertices_are_ldi_pixels_and_labels_follow_them():
+    photo = box_photo()
+    ldi, light = photo.ldi, photo.light_mesh()
+    points = unproject(ldi.x, ldi.y, ldi.depth(), ldi.intrinsics)
+    index = {tuple(p): i for i, p in enumerate(points.tolist())}
+    found = [index.get(tuple(p)) for p in light.vertices.tolist()]
+    assert None not in found
+    np.testing.assert_array_equal(light.labels, ldi.label[found])
+    assert (light.uv >= 0).all() and (light.uv <= 1).all()
+
+
+def test_light_mesh_is_small_and_renders_like_the_full_mesh():
+    photo = box_photo()
+    full, light = photo.mesh(), photo.light_mesh()
+    assert len(light.faces) < len(full.faces) / 3
+    for position in [(0.0, 0.0, 0.0), (0.03, -0.02, 0.0), (-0.02, 0.0, 0.05)]:
+        a, b = render(full, position), render(light, position)
+        assert psnr(a, b) > 35, position
+    # the test can fail: the same mesh with its texture shifted by 3 texels is far off
+    shifted = dataclasses.replace(light, texture=np.roll(light.texture, 3, axis=1))
+    assert psnr(render(full, (0.03, -0.02, 0.0)), render(shifted, (0.03, -0.02, 0.0))) < 30
+
+
+def test_error_bound_controls_the_triangle_count():
+    photo = box_photo()
+    full = photo.mesh()
+    exact = build_light_mesh(photo.ldi, max_error=0.0, full=full)
+    assert len(exact.faces) == len(full.faces)
+    coarse = build_light_mesh(photo.ldi, max_error=2.0, full=full)
+    assert len(coarse.faces) < len(build_light_mesh(photo.ldi, max_error=0.1, full=full).faces)
+
+
+def test_silhouettes_keep_their_pixel_outline():
+    """The box's outline seen from (near) the input camera is exactly the full mesh's.
+
+    (Slightly off the input camera: exactly there, pixel centres lie on the outline,
+    where the full mesh has a vertex on every one and the light mesh only at corners,
+    and the rasterizer's fill rule treats the two differently.)"""
+    photo = box_photo(border=0)
+    full, light = photo.mesh(), photo.light_mesh(max_error=4.0)
+    k = photo.ldi.intrinsics
+    settings = RenderSettings(ssaa=1, fill_holes=False, backend="numba")
+    with Renderer(full, settings) as rf, Renderer(light, settings) as rl:
+        camera = Camera.translated(k, (0.002, 0.0013, 0.0))
+        a, b = rf.render(camera).depth, rl.render(camera).depth
+    np.testing.assert_array_equal(a < 1.0 / 2.4 * 3, b < 1.0 / 2.4 * 3)  # box pixels
+
+
+def test_bad_arguments_are_one_line_errors():
+    ldi = from_image(np.zeros((4, 4, 3), np.float32), np.ones((4, 4), np.float32))
+    with pytest.raises(InputError, match="max_error"):
+        build_light_mesh(ldi, max_error=-1.0)
+    mesh = TexturedMesh(np.zeros((3, 3)), np.zeros((2, 2)), np.zeros((2, 2, 3), np.uint8),
+                        np.ones(3), np.array([[0, 1, 2]]), 1, 4, 4, 1.0, 1.0)
+    with pytest.raises(InputError, match="uv"):
+        mesh.checked()
