@@ -223,12 +223,7 @@ def read_textured_glb(path: PathLike) -> TexturedMesh:
     """
     from photo3d.light import TexturedMesh
 
-    try:
-        with open(path, "rb") as file:
-            data = file.read()
-    except OSError as err:
-        raise InputError(f"cannot read glTF {path}: {err.strerror or err}") from err
-    document, binary = _split_chunks(data, path)
+    document, binary = _read_chunks(path)
     try:
         primitive = document["meshes"][0]["primitives"][0]
         attributes = primitive["attributes"]
@@ -284,12 +279,7 @@ if TYPE_CHECKING:
         >>> back.colors.tolist() == colors.tolist(), back.labels.tolist()
         (True, [4, 4, 4])
     """
-    try:
-        with open(path, "rb") as file:
-            data = file.read()
-    except OSError as err:
-        raise InputError(f"cannot read glTF {path}: {err.strerror or err}") from err
-    document, binary = _split_chunks(data, path)
+    document, binary = _read_chunks(path)
     try:
         primitive = document["meshes"][0]["primitives"][0]
         if primitive.get("mode", _TRIANGLES) != _TRIANGLES or "indices" not in primitive:
@@ -338,8 +328,13 @@ def _view_extras(mesh: Mesh) -> dict:
     }
 
 
-def _split_chunks(data: bytes, path: PathLike) -> tuple[dict, bytes]:
-    """The parsed JSON chunk and the BIN chunk (empty when absent) of a GLB file."""
+def _read_chunks(path: PathLike) -> tuple[dict, bytes]:
+    """The parsed JSON chunk and the BIN chunk (empty when absent) of the GLB file ``path``."""
+    try:
+        with open(path, "rb") as file:
+            data = file.read()
+    except OSError as err:
+        raise InputError(f"cannot read glTF {path}: {err.strerror or err}") from err
     if len(data) < 20 or struct.unpack_from("<II", data) != (_MAGIC, 2):
         raise InputError(f"{path} is not a binary glTF 2.0 file")
     length, kind = struct.unpack_from("<II", data, 12)
