@@ -21,6 +21,7 @@ from photo3d.config import Config
 from photo3d.errors import InputError
 from photo3d.io.images import write_image
 from photo3d.ldi import load_npz
+from photo3d.output import stage_photo
 
 FAST = ["--size", "64", "--no-video", "--no-glb", "--no-viewer"]
 
@@ -159,14 +160,16 @@ def test_out_dir_that_is_a_file_or_bad_options_are_refused_before_any_work(photo
     assert not (photos / "o").exists()
 
 
-def test_discard_partial_removes_only_temporary_siblings(tmp_path):
+def test_discard_partial_removes_only_what_a_killed_writer_staged(tmp_path):
     out = tmp_path / "a"
-    (tmp_path / ".a.x1y2z3w4").mkdir()
-    (tmp_path / ".a.old").mkdir()
-    (tmp_path / ".ab.x1y2z3w4").mkdir()
-    out.mkdir()
+    staged = stage_photo(out, overwrite=False).path  # a writer killed before its commit
+    assert staged.parent == tmp_path and staged.is_dir()
+    for name in (".a.old", ".ab.1a2b3c4d.tmp", ".a.1a2b3c4d", ".a.notahex!.tmp", "a"):
+        (tmp_path / name).mkdir()
+    (tmp_path / ".a.0f0f0f0f.tmp").write_text("a file, not a staged folder")
     discard_partial(out)
-    assert sorted(p.name for p in tmp_path.iterdir()) == [".a.old", ".ab.x1y2z3w4", "a"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == [
+        ".a.0f0f0f0f.tmp", ".a.1a2b3c4d", ".a.notahex!.tmp", ".a.old", ".ab.1a2b3c4d.tmp", "a"]
 
 
 def _wait_for(predicate, timeout: float) -> bool:

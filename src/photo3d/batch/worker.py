@@ -7,15 +7,16 @@ output folders exactly as ``photo3d make`` does. A photo that fails becomes a
 ``failed`` :class:`PhotoResult` with a one-line message; it never stops the
 others.
 
-:func:`write_output`, :func:`is_complete` and :func:`discard_partial` are the only
-places that know how an output folder is written (atomically, through a hidden
-temporary sibling folder that is renamed into place at the end).
+:func:`write_output` and :func:`is_complete` say what a finished output folder is;
+how it is written (atomically, through a hidden temporary sibling folder staged
+before the work and renamed into place at the end) is
+:func:`photo3d.output.stage_photo`'s business, and :func:`discard_partial` removes
+what a killed worker left of it.
 """
 
 from __future__ import annotations
 
 import os
-import shutil
 import socket
 import time
 from pathlib import Path
@@ -28,10 +29,11 @@ from photo3d.output import LDI_FILE
 _MARKERS = (LDI_FILE, "config.json")
 
 
-def write_output(photo, out: Path, options: MakeOptions) -> Path:
+def write_output(photo, out, options: MakeOptions) -> Path:
     """Write one photo's output folder atomically (what ``photo3d make`` writes).
 
-    Nothing appears at ``out`` until everything (meshes, viewer, videos) is written.
+    ``out`` is a folder or the :class:`~photo3d.io.safeout.Staging` of one. Nothing
+    appears at the output until everything (meshes, viewer, videos) is written.
     """
     return photo.save(out, overwrite=options.overwrite, ply=options.ply, glb=options.glb,
                       viewer=options.viewer, videos=list(options.videos),
@@ -53,16 +55,12 @@ def is_complete(out: Path) -> bool:
 def discard_partial(out: Path) -> None:
     """Remove what an interrupted :func:`write_output` of ``out`` may have left behind.
 
-    (The temporary sibling folders ``.NAME.XXXXXXXX`` of a writer that was killed;
-    only call this when no other process is writing ``out``.)
+    (The temporary sibling folders ``.NAME.XXXXXXXX.tmp`` of a writer that was
+    killed; only call this when no other process is writing ``out``.)
     """
-    out = Path(out)
-    if not out.parent.is_dir():
-        return
-    for tmp in out.parent.glob(f".{out.name}.*"):
-        suffix = tmp.name[len(out.name) + 2:]
-        if tmp.is_dir() and not tmp.is_symlink() and len(suffix) == 8 and "." not in suffix:
-            shutil.rmtree(tmp, ignore_errors=True)
+    from photo3d.io.safeout import remove_leftovers
+
+    remove_leftovers(out)
 
 
 def one_line(err: BaseException) -> str:
@@ -119,12 +117,13 @@ class PhotoMaker:
         try:
             if is_complete(out) and not self.options.overwrite:
                 return PhotoResult(job.name, "skipped", None, 0.0, str(out))
-            from photo3d.output import check_output
+            from photo3d.output import stage_photo
 
-            check_output(out, overwrite=self.options.overwrite)
-            est = self._depth(job)
-            depth, warnings = est.source, est.warnings
-            self._make(job, est, out)
+            inputs = [job.image] + ([job.depth] if job.depth is not None else [])
+            with stage_photo(out, overwrite=self.options.overwrite, inputs=inputs) as staging:
+                est = self._depth(job)
+                depth, warnings = est.source, est.warnings
+                self._make(job, est, staging)
         except Exception as err:  # recorded in the manifest, the batch goes on
             return PhotoResult(job.name, "failed", one_line(err), time.perf_counter() - start,
                                str(out), depth, warnings, self.worker)
@@ -138,11 +137,11 @@ class PhotoMaker:
             return resolve_depth(job.image, depth=job.depth, kind=self.options.depth_kind)
         return resolve_depth(job.image, fallback_model=self.options.depth_model or "default")
 
-    def _make(self, job: PhotoJob, est, out: Path) -> None:
+    def _make(self, job: PhotoJob, est, staging) -> None:
         from photo3d.depth.sources import load_photo
         from photo3d.pipeline import make
 
         image = est.image if est.image is not None else load_photo(job.image)
         config = self.options.config.with_(depth_kind=est.kind)
         photo = make(image, depth=est.depth, config=config, inpainter=self.inpainter)
-        write_output(photo, out, self.options)
+        write_output(photo, staging, self.options)

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import argparse
 import os
-import signal
 import sys
 from pathlib import Path
 
@@ -98,8 +97,7 @@ def run_batch_command(args: argparse.Namespace) -> int:
     check_out_dir(args.out)
     _prefetch(jobs, args.out, options, args.quiet)
     bar = PhotoBar(len(jobs), quiet=args.quiet)
-    previous = {s: signal.signal(s, _interrupt) for s in (signal.SIGTERM, signal.SIGHUP)}
-    try:
+    try:  # SIGTERM and SIGHUP arrive as KeyboardInterrupt too (photo3d.io.signals, main)
         summary = run_batch(jobs, args.out, options, engine=args.engine, workers=args.workers,
                             ray_address=args.ray_address, progress=bar)
     except KeyboardInterrupt:
@@ -113,14 +111,9 @@ def run_batch_command(args: argparse.Namespace) -> int:
         os._exit(130)
     finally:
         bar.close()
-        for s, handler in previous.items():
-            signal.signal(s, handler)
     if not args.quiet:
         rate = (summary.ok + summary.failed) / max(summary.seconds, 1e-9)
         print(f"batch: {summary.ok} ok, {summary.failed} failed, {summary.skipped} skipped "
               f"in {summary.seconds:.1f}s ({rate:.2f} photos/s); manifest {summary.manifest}")
     return 1 if summary.failed else 0
 
-
-def _interrupt(signum, frame) -> None:
-    raise KeyboardInterrupt

@@ -35,7 +35,6 @@ Example:
 from __future__ import annotations
 
 import atexit
-import ctypes
 import errno
 import fnmatch
 import os
@@ -45,10 +44,10 @@ from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
 
 from photo3d.errors import OutputError
+from photo3d.io.rename import claim, identity, swap
 
 PathLike = str | os.PathLike[str]
 
-_RENAME_NOREPLACE, _RENAME_EXCHANGE, _AT_FDCWD = 1, 2, -100
 _LIVE: set[Path] = set()
 """Temporary folders not yet committed or discarded (removed at exit as a last resort)."""
 
@@ -118,15 +117,15 @@ class Staging:
                 is removed and nothing already there is touched.
         """
         try:
-            now = _identity(self.final)
+            now = identity(self.final)
             if now != self._seen and not (self._seen is None and _is_empty_dir(self.final)):
                 raise OutputError(f"output {self.out} changed while photo3d was working "
                                   "(another run?); this run's result was discarded")
             if now is None:
-                _claim(self.path, self.final, self.out)
+                claim(self.path, self.final, self.out)
             elif _is_empty_dir(self.final):
                 os.rmdir(self.final)
-                _claim(self.path, self.final, self.out)
+                claim(self.path, self.final, self.out)
             else:
                 foreign = self._owned(self.final) if self._owned else ["is not empty"]
                 if not self._overwrite:
@@ -134,7 +133,7 @@ class Staging:
                 if foreign:
                     raise OutputError(f"output {self.out} changed meanwhile and "
                                       f"{' and '.join(foreign)}; nothing replaced")
-                old = _swap(self.path, self.final, self.out, expected=now)
+                old = swap(self.path, self.final, self.out, expected=now)
                 shutil.rmtree(old, ignore_errors=True)  # the replaced photo3d folder
         except OSError as err:
             raise OutputError(f"cannot move the result to {self.out}: "
@@ -209,7 +208,7 @@ def _stage(out: Path, *, overwrite, inputs, owned, need_bytes) -> Staging:
         source = Path(os.path.realpath(given))
         if final == source or final in source.parents:
             raise OutputError(f"output {out} holds the input {given}; choose a new folder")
-    seen = _identity(final)
+    seen = identity(final)
     if seen is not None:
         _check_existing(final, out, overwrite=overwrite, owned=owned)
     parent = final.parent
@@ -253,15 +252,6 @@ def _check_existing(final: Path, out: Path, *, overwrite: bool,
     if foreign:
         raise OutputError(f"--overwrite only replaces a folder photo3d wrote, but {out} "
                           f"{' and '.join(foreign)}: choose a new folder")
-
-
-def _identity(path: Path) -> tuple | None:
-    """``(device, inode)`` of ``path`` (not following a final link), or None if absent."""
-    try:
-        st = os.lstat(path)
-    except (FileNotFoundError, NotADirectoryError):
-        return None
-    return st.st_dev, st.st_ino
 
 
 def _is_empty_dir(path: Path) -> bool:
@@ -315,51 +305,37 @@ def _make_temp(parent: Path, name: str) -> Path:
     raise OSError(errno.EEXIST, "no free temporary name")
 
 
-def _renameat2(src: Path, dst: Path, flags: int) -> bool:
-    """Linux ``renameat2``; False when the system or file system lacks it."""
+def remove_leftovers(out: PathLike) -> list[Path]:
+    """Remove the temporary folders a killed writer of ``out`` left beside it.
+
+    Only folders named as :func:`stage_output` names them (``.NAME.XXXXXXXX.tmp``,
+    eight hex digits) are removed; call this only when no other process is writing
+    ``out``. Returns what was removed.
+
+    Example:
+        >>> import pathlib, tempfile
+        >>> out = pathlib.Path(tempfile.mkdtemp()) / "result"
+        >>> staging = stage_output(out)  # its writer is "killed": never committed
+        >>> [p == staging.path for p in remove_leftovers(out)], staging.path.exists()
+        ([True], False)
+    """
+    final = Path(os.path.realpath(out))
+    stem = final.name[:64]
+    removed = []
     try:
-        fn = ctypes.CDLL(None, use_errno=True).renameat2
-    except (AttributeError, OSError):
-        return False
-    if fn(_AT_FDCWD, os.fsencode(src), _AT_FDCWD, os.fsencode(dst), flags) == 0:
-        return True
-    code = ctypes.get_errno()
-    if code in (errno.ENOSYS, errno.EINVAL, errno.ENOTSUP):
-        return False
-    raise OSError(code, os.strerror(code), str(dst))
-
-
-def _claim(tmp: Path, final: Path, out: Path) -> None:
-    """Rename ``tmp`` to ``final``, failing if ``final`` exists (atomic on Linux)."""
-    try:
-        if _renameat2(tmp, final, _RENAME_NOREPLACE):
-            return
-        if final.exists() or final.is_symlink():
-            raise FileExistsError(errno.EEXIST, "exists", str(final))
-        os.rename(tmp, final)  # fallback: only an empty folder could be replaced here
-    except (FileExistsError, OSError) as err:
-        if isinstance(err, FileExistsError) or err.errno in (errno.EEXIST, errno.ENOTEMPTY):
-            raise OutputError(f"output {out} was written by another run meanwhile; "
-                              "this run's result was discarded") from None
-        raise
-
-
-def _swap(tmp: Path, final: Path, out: Path, *, expected: tuple | None) -> Path:
-    """Put ``tmp`` in place of ``final`` (atomically on Linux); return where the old one is."""
-    if _renameat2(tmp, final, _RENAME_EXCHANGE):
-        if _identity(tmp) != expected:  # someone replaced it between check and swap
-            _renameat2(tmp, final, _RENAME_EXCHANGE)
-            raise OutputError(f"output {out} changed while photo3d was working "
-                              "(another run?); this run's result was discarded")
-        return tmp
-    old = final.with_name(f".{final.name[:64]}.{secrets.token_hex(4)}.old")
-    os.rename(final, old)
-    try:
-        _claim(tmp, final, out)
-    except BaseException:
-        os.rename(old, final)
-        raise
-    return old
+        entries = list(final.parent.iterdir())
+    except OSError:
+        return removed
+    for tmp in entries:
+        name = tmp.name
+        middle = name[len(stem) + 2:-4]
+        if (name.startswith(f".{stem}.") and name.endswith(".tmp") and len(middle) == 8
+                and all(c in "0123456789abcdef" for c in middle)
+                and tmp.is_dir() and not tmp.is_symlink()):
+            shutil.rmtree(tmp, ignore_errors=True)
+            _LIVE.discard(tmp)
+            removed.append(tmp)
+    return removed
 
 
 def check_writable(file: PathLike) -> Path:
