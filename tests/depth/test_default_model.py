@@ -16,7 +16,7 @@ from test_models import tiny_depth_anything
 
 from photo3d.cli import main
 from photo3d.depth import models
-from photo3d.depth.models import DEFAULT_MODEL, default_depth_model, fetch_model, needs_download
+from photo3d.depth.fetch import DEFAULT_MODEL, default_depth_model, fetch_model, needs_download
 from photo3d.depth.sources import resolve_depth
 from photo3d.errors import InputError
 from photo3d.io.images import write_image

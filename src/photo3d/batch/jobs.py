@@ -48,7 +48,7 @@ class MakeOptions:
         depth_kind: what the depth files hold (None: disparity).
         depth_model: the monocular model for photos with neither a depth file nor an
             embedded map (None: the default, see
-            :func:`photo3d.depth.sources.default_depth_model`).
+            :func:`photo3d.depth.fetch.default_depth_model`).
         ply: ``"binary"``, ``"ascii"`` or None.
         glb: write ``mesh.glb``.
         viewer: write ``viewer.html``.

@@ -69,7 +69,7 @@ def _prefetch(jobs, out: Path, options, quiet: bool) -> None:
     """Download the depth model once, here, before the workers may need it (for photos
     to make that have no depth map; those with an embedded map will not use it)."""
     from photo3d.batch import is_complete
-    from photo3d.depth.models import default_depth_model, fetch_model, needs_download
+    from photo3d.depth.fetch import default_depth_model, fetch_model, needs_download
     from photo3d.errors import InputError
 
     model = options.depth_model or default_depth_model()

@@ -100,7 +100,7 @@ def resolve_depth(
             the model's own kind for ``depth_model`` (given, it overrides it);
             ignored for stereo (always disparity) and embedded maps (decoded exactly).
         fallback_model: the monocular model for a photo with no source and no
-            embedded map: ``"default"`` (:func:`photo3d.depth.models.default_depth_model`,
+            embedded map: ``"default"`` (:func:`photo3d.depth.fetch.default_depth_model`,
             Depth Anything V2 Small), another model, or None (refuse such photos).
         download_bar: a ``tqdm`` class showing the download of a hub model that is
             not cached yet (default: nothing shown).
@@ -165,7 +165,8 @@ def resolve_depth(
 
 def _model(photo, model, kind, download_bar):
     """Depth from a monocular network, downloaded first if it is a hub model not cached."""
-    from photo3d.depth.models import fetch_model, run_model
+    from photo3d.depth.fetch import fetch_model
+    from photo3d.depth.models import run_model
 
     fetch_model(model, bar=download_bar)
     out = run_model(photo, model, kind=kind)
@@ -184,7 +185,7 @@ def _fallback(image, photo, model, kind, download_bar):
     if model is None:
         raise InputError(f"no depth given: {ways}; {what} has no embedded depth map")
     if model == "default":
-        from photo3d.depth.models import default_depth_model
+        from photo3d.depth.fetch import default_depth_model
 
         model = default_depth_model()
     try:

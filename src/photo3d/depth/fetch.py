@@ -1,0 +1,118 @@
+"""Monocular depth models from the Hugging Face hub: which one, and downloading it once.
+
+:func:`default_depth_model` names the model used for photos without depth,
+:func:`needs_download` says whether its weights are cached and :func:`fetch_model`
+downloads them with a clear one-line error when offline. Re-exported by
+:mod:`photo3d.depth.models`.
+"""
+
+from __future__ import annotations
+
+import os
+import socket
+from pathlib import Path
+
+from photo3d.errors import InputError
+
+DEFAULT_MODEL = "depth-anything/Depth-Anything-V2-Small-hf"
+"""The monocular model for photos that come with no depth (Apache-2.0, 25 M parameters)."""
+
+
+def default_depth_model() -> str:
+    """The model used when a photo has no depth: ``$PHOTO3D_DEPTH_MODEL`` or :data:`DEFAULT_MODEL`.
+
+    Example:
+        >>> import os
+        >>> default_depth_model() == os.environ.get("PHOTO3D_DEPTH_MODEL", DEFAULT_MODEL)
+        True
+    """
+    return os.environ.get("PHOTO3D_DEPTH_MODEL") or DEFAULT_MODEL
+
+
+def _is_hub_name(name: str) -> bool:
+    return not name.lower().endswith(".onnx") and not Path(name).exists()
+
+
+def _weights_cached(name: str) -> bool:
+    from huggingface_hub import try_to_load_from_cache
+
+    if not isinstance(try_to_load_from_cache(name, "config.json"), str):
+        return False
+    return any(isinstance(try_to_load_from_cache(name, f), str)
+               for f in ("model.safetensors", "pytorch_model.bin"))
+
+
+def needs_download(model: str | Path) -> bool:
+    """True for a hub model whose weights are not in the Hugging Face cache yet.
+
+    Example:
+        >>> needs_download("models/depth.onnx")
+        False
+    """
+    name = str(model)
+    if not _is_hub_name(name):
+        return False
+    try:
+        return not _weights_cached(name)
+    except ImportError:
+        return False  # no huggingface_hub: loading will say which extra is missing
+
+
+def fetch_model(model: str | Path, *, bar=None) -> None:
+    """Download a hub model into the Hugging Face cache, once (nothing if cached or local).
+
+    Args:
+        model: a hub name (local folders and ``.onnx`` files are left alone).
+        bar: a ``tqdm`` class for the download's byte progress (default: none shown;
+            the library never prints).
+
+    Raises:
+        InputError: transformers missing, offline (``HF_HUB_OFFLINE`` set or the hub
+            not reachable) or the download failed; one line.
+
+    Example:
+        >>> fetch_model("models/depth.onnx")  # nothing to download
+    """
+    name = str(model)
+    if not needs_download(name):
+        return
+    try:
+        import transformers  # noqa: F401
+        from huggingface_hub import constants, hf_hub_download
+        from huggingface_hub.utils import EntryNotFoundError
+    except ImportError as err:
+        from photo3d.depth.models import _missing
+
+        raise _missing("transformers") from err
+    if constants.HF_HUB_OFFLINE:
+        raise InputError(f"depth model {name} is not in the Hugging Face cache and "
+                         "HF_HUB_OFFLINE is set")
+    host = constants.ENDPOINT.split("://", 1)[-1].split("/", 1)[0]
+    try:  # the hub client retries for ~25 s when offline: find out at once
+        socket.create_connection((host.split(":")[0], 443), timeout=5).close()
+    except OSError:
+        raise InputError(f"cannot download depth model {name}: {host} is not reachable "
+                         "(offline?)") from None
+    quiet = _quiet_bar() if bar is None else bar
+    try:
+        for filename in ("config.json", "preprocessor_config.json"):
+            hf_hub_download(name, filename, tqdm_class=quiet)
+        try:
+            hf_hub_download(name, "model.safetensors", tqdm_class=quiet)
+        except EntryNotFoundError:  # older repos keep PyTorch weights only
+            hf_hub_download(name, "pytorch_model.bin", tqdm_class=quiet)
+    except (OSError, ValueError, EntryNotFoundError) as err:
+        from photo3d.depth.models import _why
+
+        raise InputError(f"cannot download depth model {name}: {_why(err, name)}") from err
+
+
+def _quiet_bar():
+    from tqdm import tqdm
+
+    class Quiet(tqdm):
+        def __init__(self, *args, **kwargs):
+            kwargs.pop("name", None)
+            super().__init__(*args, **{**kwargs, "disable": True})
+
+    return Quiet
