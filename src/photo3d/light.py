@@ -43,11 +43,15 @@ from dataclasses import dataclass
 import numpy as np
 
 from photo3d._charts import claim_faces, fill_charts
+from photo3d._planar import merged_faces, planar_blocks, quad_counts
 from photo3d.errors import InputError
 from photo3d.ldi import LDI
 from photo3d.mesh import Mesh, build_mesh
 
 _GUTTER = 1
+_BLOCKS = (32, 4)  # sides of the planar blocks merged before meshoptimizer
+PLANAR_SHARE = 0.3
+"""Planarity bound of those blocks, as a share of ``max_error``."""
 LIGHT_ERROR = 0.5
 """Default error bound of the light mesh, pixels (benchmarks/RESULTS.md: light mesh)."""
 
@@ -167,8 +171,34 @@ def build_light_mesh(ldi: LDI, *, max_error: float = LIGHT_ERROR, parallax: floa
     face_layer = np.zeros(len(faces), np.int64)
     hidden = rank[faces].max(axis=1) > 0
     face_layer[hidden], n_layers = claim_faces(faces[hidden], pos, rank, images, n_layers)
+    if max_error > 0:
+        k = ldi.intrinsics
+        value = max(k.fx, k.fy) * parallax / full.vertices[:, 2]
+        faces, face_layer = _merge_planar(faces, face_layer, pos, (rows, cols), images[:n_layers],
+                                          value, PLANAR_SHARE * max_error)
     return _textured(ldi, full, faces, face_layer, images[:n_layers], block,
                      max_error=float(max_error), parallax=float(parallax))
+
+
+def _merge_planar(faces: np.ndarray, face_layer: np.ndarray, pos: np.ndarray,
+                  shape: tuple[int, int],
+                  images: np.ndarray, value: np.ndarray,
+                  eps: float) -> tuple[np.ndarray, np.ndarray]:
+    """Faces and their layer images with every lattice block whose ``value`` is
+    planar within ``eps`` replaced by a fan (:mod:`photo3d._planar`): the same
+    surface to within ``eps`` in far fewer triangles for meshoptimizer."""
+    if not len(faces):
+        return faces, face_layer
+    rows, cols = shape
+    py, px = np.divmod(pos, cols)
+    f0 = faces[:, 0]
+    cross = ((px[faces[:, 1]] - px[f0]) * (py[faces[:, 2]] - py[f0])
+             - (py[faces[:, 1]] - py[f0]) * (px[faces[:, 2]] - px[f0]))
+    sign = 1 if np.median(np.sign(cross)) > 0 else -1
+    cnt = quad_counts(faces, face_layer, py, px, len(images), rows, cols)
+    blocks = planar_blocks(cnt, images, value.astype(np.float64), rows, cols, float(eps),
+                           _BLOCKS[0], _BLOCKS[-1])
+    return merged_faces(faces, face_layer, py, px, cnt, cols, blocks, images, sign)
 
 
 def _simplify(points: np.ndarray, faces: np.ndarray, max_error: float) -> np.ndarray:

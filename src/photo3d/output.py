@@ -16,18 +16,21 @@ from __future__ import annotations
 
 import json
 from collections.abc import Callable, Sequence
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 from photo3d.config import Config
 from photo3d.errors import InputError, OutputError
-from photo3d.io.gltf import write_glb, write_textured_glb
+from photo3d.io.gltf import write_glb
+from photo3d.io.gltf_textured import write_textured_glb
 from photo3d.io.ply import write_ply
 from photo3d.io.safeout import Staging, owned_by_names, stage_output
 from photo3d.ldi import load_npz, save_npz
 from photo3d.light import LIGHT_ERROR, build_light_mesh
 
 if TYPE_CHECKING:
+    from photo3d.mesh import Mesh
     from photo3d.pipeline import Photo3D
     from photo3d.render.animate import VideoSpec
     from photo3d.render.renderer import RenderSettings
@@ -129,12 +132,29 @@ def save_photo(photo: Photo3D, out: str | Path | Staging, *, overwrite: bool = F
 
 def _write_photo(photo: Photo3D, tmp: Path, *, title: str, ply, glb, viewer, videos,
                  render_settings, progress, full_glb, light_error) -> None:
-    """Write the files of a 3D photo folder into ``tmp``."""
+    """Write the files of a 3D photo folder into ``tmp``.
+
+    ``photo3d.npz`` is compressed in a second thread (zlib releases the GIL) while
+    the meshes are built and written in this one."""
     meta = {"config": photo.config.to_dict(), "stats": photo.stats,
             "timings": photo.timings}
-    save_npz(photo.ldi, tmp / LDI_FILE, meta=meta)
-    (tmp / "config.json").write_text(json.dumps(meta, indent=2))
-    mesh = photo.mesh() if ply or glb or viewer or videos else None
+    with ThreadPoolExecutor(max_workers=1) as pool:
+        npz = pool.submit(save_npz, photo.ldi, tmp / LDI_FILE, meta=meta)
+        (tmp / "config.json").write_text(json.dumps(meta, indent=2))
+        mesh = _write_meshes(photo, tmp, title=title, ply=ply, glb=glb, viewer=viewer,
+                      full_glb=full_glb, light_error=light_error)
+        npz.result()
+    if progress:
+        progress("save", 1.0)
+    if videos:
+        write_videos(photo, mesh, tmp, videos, settings=render_settings, progress=progress)
+
+
+def _write_meshes(photo: Photo3D, tmp: Path, *, title: str, ply, glb, viewer, full_glb,
+                  light_error) -> Mesh | None:
+    """Write ``mesh.ply``, ``mesh.glb`` and ``viewer.html`` as asked into ``tmp``;
+    returns the full mesh if one was built."""
+    mesh = photo.mesh() if ply or glb or viewer else None
     light = None
     if (glb and not full_glb) or viewer:
         light = build_light_mesh(photo.ldi, full=mesh, max_error=light_error)
@@ -148,10 +168,7 @@ def _write_photo(photo: Photo3D, tmp: Path, *, title: str, ply, glb, viewer, vid
         from photo3d.viewer import write_viewer
 
         write_viewer(light, tmp / "viewer.html", title=title)
-    if progress:
-        progress("save", 1.0)
-    if videos:
-        write_videos(photo, mesh, tmp, videos, settings=render_settings, progress=progress)
+    return mesh
 
 
 def write_videos(photo: Photo3D, mesh, folder: Path, videos: Sequence[VideoSpec], *,

@@ -215,3 +215,33 @@ def test_textured_glb_round_trip_and_independent_reader(tmp_path):
     assert isinstance(scene.visual, trimesh.visual.TextureVisuals)
     assert scene.visual.material.baseColorTexture.size == light.texture.shape[1::-1]
     assert len(scene.faces) == len(light.faces)
+
+
+def _shrink_vertices(doc: dict, count: int, keys=("POSITION", "TEXCOORD_0", "_LABEL")) -> None:
+    """Claim only ``count`` vertices in the given attribute accessors (a hostile file)."""
+    attributes = doc["meshes"][0]["primitives"][0]["attributes"]
+    for key in keys:
+        doc["accessors"][attributes[key]]["count"] = count
+    doc["accessors"][attributes["POSITION"]].pop("min", None)
+    doc["accessors"][attributes["POSITION"]].pop("max", None)
+
+
+@pytest.mark.parametrize("keys, message", [(("POSITION", "TEXCOORD_0", "_LABEL"), "outside"),
+                                           (("TEXCOORD_0",), "different lengths")])
+def test_textured_reader_rejects_hostile_files(tmp_path, keys, message):
+    """Indices past the vertices, or attributes of different lengths, raise InputError
+    instead of building a mesh whose faces point outside its vertex arrays."""
+    from photo3d.io.gltf_textured import read_textured_glb, write_textured_glb
+    from photo3d.light import TexturedMesh
+
+    n = 9
+    mesh = TexturedMesh(np.random.default_rng(0).random((n, 3), np.float32) + [0, 0, 1],
+                        np.full((n, 2), 0.5, np.float32), np.zeros((4, 4, 3), np.uint8),
+                        np.ones(n, np.uint8), np.array([[0, 1, 8], [2, 3, 4]], np.int32), 1,
+                        4, 4, 0.5, 0.5)
+    write_textured_glb(tmp_path / "m.glb", mesh)
+    assert len(read_textured_glb(tmp_path / "m.glb").faces) == 2
+    bad = repack((tmp_path / "m.glb").read_bytes(), lambda d: _shrink_vertices(d, 5, keys))
+    (tmp_path / "bad.glb").write_bytes(bad)
+    with pytest.raises(InputError, match=message):
+        read_textured_glb(tmp_path / "bad.glb")

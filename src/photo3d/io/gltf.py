@@ -20,19 +20,14 @@ What :func:`write_glb` puts in the file:
 
 from __future__ import annotations
 
-import io
 import json
 import os
 import struct
-from typing import TYPE_CHECKING
 
 import numpy as np
 
 from photo3d.errors import InputError, OutputError
 from photo3d.mesh import Mesh
-
-if TYPE_CHECKING:
-    from photo3d.light import TexturedMesh
 
 PathLike = str | os.PathLike[str]
 
@@ -82,8 +77,6 @@ def write_glb(path: PathLike, mesh: Mesh) -> None:
         >>> import numpy as np, tempfile, pathlib
         >>> from photo3d.mesh import Mesh
 
-if TYPE_CHECKING:
-    from photo3d.light import TexturedMesh
         >>> mesh = Mesh(np.eye(3, dtype=np.float32), np.zeros((3, 3), np.uint8),
         ...             np.ones(3, np.uint8), np.array([[0, 2, 1]], np.int32),
         ...             4, 3, 0.5, 0.4)
@@ -95,54 +88,6 @@ if TYPE_CHECKING:
     vertices, colors, labels, faces = _checked_arrays(mesh)
     arrays = [(_SRGB_TO_LINEAR[colors], "VEC3", _ARRAY_BUFFER, None)]
     _write(path, mesh, vertices, labels, faces, arrays, _PRIMITIVE, _MATERIAL)
-
-
-def write_textured_glb(path: PathLike, mesh: TexturedMesh, *, quality: int = 90) -> None:
-    """Write a textured mesh as a binary glTF 2.0 file (texture embedded as JPEG).
-
-    The file holds ``POSITION``, ``TEXCOORD_0`` and ``_LABEL`` as :func:`write_glb`
-    does, one sRGB base-colour texture (linear filtering, clamped; no mipmaps, so
-    atlas charts do not bleed into each other) on an unlit material, and the input
-    camera as a camera node.
-
-    Args:
-        path: file to create (overwritten if it exists).
-        mesh: :class:`~photo3d.light.TexturedMesh` with ``N >= 1``, ``M >= 1``.
-        quality: JPEG quality of the texture (1-95).
-
-    Raises:
-        InputError: the mesh is empty or inconsistent.
-        OutputError: ``path`` cannot be written.
-
-    Example:
-        >>> import numpy as np, tempfile, pathlib
-        >>> from photo3d.light import TexturedMesh
-        >>> mesh = TexturedMesh(np.eye(3, dtype=np.float32) + [0, 0, 1],
-        ...                     np.array([[0, 0], [1, 0], [0, 1]], np.float32),
-        ...                     np.zeros((4, 4, 3), np.uint8), np.ones(3, np.uint8),
-        ...                     np.array([[0, 2, 1]], np.int32), 1, 4, 3, 0.5, 0.4)
-        >>> path = pathlib.Path(tempfile.mkdtemp()) / "mesh.glb"
-        >>> write_textured_glb(path, mesh)
-        >>> read_textured_glb(path).texture.shape
-        (4, 4, 3)
-    """
-    vertices, uv, labels, faces = mesh.checked()
-    if len(vertices) == 0 or len(faces) == 0:
-        raise InputError("mesh has no vertices or no faces; glTF cannot store it")
-    if not np.isfinite(vertices).all() or not np.isfinite(uv).all():
-        raise InputError("mesh.vertices or mesh.uv has NaN or infinite values")
-    image = encode_jpeg(np.asarray(mesh.texture), quality=quality)
-    arrays = [(uv, "VEC2", _ARRAY_BUFFER, None)]
-    primitive = {"attributes": {"POSITION": 0, "TEXCOORD_0": 1, "_LABEL": 2}, "indices": 3,
-                 "material": 0, "mode": _TRIANGLES}
-    material = {
-        "name": "unlit photo texture",
-        "pbrMetallicRoughness": {"baseColorFactor": _WHITE, "baseColorTexture": {"index": 0},
-                                 "metallicFactor": 0.0, "roughnessFactor": 1.0},
-        "extensions": {_UNLIT: {}},
-        "doubleSided": False,
-    }
-    _write(path, mesh, vertices, labels, faces, arrays, primitive, material, image=image)
 
 
 def _write(path: PathLike, mesh, vertices: np.ndarray, labels: np.ndarray, faces: np.ndarray,
@@ -212,39 +157,6 @@ def _write(path: PathLike, mesh, vertices: np.ndarray, labels: np.ndarray, faces
         raise OutputError(f"cannot write glTF {path}: {err.strerror or err}") from err
 
 
-def read_textured_glb(path: PathLike) -> TexturedMesh:
-    """Read a ``.glb`` written by :func:`write_textured_glb` (tests, tools).
-
-    Returns:
-        :class:`~photo3d.light.TexturedMesh` (texture decoded from its JPEG).
-
-    Raises:
-        InputError: the file is not such a GLB.
-    """
-    from photo3d.light import TexturedMesh
-
-    document, binary = _read_chunks(path)
-    try:
-        primitive = document["meshes"][0]["primitives"][0]
-        attributes = primitive["attributes"]
-        positions = _accessor(document, binary, attributes["POSITION"], path)
-        uv = _accessor(document, binary, attributes["TEXCOORD_0"], path)
-        faces = _accessor(document, binary, primitive["indices"], path).reshape(-1, 3)
-        labels = _accessor(document, binary, attributes["_LABEL"], path)[:, 0]
-        view = document["bufferViews"][document["images"][0]["bufferView"]]
-        start = view.get("byteOffset", 0)
-        texture = decode_jpeg(binary[start:start + view["byteLength"]])
-        extras = document["meshes"][0].get("extras", {})
-    except (KeyError, IndexError, TypeError, ValueError) as err:
-        raise InputError(f"glTF {path} is not a photo3d textured mesh ({err!r})") from err
-    return TexturedMesh(
-        vertices=(positions * _TO_GLTF).astype(np.float32), uv=uv.astype(np.float32),
-        texture=texture, labels=labels.astype(np.uint8), faces=faces.astype(np.int32),
-        n_input=0, width=int(extras.get("width", 0)), height=int(extras.get("height", 0)),
-        hfov=float(extras.get("hfov", 0.0)), vfov=float(extras.get("vfov", 0.0)),
-    )
-
-
 def read_glb(path: PathLike) -> Mesh:
     """Read a ``.glb`` written by :func:`write_glb` back into a :class:`Mesh`.
 
@@ -268,8 +180,6 @@ def read_glb(path: PathLike) -> Mesh:
         >>> import numpy as np, tempfile, pathlib
         >>> from photo3d.mesh import Mesh
 
-if TYPE_CHECKING:
-    from photo3d.light import TexturedMesh
         >>> colors = np.array([[0, 1, 2], [128, 200, 255], [7, 7, 7]], np.uint8)
         >>> mesh = Mesh(np.eye(3, dtype=np.float32), colors, np.full(3, 4, np.uint8),
         ...             np.array([[0, 2, 1]], np.int32), 4, 3, 0.5, 0.4)
@@ -400,26 +310,14 @@ def _checked_arrays(mesh: Mesh) -> tuple[np.ndarray, ...]:
     return arrays
 
 
-def encode_jpeg(image: np.ndarray, *, quality: int = 90) -> bytes:
-    """``(H, W, 3) uint8`` sRGB -> baseline JPEG bytes (4:2:0, optimised tables).
-
-    Example:
-        >>> decode_jpeg(encode_jpeg(np.full((8, 8, 3), 200, np.uint8))).shape
-        (8, 8, 3)
-    """
-    from PIL import Image
-
-    if not 1 <= quality <= 95:
-        raise InputError(f"JPEG quality must be in [1, 95], got {quality}")
-    buffer = io.BytesIO()
-    Image.fromarray(np.ascontiguousarray(image, np.uint8)).save(
-        buffer, format="JPEG", quality=int(quality), optimize=True)
-    return buffer.getvalue()
+_TEXTURED = ("write_textured_glb", "read_textured_glb", "encode_jpeg", "decode_jpeg")
 
 
-def decode_jpeg(data: bytes) -> np.ndarray:
-    """JPEG (or PNG) bytes -> ``(H, W, 3) uint8``."""
-    from PIL import Image
+def __getattr__(name: str):
+    """The textured GLB and JPEG functions, now in :mod:`photo3d.io.gltf_textured`
+    (imported from here lazily so old imports keep working)."""
+    if name in _TEXTURED:
+        from photo3d.io import gltf_textured
 
-    with Image.open(io.BytesIO(data)) as im:
-        return np.asarray(im.convert("RGB"))
+        return getattr(gltf_textured, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -37,7 +37,7 @@ import zlib
 import numpy as np
 
 from photo3d.errors import InputError
-from photo3d.io.gltf import decode_jpeg, encode_jpeg
+from photo3d.io.gltf_textured import decode_jpeg, encode_jpeg
 from photo3d.light import TexturedMesh
 from photo3d.mesh import Mesh
 

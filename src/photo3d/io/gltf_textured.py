@@ -1,0 +1,144 @@
+"""Textured binary glTF 2.0 (``.glb``): the light mesh with its texture as JPEG.
+
+:func:`write_textured_glb` writes what :func:`photo3d.io.gltf.write_glb` does
+(positions in glTF axes, ``_LABEL``, unlit material, the input camera node) with
+``TEXCOORD_0`` and one embedded sRGB JPEG base-colour texture instead of vertex
+colours; :func:`read_textured_glb` reads it back, checking what it reads.
+"""
+
+from __future__ import annotations
+
+import io
+import os
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from photo3d.errors import InputError
+from photo3d.io.gltf import (
+    _ARRAY_BUFFER,
+    _TO_GLTF,
+    _TRIANGLES,
+    _UNLIT,
+    _WHITE,
+    _accessor,
+    _read_chunks,
+    _write,
+)
+
+if TYPE_CHECKING:
+    from photo3d.light import TexturedMesh
+
+PathLike = str | os.PathLike[str]
+
+
+def write_textured_glb(path: PathLike, mesh: TexturedMesh, *, quality: int = 90) -> None:
+    """Write a textured mesh as a binary glTF 2.0 file (texture embedded as JPEG).
+
+    The file holds ``POSITION``, ``TEXCOORD_0`` and ``_LABEL`` as :func:`write_glb`
+    does, one sRGB base-colour texture (linear filtering, clamped; no mipmaps, so
+    atlas charts do not bleed into each other) on an unlit material, and the input
+    camera as a camera node.
+
+    Args:
+        path: file to create (overwritten if it exists).
+        mesh: :class:`~photo3d.light.TexturedMesh` with ``N >= 1``, ``M >= 1``.
+        quality: JPEG quality of the texture (1-95).
+
+    Raises:
+        InputError: the mesh is empty or inconsistent.
+        OutputError: ``path`` cannot be written.
+
+    Example:
+        >>> import numpy as np, tempfile, pathlib
+        >>> from photo3d.light import TexturedMesh
+        >>> mesh = TexturedMesh(np.eye(3, dtype=np.float32) + [0, 0, 1],
+        ...                     np.array([[0, 0], [1, 0], [0, 1]], np.float32),
+        ...                     np.zeros((4, 4, 3), np.uint8), np.ones(3, np.uint8),
+        ...                     np.array([[0, 2, 1]], np.int32), 1, 4, 3, 0.5, 0.4)
+        >>> path = pathlib.Path(tempfile.mkdtemp()) / "mesh.glb"
+        >>> write_textured_glb(path, mesh)
+        >>> read_textured_glb(path).texture.shape
+        (4, 4, 3)
+    """
+    vertices, uv, labels, faces = mesh.checked()
+    if len(vertices) == 0 or len(faces) == 0:
+        raise InputError("mesh has no vertices or no faces; glTF cannot store it")
+    if not np.isfinite(vertices).all() or not np.isfinite(uv).all():
+        raise InputError("mesh.vertices or mesh.uv has NaN or infinite values")
+    image = encode_jpeg(np.asarray(mesh.texture), quality=quality)
+    arrays = [(uv, "VEC2", _ARRAY_BUFFER, None)]
+    primitive = {"attributes": {"POSITION": 0, "TEXCOORD_0": 1, "_LABEL": 2}, "indices": 3,
+                 "material": 0, "mode": _TRIANGLES}
+    material = {
+        "name": "unlit photo texture",
+        "pbrMetallicRoughness": {"baseColorFactor": _WHITE, "baseColorTexture": {"index": 0},
+                                 "metallicFactor": 0.0, "roughnessFactor": 1.0},
+        "extensions": {_UNLIT: {}},
+        "doubleSided": False,
+    }
+    _write(path, mesh, vertices, labels, faces, arrays, primitive, material, image=image)
+
+
+def read_textured_glb(path: PathLike) -> TexturedMesh:
+    """Read a ``.glb`` written by :func:`write_textured_glb` (tests, tools).
+
+    Returns:
+        :class:`~photo3d.light.TexturedMesh` (texture decoded from its JPEG).
+
+    Raises:
+        InputError: the file is not such a GLB (or is inconsistent: attribute
+            lengths, indices out of range).
+    """
+    from photo3d.light import TexturedMesh
+
+    document, binary = _read_chunks(path)
+    try:
+        primitive = document["meshes"][0]["primitives"][0]
+        attributes = primitive["attributes"]
+        positions = _accessor(document, binary, attributes["POSITION"], path)
+        uv = _accessor(document, binary, attributes["TEXCOORD_0"], path)
+        faces = _accessor(document, binary, primitive["indices"], path).reshape(-1, 3)
+        labels = _accessor(document, binary, attributes["_LABEL"], path)[:, 0]
+        view = document["bufferViews"][document["images"][0]["bufferView"]]
+        start = view.get("byteOffset", 0)
+        texture = decode_jpeg(binary[start:start + view["byteLength"]])
+        extras = document["meshes"][0].get("extras", {})
+    except (KeyError, IndexError, TypeError, ValueError) as err:
+        raise InputError(f"glTF {path} is not a photo3d textured mesh ({err!r})") from err
+    count = len(positions)
+    if len(uv) != count or len(labels) != count:
+        raise InputError(f"glTF {path} has attributes of different lengths")
+    if faces.size and faces.max() >= count:
+        raise InputError(f"glTF {path} has indices outside [0, {count})")
+    return TexturedMesh(
+        vertices=(positions * _TO_GLTF).astype(np.float32), uv=uv.astype(np.float32),
+        texture=texture, labels=labels.astype(np.uint8), faces=faces.astype(np.int32),
+        n_input=0, width=int(extras.get("width", 0)), height=int(extras.get("height", 0)),
+        hfov=float(extras.get("hfov", 0.0)), vfov=float(extras.get("vfov", 0.0)),
+    )
+
+
+def encode_jpeg(image: np.ndarray, *, quality: int = 90) -> bytes:
+    """``(H, W, 3) uint8`` sRGB -> baseline JPEG bytes (4:2:0, optimised tables).
+
+    Example:
+        >>> decode_jpeg(encode_jpeg(np.full((8, 8, 3), 200, np.uint8))).shape
+        (8, 8, 3)
+    """
+    from PIL import Image
+
+    if not 1 <= quality <= 95:
+        raise InputError(f"JPEG quality must be in [1, 95], got {quality}")
+    buffer = io.BytesIO()
+    Image.fromarray(np.ascontiguousarray(image, np.uint8)).save(
+        buffer, format="JPEG", quality=int(quality), optimize=True)
+    return buffer.getvalue()
+
+
+def decode_jpeg(data: bytes) -> np.ndarray:
+    """JPEG (or PNG) bytes -> ``(H, W, 3) uint8``."""
+    from PIL import Image
+
+    with Image.open(io.BytesIO(data)) as im:
+        return np.asarray(im.convert("RGB"))
