@@ -11,7 +11,8 @@ timed), then:
 * fidelity: frames of the four standard paths (``--frames`` per path, spread
   over the path) rendered from the light mesh and from the full mesh with the same
   renderer (numba, 2x supersampling, the authors' crop); PSNR per frame;
-* render time per frame, light vs full, interleaved per frame.
+* render time per frame, light vs full, interleaved per frame; the same with the
+  OpenGL backend (fewer frames) when EGL works.
 
 Usage: python benchmarks/bench_light.py [--runs 3] [--frames 24] [--size 1280x720]
 """
@@ -97,6 +98,23 @@ with Renderer(full, settings) as rf, Renderer(light, settings) as rl:
         psnr[name] = values
 out["psnr"] = psnr
 out["frame_s"] = times
+try:  # the OpenGL backend (EGL; software llvmpipe on a machine without a GPU)
+    gl = RenderSettings(ssaa=2, crop=AUTHORS_CROP, backend="gl")
+    gl_times, gl_psnr = {"light": [], "full": []}, []
+    with Renderer(full, gl) as rf, Renderer(light, gl) as rl:
+        for name in PRESETS:
+            spec = VideoSpec(path=name, size=(width, height), frames=240, fps=40)
+            cameras = path_cameras(photo.ldi, spec)
+            for i in np.linspace(0, len(cameras) - 1, max(2, frames // 4)).round().astype(int):
+                t = time.perf_counter(); a = rf.render(cameras[i]).color; t1 = time.perf_counter()
+                b = rl.render(cameras[i]).color; t2 = time.perf_counter()
+                gl_times["full"].append(t1 - t); gl_times["light"].append(t2 - t1)
+                mse = float(np.mean((np.round(a * 255.0) - np.round(b * 255.0)) ** 2))
+                gl_psnr.append(99.0 if mse == 0 else 10 * np.log10(255.0 ** 2 / mse))
+    from photo3d.render.gl import gl_renderer
+    out["gl"] = {"frame_s": gl_times, "psnr": gl_psnr, "renderer": gl_renderer()}
+except Exception as err:  # no EGL here: the benchmark still reports the rest
+    out["gl"] = {"error": repr(err)}
 print(json.dumps(out))
 """
 
@@ -137,6 +155,14 @@ def main() -> None:
               f"{k} {np.mean(v):.2f}/{np.min(v):.2f}" for k, v in r["psnr"].items()))
     print(f"render per frame (numba, ssaa 2): full {1000 * ft['full']:.0f} ms, light "
           f"{1000 * ft['light']:.0f} ms (median, interleaved)")
+    gl = r["gl"]
+    if "error" in gl:
+        print(f"OpenGL backend not measured: {gl['error']}")
+    else:
+        g = {k: float(np.median(v)) for k, v in gl["frame_s"].items()}
+        print(f"render per frame (OpenGL {gl['renderer']}, ssaa 2): full {1000 * g['full']:.0f} "
+              f"ms, light {1000 * g['light']:.0f} ms; PSNR light vs full mean "
+              f"{np.mean(gl['psnr']):.2f} dB, min {np.min(gl['psnr']):.2f} dB")
 
 
 if __name__ == "__main__":

@@ -5,11 +5,12 @@ A 3D photo folder holds ``photo3d.npz`` (the LDI, lossless), ``mesh.ply``
 (the light textured mesh of :mod:`photo3d.light`, or the full vertex-coloured mesh
 with ``full_glb``), ``viewer.html`` (interactive, self-contained) and ``config.json``
 (the resolved configuration plus stats and timings), and videos in ``video/``
-(rendered from the full mesh: the light one is not faster on the CPU at video sizes,
-see benchmarks/RESULTS.md). Everything is written into a temporary sibling folder
-first and moved into place at the end (:mod:`photo3d.io.safeout`), so an interrupted
-or failed run never leaves a half-written output folder, and ``overwrite`` only ever
-replaces a folder holding nothing but these files.
+(rendered from the full mesh with the numba backend, where the light one is not
+faster, and from the light mesh with OpenGL, where it is; see benchmarks/RESULTS.md).
+Everything is written into a temporary sibling folder first and moved into place at
+the end (:mod:`photo3d.io.safeout`), so an interrupted or failed run never leaves a
+half-written output folder, and ``overwrite`` only ever replaces a folder holding
+nothing but these files.
 """
 
 from __future__ import annotations
@@ -30,6 +31,7 @@ from photo3d.ldi import load_npz, save_npz
 from photo3d.light import LIGHT_ERROR, build_light_mesh
 
 if TYPE_CHECKING:
+    from photo3d.light import TexturedMesh
     from photo3d.mesh import Mesh
     from photo3d.pipeline import Photo3D
     from photo3d.render.animate import VideoSpec
@@ -141,19 +143,32 @@ def _write_photo(photo: Photo3D, tmp: Path, *, title: str, ply, glb, viewer, vid
     with ThreadPoolExecutor(max_workers=1) as pool:
         npz = pool.submit(save_npz, photo.ldi, tmp / LDI_FILE, meta=meta)
         (tmp / "config.json").write_text(json.dumps(meta, indent=2))
-        mesh = _write_meshes(photo, tmp, title=title, ply=ply, glb=glb, viewer=viewer,
+        mesh, light = _write_meshes(photo, tmp, title=title, ply=ply, glb=glb, viewer=viewer,
                       full_glb=full_glb, light_error=light_error)
         npz.result()
     if progress:
         progress("save", 1.0)
     if videos:
-        write_videos(photo, mesh, tmp, videos, settings=render_settings, progress=progress)
+        write_videos(photo, _video_mesh(photo, mesh, light, render_settings, light_error), tmp,
+                     videos, settings=render_settings, progress=progress)
+
+
+def _video_mesh(photo: Photo3D, mesh, light, settings: RenderSettings | None, light_error):
+    """The mesh videos are drawn from: the light one with the OpenGL backend (about
+    3 times faster per frame there at the same look), the full one with numba (the
+    light one is not faster there); benchmarks/RESULTS.md, light mesh."""
+    from photo3d.render.renderer import RenderSettings, select_backend
+
+    if select_backend((settings or RenderSettings()).backend) != "gl":
+        return mesh
+    return light if light is not None else build_light_mesh(photo.ldi, full=mesh,
+                                                            max_error=light_error)
 
 
 def _write_meshes(photo: Photo3D, tmp: Path, *, title: str, ply, glb, viewer, full_glb,
-                  light_error) -> Mesh | None:
+                  light_error) -> tuple[Mesh | None, TexturedMesh | None]:
     """Write ``mesh.ply``, ``mesh.glb`` and ``viewer.html`` as asked into ``tmp``;
-    returns the full mesh if one was built."""
+    returns the full and light meshes if they were built."""
     mesh = photo.mesh() if ply or glb or viewer else None
     light = None
     if (glb and not full_glb) or viewer:
@@ -168,7 +183,7 @@ def _write_meshes(photo: Photo3D, tmp: Path, *, title: str, ply, glb, viewer, fu
         from photo3d.viewer import write_viewer
 
         write_viewer(light, tmp / "viewer.html", title=title)
-    return mesh
+    return mesh, light
 
 
 def write_videos(photo: Photo3D, mesh, folder: Path, videos: Sequence[VideoSpec], *,
