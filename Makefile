@@ -3,6 +3,10 @@ PYTHON ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
+# The Khronos glTF validator (npm, 0.4 MB, no dependencies) for tests/io/test_gltf_validator.py;
+# installed by `make test` when npm is there, skipped (and the test with it) otherwise.
+NODE_DIR := .node
+VALIDATOR := $(NODE_DIR)/node_modules/gltf-validator
 
 .PHONY: demo test lint bench clean
 
@@ -18,11 +22,13 @@ demo: $(STAMP)
 	$(BIN)/photo3d demo -o out/demo --overwrite
 
 test: $(STAMP)
+	-if command -v npm >/dev/null && ! test -d $(VALIDATOR); then \
+		npm install --prefix $(NODE_DIR) --no-audit --no-fund --silent gltf-validator@2.0.0-dev.3.10; fi
 	$(BIN)/ruff check src tests benchmarks
-	$(BIN)/python -m pytest -q
+	PHOTO3D_NODE_MODULES=$(CURDIR)/$(NODE_DIR) $(BIN)/python -m pytest -q
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_make.py
 
 clean:
-	rm -rf $(VENV) out .pytest_cache
+	rm -rf $(VENV) out .pytest_cache $(NODE_DIR)

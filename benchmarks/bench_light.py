@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 from pathlib import Path
 
@@ -130,6 +131,7 @@ def main() -> None:
                         default=Path(__file__).parent / "results" / "light.json")
     args = parser.parse_args()
     w, h = args.size
+    load = [os.getloadavg()[0]]
     r = run_child(CHILD, args.frames, w, h, args.runs, args.max_error)
     import numpy as np
 
@@ -138,7 +140,7 @@ def main() -> None:
     ft = {k: float(np.median(v)) for k, v in r["frame_s"].items()}
     record = {"benchmark": "light", **r, "size": [w, h], "mean_psnr": float(allp.mean()),
               "min_psnr": float(allp.min()), "median_save_s": med, "median_frame_s": ft,
-              "machine": machine_info(),
+              "machine": machine_info(), "load_1min": [*load, os.getloadavg()[0]],
               "command": " ".join(["python", "benchmarks/bench_light.py", *sys.argv[1:]])}
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps(record, indent=2))

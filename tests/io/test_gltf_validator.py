@@ -1,7 +1,8 @@
 """The Khronos glTF validator on photo3d's GLB files (both kinds).
 
 Needs Node.js and the npm package ``gltf-validator`` (``npm install gltf-validator``
-in a folder named by ``PHOTO3D_NODE_MODULES``, its ``node_modules``' parent);
+in a folder named by ``PHOTO3D_NODE_MODULES``, its ``node_modules``' parent; ``make
+test`` installs it into ``.node/`` when npm is there and sets the variable);
 skipped otherwise.
 """
 
