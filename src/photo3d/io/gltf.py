@@ -16,6 +16,9 @@ What :func:`write_glb` puts in the file:
 * the input view as a perspective camera node at the origin (identity transform,
   ``yfov = vfov``, ``aspectRatio = width / height``, ``znear = 0.01``); exact
   width, height, hfov, vfov in the mesh's ``extras``.
+
+The textured variant (the light mesh) is in :mod:`photo3d.io.gltf_textured`; its
+functions can still be imported from here.
 """
 
 from __future__ import annotations
