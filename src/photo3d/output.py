@@ -191,15 +191,18 @@ def write_videos(photo: Photo3D, mesh, folder: Path, videos: Sequence[VideoSpec]
                  progress: Callable[[str, float], None] | None = None) -> list[Path]:
     """Render ``videos`` of ``photo`` into ``folder/video/`` (one renderer for all).
 
-    ``mesh``: the mesh to draw, a full :class:`~photo3d.mesh.Mesh` (None: built
-    here) or a light :class:`~photo3d.light.TexturedMesh`."""
+    ``mesh``: the mesh to draw, a full :class:`~photo3d.mesh.Mesh` or a light
+    :class:`~photo3d.light.TexturedMesh`; None: the light one with the OpenGL
+    backend, else the full one (built here)."""
     from photo3d.render.animate import render_video
     from photo3d.render.renderer import Renderer
 
     try:
         (folder / "video").mkdir(exist_ok=True)
         written = []
-        with Renderer(mesh if mesh is not None else photo.mesh(), settings) as renderer:
+        if mesh is None:
+            mesh = _video_mesh(photo, photo.mesh(), None, settings, LIGHT_ERROR)
+        with Renderer(mesh, settings) as renderer:
             for i, spec in enumerate(videos):
                 def on_frame(done: int, total: int, i: int = i) -> None:
                     if progress:
