@@ -221,7 +221,7 @@ class LearnedInpainter:
                  edge_threshold: float = 0.002, edge_repeats: int = 2, edge_passes: int = 1,
                  edge_unit: int | None = None, precision: str = "fp32", color_size: int = 512,
                  batch_size: int = 8, batch_pixels: int = 8 * 256 * 256,
-                 share: bool = True, joint_pixels: int = 600_000) -> None:
+                 share: bool = True, joint_pixels: int = 1_000_000) -> None:
         if edge_unit is not None and (edge_unit <= 0 or edge_unit % 4):
             raise ConfigError(f"edge_unit must be a positive multiple of 4, not {edge_unit}")
         if precision not in PRECISIONS:
