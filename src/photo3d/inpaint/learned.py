@@ -69,6 +69,7 @@ from photo3d.inpaint.netrun import (  # noqa: F401  (re-exported)
     color_scale,
     net_unit,
     padded_shape,
+    release_memory,
     run_batched,
 )
 
@@ -114,7 +115,7 @@ class LearnedInpainter:
             patch).
         joint_pixels: the joint edge-net run of a pass is split into horizontal bands
             of about this many padded pixels (its memory: the authors' edge net needs
-            about 2.4 GB per Mpx).
+            about 1.5 GB per Mpx).
 
     Attributes:
         units: per net (``"edge"``, ``"depth"``, ``"color"``), the multiple its
@@ -147,7 +148,7 @@ class LearnedInpainter:
                  edge_threshold: float = 0.002, edge_repeats: int = 2, edge_passes: int = 1,
                  edge_unit: int | None = None, precision: str = "fp32", color_size: int = 512,
                  batch_size: int = 8, batch_pixels: int = 8 * 256 * 256,
-                 share: bool = True, joint_pixels: int = 1_000_000) -> None:
+                 share: bool = True, joint_pixels: int = 600_000) -> None:
         if edge_unit is not None and (edge_unit <= 0 or edge_unit % 4):
             raise ConfigError(f"edge_unit must be a positive multiple of 4, not {edge_unit}")
         if precision not in PRECISIONS:
@@ -188,6 +189,7 @@ class LearnedInpainter:
                            unit=self.units[kind],
                            autocast=torch.bfloat16 if self.precision == "bf16" else None,
                            **self.batch)
+        release_memory()
         self.timings[kind] += time.perf_counter() - t
         return out
 
