@@ -415,6 +415,15 @@ def section_learned_shared() -> str:
         out.append(f"Pass {k}: " + ", ".join(f"{n} {v['runs']} runs / {v['mpx']:.2f} Mpx"
                                               for n, v in per.items()) + ".")
     out += ["", _learned_shared_targets(rec), ""]
+    before = load("learned_shared_before.json")
+    if before is not None:
+        bm = before["median"]
+        out += [f"Before the lean edge forward and the heap trimming (main at the start of "
+                f"this work, `{before['command']}`, one run on a machine with other jobs): "
+                f"`make` {bm['make_s']:.0f} s ({bm['make_s'] / bm['diffusion_make_s']:.0f}x "
+                f"diffusion's {bm['diffusion_make_s']:.1f} s), nets " + ", ".join(
+                    f"{k} {v:.0f} s" for k, v in bm["net_s"].items()) +
+                f", peak memory {bm['peak_rss_mb']:.0f} MB; same pixel counts.", ""]
     return "\n".join(out)
 
 
@@ -465,7 +474,10 @@ def section_compact_quality() -> str:
             "exactly (scores are deterministic). The colour fix "
             "(old -> new-perpatch) helps on the motorcycle and synthetic0 and costs 1.4 dB "
             "PSNR on synthetic1; shared canvases (new-perpatch -> new-shared) change the "
-            "scores by at most 0.3 dB PSNR and lower LPIPS on two of the three pairs."]
+            "scores by at most 0.3 dB PSNR and lower LPIPS on two of the three pairs. "
+            "`new-shared-lean-1Mpx-bands`: new-shared with the edge net's lean inference "
+            "forward and joint edge bands of up to 1 Mpx (issue 18's memory work): the "
+            "same scores to the last digit."]
     return "\n".join(out) + "\n"
 
 
