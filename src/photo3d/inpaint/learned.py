@@ -78,6 +78,7 @@ if TYPE_CHECKING:  # torch is imported lazily: photo3d works without it
 
     from photo3d.nets.weights import InpaintingNets
 
+
 def bundled_weights() -> Path:
     """The folder of the compact nets trained for and shipped with photo3d (used when
     no ``weights`` are given; see the README's training section for how they were
@@ -186,9 +187,9 @@ class LearnedInpainter:
 
         t = time.perf_counter()
         out = run_batched(getattr(self.nets, kind), inputs, device=self.nets.device,
-                           unit=self.units[kind],
-                           autocast=torch.bfloat16 if self.precision == "bf16" else None,
-                           **self.batch)
+                          unit=self.units[kind],
+                          autocast=torch.bfloat16 if self.precision == "bf16" else None,
+                          **self.batch)
         release_memory()
         self.timings[kind] += time.perf_counter() - t
         return out
