@@ -448,16 +448,18 @@ def _learned_shared_targets(rec: dict) -> str:
             "the cores the seconds (and the ratio, whose diffusion run saw a different "
             "load) overstate an idle machine's. Each net alone (random inputs laid out like "
             "the backend's, load 1-2 from other jobs) costs about 12 (edge), 2.6 (depth) "
-            "and 2.7 (colour) s per Mpx; at those rates these pixel counts come to about "
-            "53 + 37 + 19 s of nets plus about 12 s outside them, i.e. about 120 s, an "
-            "estimate for the idle re-run to confirm, not a measurement. Memory: the "
+            "and 2.7 (colour) s per Mpx. Memory: the "
             "motorcycle's joint edge input is 896x1280 padded (its patches reach 60-80 px "
             "beyond the image), run in two bands of about 0.6 Mpx (`joint_pixels`); the "
             "edge net's inference forward frees each activation after its last use and "
             "never builds the full-resolution concatenation of its last layer (alone on "
             "768x1024: peak 1.47 GB from a 0.29 GB base, 2.17 GB before), and the heap is "
             "trimmed (`malloc_trim`) after every net run; with stub nets the pipeline "
-            "itself peaks at 1.9 GB.")
+            "itself peaks at 1.9 GB. The peak is not reliably under 3 GB (2.84 to 3.13 GB "
+            "in three runs): traced per net call, the edge bands take the process from "
+            "1.1 to 2.4 GB and the depth net on the first pass's largest canvases (about "
+            "500x900, padded to 512x1024) from a 1.6 GB base to 2.84 GB; shrinking those "
+            "canvases or the depth net's memory is the next step.")
 
 
 def section_compact_quality() -> str:
