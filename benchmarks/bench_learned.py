@@ -33,7 +33,7 @@ sys.path.insert(0, str(Path(__file__).parent))
 from _machine import machine_info, run_child  # noqa: E402
 
 CHILD = r"""
-import json, resource, sys, time
+import json, os, resource, sys, time
 from collections import Counter
 import numpy as np, torch
 import photo3d
@@ -70,9 +70,12 @@ if sys.argv[4] != "shared":
     backend.later_context = 1.0
 s = motorcycle()
 cfg = photo3d.Config(size=int(sys.argv[1]), inpainter="learned")
+load0, ru0 = os.getloadavg()[0], resource.getrusage(resource.RUSAGE_SELF)
 t = time.perf_counter()
 photo = photo3d.make(s.left, depth=np.asarray(s.disparity), config=cfg, inpainter=backend)
 wall = time.perf_counter() - t
+ru1 = resource.getrusage(resource.RUSAGE_SELF)
+cpu = ru1.ru_utime + ru1.ru_stime - ru0.ru_utime - ru0.ru_stime
 shapes = Counter(f"{h}x{w}" for p in backend.passes for h, w in p)
 print(json.dumps({
     "make_s": wall, "stages": photo.timings, "stats": photo.stats,
@@ -83,6 +86,7 @@ print(json.dumps({
     "nets_per_pass": backend.per_pass,
     "padded_shapes": dict(shapes.most_common()),
     "threads": torch.get_num_threads(),
+    "cpu_s": cpu, "load_before": load0, "load_after": os.getloadavg()[0],
     "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
 }))
 """
@@ -242,6 +246,10 @@ def main() -> None:
     total = sum(med["net_s"].values())
     print(f"nets: {total:.1f} s = {total / max(patches, 1):.2f} s per patch; "
           f"peak memory {med['peak_rss_mb']:.0f} MB")
+    if "cpu_s" in first:  # < the core count: the process did not get the whole machine
+        print(f"cores used (CPU time / wall time of make): {first['cpu_s'] / first['make_s']:.2f}"
+              f" of {record['machine']['cores']}; load average {first['load_before']:.1f} "
+              f"before, {first['load_after']:.1f} after")
     print("individual make times: " + ", ".join(f"{r['make_s']:.1f}" for r in runs))
 
 

@@ -171,6 +171,20 @@ def test_edge_generator_compact():
         net(torch.rand(1, 7, 18, 32))
 
 
+def test_edge_generator_inference_forward_matches_the_autograd_forward():
+    """Without autograd the edge net runs a leaner forward (in-place ReLUs, the last
+    convolution split over its concatenated input): same output, no gradient path."""
+    net = EdgeGenerator(width=0.25, blocks=2).eval()
+    x = _rand(2, 7, 24, 32)
+    ref = net(x)
+    assert ref.requires_grad  # the plain forward
+    with torch.inference_mode():
+        lean = net(x)
+    assert not lean.requires_grad
+    assert torch.allclose(lean, ref.detach(), atol=1e-6)
+    assert lean.std() > 0  # not a constant output
+
+
 def test_edge_training_step_updates_generator_and_discriminator():
     gen, disc = EdgeGenerator(width=0.125, blocks=1), EdgeDiscriminator(1, width=0.125)
     opt = torch.optim.Adam([*gen.parameters(), *disc.parameters()], lr=1e-3)
