@@ -52,6 +52,11 @@ def _renormalised_conv(xm: Tensor, count: Tensor, weight: Tensor, bias: Tensor |
     window = weight.shape[1] * weight.shape[2] * weight.shape[3]
     msum = _window_count(count, tuple(weight.shape[2:]), stride, padding)
     valid = msum > 0
+    if not torch.is_grad_enabled():  # inference: in place, fewer full-size temporaries
+        out = raw.mul_(msum.clamp_(min=1.0).reciprocal_().mul_(window))
+        if bias is not None:
+            out.add_(bias.view(1, -1, 1, 1))
+        return out.mul_(valid), valid.to(out.dtype)
     out = raw * (window / msum.clamp(min=1.0))
     if bias is not None:
         out = out + bias.view(1, -1, 1, 1)
@@ -172,6 +177,12 @@ class PartialConvBlock(nn.Module):
         h, m = self.conv.masked_forward(xm, count)
         if hasattr(self, "bn"):
             h = self.bn(h)
+        if not torch.is_grad_enabled():  # inference: activation and mask in place
+            if self.activation == "relu":
+                h = F.relu_(h)
+            elif self.activation == "leaky":
+                h = F.leaky_relu_(h, 0.2)
+            return h.mul_(m), m
         if self.activation == "relu":
             h = F.relu(h)
         elif self.activation == "leaky":
@@ -263,12 +274,15 @@ class PartialConvUNet(nn.Module):
             h, mask = getattr(self, f"enc_{i}")(h, mask * h.shape[1])
             skips.append((h, mask))
         names = self._decoder_names()
+        skips.pop()  # the bottleneck (h, mask) itself
         for i in range(self.levels, 0, -1):
             h = F.interpolate(h, scale_factor=2.0, mode="nearest")
             mask = F.interpolate(mask, scale_factor=2.0, mode="nearest")
-            skip, skip_mask = skips[i - 1]
+            skip, skip_mask = skips.pop()  # each skip is freed after its last use
             count = mask * h.shape[1] + skip_mask * skip.shape[1]
-            h, mask = getattr(self, names[i])(torch.cat([h, skip], 1), count)
+            h = torch.cat([h, skip], 1)
+            del skip
+            h, mask = getattr(self, names[i])(h, count)
         if self.layout != "color":
             return h
         return torch.sigmoid(h) if mean is None else (torch.sigmoid(h) - 0.5 + mean).clamp(0, 1)
