@@ -424,6 +424,19 @@ def section_learned_shared() -> str:
                 f"diffusion's {bm['diffusion_make_s']:.1f} s), nets " + ", ".join(
                     f"{k} {v:.0f} s" for k, v in bm["net_s"].items()) +
                 f", peak memory {bm['peak_rss_mb']:.0f} MB; same pixel counts.", ""]
+    lean = load("learned_shared_lean_unet.json")
+    if lean is not None:
+        lm, lr = lean["median"], lean["runs"][0]
+        out += [f"With the U-Nets' inference forward also lean (skips freed after their last "
+                f"use, renormalisation, activation and mask applied in place; same output: the "
+                f"depth net alone on 512x1024 peaks 335 MB above its base instead of 528 MB), "
+                f"`{lean['command']}`: peak memory **{lm['peak_rss_mb']:.0f} MB** (target "
+                f"< 3000 MB: {'**met**' if lm['peak_rss_mb'] < 3000 else '**not met**'}), "
+                f"edges per pass {lr['stats']['edges']}, same pixel counts. Its time, "
+                f"`make` {lm['make_s']:.0f} s, was measured under heavy load (load average "
+                f"{lr['load_before']:.1f} before, {lr['load_after']:.1f} after, "
+                f"{lr['cpu_s'] / lr['make_s']:.2f} of 2 cores used) and says nothing about "
+                "speed; the change does not alter the nets' arithmetic.", ""]
     return "\n".join(out)
 
 
