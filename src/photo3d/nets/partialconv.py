@@ -53,9 +53,10 @@ def _renormalised_conv(xm: Tensor, count: Tensor, weight: Tensor, bias: Tensor |
     msum = _window_count(count, tuple(weight.shape[2:]), stride, padding)
     valid = msum > 0
     if not torch.is_grad_enabled():  # inference: in place, fewer full-size temporaries
-        out = raw.mul_(msum.clamp_(min=1.0).reciprocal_().mul_(window))
-        if bias is not None:
-            out.add_(bias.view(1, -1, 1, 1))
+        out = raw.mul_(window / msum.clamp(min=1.0))  # the scale is one channel: cheap
+        if bias is not None:  # out of place under bf16 autocast: promoted to float32 there
+            b = bias.view(1, -1, 1, 1)
+            out = out.add_(b) if b.dtype == out.dtype else out + b
         return out.mul_(valid), valid.to(out.dtype)
     out = raw * (window / msum.clamp(min=1.0))
     if bias is not None:
