@@ -468,11 +468,11 @@ def _learned_shared_targets(rec: dict) -> str:
             "never builds the full-resolution concatenation of its last layer (alone on "
             "768x1024: peak 1.47 GB from a 0.29 GB base, 2.17 GB before), and the heap is "
             "trimmed (`malloc_trim`) after every net run; with stub nets the pipeline "
-            "itself peaks at 1.9 GB. The peak is not reliably under 3 GB (2.84 to 3.13 GB "
-            "in three runs): traced per net call, the edge bands take the process from "
-            "1.1 to 2.4 GB and the depth net on the first pass's largest canvases (about "
-            "500x900, padded to 512x1024) from a 1.6 GB base to 2.84 GB; shrinking those "
-            "canvases or the depth net's memory is the next step.")
+            "itself peaks at 1.9 GB. With the lean edge forward alone the peak was 2.84 "
+            "to 3.13 GB in three runs: traced per net call, the edge bands took the "
+            "process from 1.1 to 2.4 GB and the depth net on the first pass's largest "
+            "canvases (about 500x900, padded to 512x1024) from a 1.6 GB base to 2.84 GB; "
+            "the U-Nets' lean inference forward (below) removed that second peak.")
 
 
 def section_compact_quality() -> str:
