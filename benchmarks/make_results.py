@@ -39,6 +39,7 @@ BENCHMARKS = [
     ["bench_quality.py", "--methods", "diffusion,structured", "--out", "benchmarks/results/fill"],
     ["bench_fill.py", "--runs", "5"],
     ["bench_fill_crops.py"],
+    ["bench_fill_variants.py"],
     ["bench_learned.py", "--per-patch", "--out", "benchmarks/results/learned.json"],
     ["bench_learned.py", "--edge-unit", "8", "--precision", "bf16"],
     ["bench_learned.py", "--runs", "1", "--out", "benchmarks/results/learned_shared.json"],
@@ -308,7 +309,34 @@ def section_fill() -> str:
     if crops is not None:
         out += [f"Crops: `{crops['command']}` -> `results/fill_crops.png` (real right view, "
                 "each fill, disoccluded mask).", ""]
-    return "\n".join(out)
+    return "\n".join(out + section_fill_variants())
+
+
+def section_fill_variants() -> list[str]:
+    rec = load("fill_variants.json")
+    if rec is None:
+        return [missing("python benchmarks/bench_fill_variants.py")]
+    scores = rec["scores"]
+    synth = [p for p in scores if p.startswith("synthetic")]
+    names = list(next(iter(scores.values())))
+    out = ["### Each step alone, and how good a fill must be", "",
+           f"Command: `{rec['command']}`. Machine: {machine_line(rec)}. Disoccluded LPIPS "
+           "(change against diffusion) and PSNR. `lines`: continued edges and piecewise "
+           "diffusion only; `texture`: PatchMatch texture on plain diffusion; "
+           "`oracle-blur-S`: the real right view blurred by S px pasted into the "
+           "disoccluded pixels (not a method: what a fill with structure right to within "
+           "S px would score).", "",
+           "| fill | motorcycle LPIPS | change | PSNR | synthetic mean LPIPS | change | "
+           "PSNR |", "| --- | --- | --- | --- | --- | --- | --- |"]
+    base_m = scores["motorcycle"]["diffusion"]
+    base_s = sum(scores[p]["diffusion"]["lpips"] for p in synth) / len(synth)
+    for n in names:
+        m = scores["motorcycle"][n]
+        sl = sum(scores[p][n]["lpips"] for p in synth) / len(synth)
+        sp = sum(scores[p][n]["psnr"] for p in synth) / len(synth)
+        out.append(f"| {n} | {m['lpips']:.4f} | {100 * (m['lpips'] / base_m['lpips'] - 1):+.1f} % "
+                   f"| {m['psnr']:.2f} | {sl:.4f} | {100 * (sl / base_s - 1):+.1f} % | {sp:.2f} |")
+    return out + [""]
 
 
 def section_learned() -> str:

@@ -244,7 +244,8 @@ def make(
             dilation=px(reg.edge_dilation) if k == 0 else 0,
             threshold=thr,
         )
-        jobs = extract_patches(ldi, regions, edge_pixels, margin=backend.margin)
+        jobs = extract_patches(ldi, regions, edge_pixels, margin=backend.margin,
+                               scale=max(w / img.shape[1], h / img.shape[0]))
 
         def on_patch(i: int, n: int, k: int = k) -> None:
             report("inpaint", (k + i / max(n, 1)) / reg.max_passes)

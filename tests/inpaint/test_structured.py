@@ -108,3 +108,40 @@ def test_hidden_straight_edge_is_continued_within_2px(name):
         diffusion_widths.append(int(((smear[25:75, x] > 0.3) & (smear[25:75, x] < 0.7)).sum()))
     assert max(errors) <= 2.0
     assert max(widths) <= 2 < min(diffusion_widths)
+
+
+def test_patches_know_how_much_the_photo_was_enlarged():
+    seen = []
+
+    class Spy:
+        name, margin = "spy", 1
+
+        def inpaint(self, patches, *, progress=None, pass_index=0):
+            seen.extend(p.scale for p in patches)
+            return get_inpainter("diffusion").inpaint(patches)
+
+    img = np.random.default_rng(0).random((48, 64, 3)).astype(np.float32)
+    disp = np.ones((48, 64), np.float32)
+    disp[12:36, 20:44] = 3.0
+    photo3d.make(img, depth=disp, config=photo3d.Config(size=128), inpainter=Spy())
+    assert seen and all(s == pytest.approx(2.0) for s in seen)
+
+
+def test_texture_patches_are_sized_in_photo_pixels(monkeypatch):
+    import photo3d.inpaint.structured as st
+
+    radii = []
+
+    def spy(image, context, synthesis, *, radius, **kw):
+        radii.append(radius)
+        return image
+
+    monkeypatch.setattr(st, "exemplar_fill", spy)
+    col = np.zeros((20, 30, 3), np.float32)
+    ctx = np.zeros((20, 30), bool)
+    ctx[:, :15] = True
+    inp = get_inpainter("structured")
+    for scale in (1.0, 3.2):
+        inp.fill(Patch(col, np.zeros((20, 30), np.float32), np.zeros((20, 30), np.float32),
+                       ctx, ~ctx, (0, 0), scale))
+    assert radii == [2, 5]

@@ -30,6 +30,9 @@ class Patch:
         context: ``(h, w) bool`` known pixels (one connected LDI layer).
         synthesis: ``(h, w) bool`` pixels to generate (disjoint from ``context``).
         origin: ``(y0, x0)`` lattice position of the patch's top-left pixel.
+        scale: lattice pixels per pixel of the input photo (above 1 when a small
+            photo was enlarged to the working size); lets a backend size its
+            neighbourhoods in the photo's own pixels.
     """
 
     color: np.ndarray
@@ -38,6 +41,7 @@ class Patch:
     context: np.ndarray
     synthesis: np.ndarray
     origin: tuple[int, int]
+    scale: float = 1.0
 
     @property
     def shape(self) -> tuple[int, int]:

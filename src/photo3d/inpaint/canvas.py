@@ -219,7 +219,8 @@ def _combine(members: Sequence[Patch]) -> Patch:
         edges[win] = np.maximum(edges[win], np.where(ctx, p.edges, 0))
         context[win] |= ctx
         synthesis[win] |= p.synthesis.astype(bool) & ~ctx
-    return Patch(color, disparity, edges, context, synthesis & ~context, (y0, x0))
+    return Patch(color, disparity, edges, context, synthesis & ~context, (y0, x0),
+                 members[0].scale)
 
 
 def split_result(canvas: Canvas, result: InpaintResult,
@@ -303,7 +304,7 @@ def joint_patch(patches: Sequence[Patch], *, reach: int = 8,
         foreground[big] |= near & context[big] & (disparity[big] > top + threshold)
     keep = context & ~synthesis & ~foreground
     return Patch(color * keep[..., None], disparity * keep, edges * keep, keep, synthesis,
-                 (y0, x0))
+                 (y0, x0), patches[0].scale)
 
 
 def edges_in(p: Patch, joint: Sequence[tuple[np.ndarray, tuple[int, int]]]) -> np.ndarray:

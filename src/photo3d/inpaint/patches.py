@@ -28,7 +28,7 @@ class PatchJob:
 
 
 def extract_patches(ldi: LDI, regions: Regions, edge_pixels: np.ndarray, *,
-                    margin: int) -> list[PatchJob]:
+                    margin: int, scale: float = 1.0) -> list[PatchJob]:
     """Rasterise each edge's regions into a :class:`Patch` (its bounding box + margin).
 
     Args:
@@ -37,6 +37,7 @@ def extract_patches(ldi: LDI, regions: Regions, edge_pixels: np.ndarray, *,
         edge_pixels: ``(K,) int64`` all silhouette pixels of the pass (the patch's
             ``edges`` channel marks those that lie in its context).
         margin: extra pixels around the bounding box.
+        scale: lattice pixels per pixel of the input photo (:attr:`Patch.scale`).
 
     Returns:
         One :class:`PatchJob` per edge that has anything to synthesise.
@@ -84,6 +85,6 @@ def extract_patches(ldi: LDI, regions: Regions, edge_pixels: np.ndarray, *,
         context[cy, cx] = True
         synthesis[sy - y0, sx - x0] = True
         synthesis[ldi.y[band] - y0, ldi.x[band] - x0] = True
-        patch = Patch(color, disparity, edges, context, synthesis, (y0, x0))
+        patch = Patch(color, disparity, edges, context, synthesis, (y0, x0), scale)
         jobs.append(PatchJob(patch=patch, new_y=sy, new_x=sx, band=band))
     return jobs

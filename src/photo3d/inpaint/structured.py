@@ -74,7 +74,9 @@ class StructuredInpainter:
     Options (keyword-only): ``iterations``, ``tolerance`` (diffusion, as
     :func:`photo3d.inpaint.diffusion.diffuse`); ``lines`` (step 1 on/off);
     ``texture`` (0 = no step 3, 1 = its colours as they are, in between a blend);
-    ``patch_radius``, ``pm_iterations``, ``em_steps``, ``guide_weight``, ``copy``
+    ``patch_radius`` (in pixels of the input photo, so an enlarged small photo gets
+    patches as large in its own pixels as a photo at the working size; at least 2
+    lattice pixels), ``pm_iterations``, ``em_steps``, ``guide_weight``, ``copy``
     (:func:`~photo3d.inpaint.exemplar.exemplar_fill`); ``support_factor``,
     ``coherence`` and any other keyword of
     :func:`~photo3d.inpaint.structure.continue_edges`; ``workers`` (threads; the
@@ -97,17 +99,28 @@ class StructuredInpainter:
 
     def __init__(self, *, iterations: int = 300, tolerance: float = 1e-3,
                  workers: int | None = None, lines: bool = True, texture: float = 1.0,
-                 patch_radius: int = 2, pm_iterations: int = 3, em_steps: int = 1,
+                 patch_radius: float = 1.5, pm_iterations: int = 3, em_steps: int = 1,
                  guide_weight: float = 0.5, copy: bool = True, support_factor: float = 1.0,
                  coherence: float = 0.8, **structure) -> None:
         self.lines = lines
         self.texture = texture
-        self.exemplar = dict(radius=patch_radius, iterations=pm_iterations,
+        self.patch_radius = patch_radius
+        self.exemplar = dict(iterations=pm_iterations,
                              em_steps=em_steps, guide_weight=guide_weight, copy=copy)
         self.iterations = iterations
         self.tolerance = tolerance
         self.workers = workers or os.cpu_count() or 1
         self.structure = dict(structure, support_factor=support_factor, coherence=coherence)
+
+    def radius(self, scale: float) -> int:
+        """Texture patch radius in lattice pixels for a patch of this ``scale``.
+
+        Example:
+            >>> inp = StructuredInpainter()
+            >>> inp.radius(1.0), inp.radius(1.4), inp.radius(3.2)
+            (2, 2, 5)
+        """
+        return max(2, round(self.patch_radius * scale))
 
     def fill(self, p: Patch) -> InpaintResult:
         """Fill one patch (see the module doc)."""
@@ -122,7 +135,8 @@ class StructuredInpainter:
                                 iterations=self.iterations, tolerance=self.tolerance)
         color = out[..., :3]
         if self.texture > 0:
-            tex = exemplar_fill(color, context, p.synthesis, **self.exemplar)
+            tex = exemplar_fill(color, context, p.synthesis, radius=self.radius(p.scale),
+                                **self.exemplar)
             color = color + self.texture * (tex - color)
         return InpaintResult(color=np.clip(color, 0.0, 1.0), disparity=out[..., 3],
                              edges=np.zeros(p.shape, np.float32))
