@@ -45,7 +45,8 @@ def _open_edges(faces):
 
 def test_planar_blocks_become_fans_with_the_same_outline_and_winding():
     """A tilted plane with a depth step: far fewer triangles, same covered area, one
-    winding, and the same open edges (no cracks or T-junctions inside)."""
+    winding, and the same outline: open edges only along the old outline, of the same
+    total length (a crack or T-junction inside would add open edges)."""
     yy, xx = np.mgrid[0:70, 0:90].astype(np.float64)
     disparity = 0.5 + 0.003 * xx + 0.002 * yy  # linear in the image: a plane in 3D
     disparity[:, 45:] *= 0.5  # a depth edge: the mesh splits there
@@ -55,7 +56,26 @@ def test_planar_blocks_become_fans_with_the_same_outline_and_winding():
     assert np.all(np.sign(area_after) == np.sign(area_before[0]))
     assert np.all(area_after != 0)
     assert abs(area_after.sum() - area_before.sum()) < 1e-6
-    assert _open_edges(after) == _open_edges(before)
+    open_before, open_after = _open_edges(before), _open_edges(after)
+    on_outline = {v for e in open_before for v in e}
+    assert {v for e in open_after for v in e} <= on_outline
+    assert len(open_after) < len(open_before)  # collinear outline pixels dropped
+
+    def length(edges):
+        return sum(np.hypot(px[a] - px[b], py[a] - py[b]) for a, b in edges)
+
+    assert abs(length(open_after) - length(open_before)) < 1e-9
+
+
+def test_neighbouring_blocks_share_their_edges_without_middle_pixels():
+    """A whole plane: the blocks' fans keep only pixels that are some block's corner
+    (or a kept face's vertex), and every inner edge is shared by two faces."""
+    yy, xx = np.mgrid[0:65, 0:65].astype(np.float64)
+    before, after, px, py = _merged(0.5 + 0.002 * xx + 0.001 * yy, 0.01)
+    # 64 x 64 quads: four 32-blocks, each a fan from its centre to its 4 corners
+    # plus the corners of its neighbours that lie on its border (none here)
+    assert len(after) == 4 * 4
+    assert len(_open_edges(after)) == 8
 
 
 def test_curved_surfaces_are_left_alone():

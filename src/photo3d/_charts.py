@@ -50,7 +50,7 @@ def claim_faces(faces, pos, rank, images, n_layers):
     return layer, n_layers
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def fill_charts(src, colors):
     """``(C, S, S, 3) uint8`` chart texels from pixel indices ``src (C, S, S)`` (-1:
     none) and ``colors (N, 3) uint8``: holes take the mean of their known
@@ -108,3 +108,80 @@ def fill_charts(src, colors):
                     v = val[y, x, ch] if known[y, x] else mean[ch] / max(cnt, 1)
                     out[c, y, x, ch] = np.uint8(min(max(np.rint(v), 0.0), 255.0))
     return out
+
+
+@njit(cache=True)
+def chart_vertices(faces, chart, n_pixels):
+    """One vertex per (pixel, chart) that the faces use: texture seams split vertices.
+
+    Args:
+        faces: ``(F, 3) int64`` pixel indices.
+        chart: ``(F,) int64`` chart of each face (-1: the input layer's photo).
+        n_pixels: number of LDI pixels.
+
+    Returns:
+        ``(corners (F, 3) int64, pixel (V,) int64, vchart (V,) int64)``: the vertex of
+        each face corner, and each vertex's pixel and chart + 1, vertices sorted by
+        ``(pixel, chart)`` (what ``np.unique`` of the pair keys gives, at a fraction
+        of its time: most pixels are in one chart, and only the others are sorted).
+    """
+    first = np.full(n_pixels, -1, np.int64)  # chart + 1 of the pixel, -2: several
+    n_multi = 0
+    for f in range(len(faces)):
+        for c in range(3):
+            p = faces[f, c]
+            if first[p] == -1:
+                first[p] = chart[f] + 1
+            elif first[p] >= 0 and first[p] != chart[f] + 1:
+                first[p] = -2
+    for f in range(len(faces)):
+        for c in range(3):
+            if first[faces[f, c]] == -2:
+                n_multi += 1
+    keys = np.empty(n_multi, np.int64)  # pixel * (charts + 2) + chart + 1
+    span = chart.max() + 2 if len(chart) else 1
+    j = 0
+    for f in range(len(faces)):
+        for c in range(3):
+            p = faces[f, c]
+            if first[p] == -2:
+                keys[j] = p * span + chart[f] + 1
+                j += 1
+    keys = np.unique(keys)
+    vid = np.full(n_pixels, -1, np.int64)  # the vertex of a one-chart pixel, or the
+    n_v = 0                                 # first of a several-chart pixel's
+    k = 0
+    pixel = np.empty(n_pixels + len(keys), np.int64)
+    vchart = np.empty(n_pixels + len(keys), np.int64)
+    for p in range(n_pixels):
+        if first[p] >= 0:
+            vid[p] = n_v
+            pixel[n_v], vchart[n_v] = p, first[p]
+            n_v += 1
+        elif first[p] == -2:
+            vid[p] = n_v
+            while k < len(keys) and keys[k] // span == p:
+                pixel[n_v], vchart[n_v] = p, keys[k] % span
+                n_v += 1
+                k += 1
+    corners = np.empty(faces.shape, np.int64)
+    for f in range(len(faces)):
+        for c in range(3):
+            p = faces[f, c]
+            v = vid[p]
+            if first[p] == -2:
+                while vchart[v] != chart[f] + 1:
+                    v += 1
+            corners[f, c] = v
+    return corners, pixel[:n_v].copy(), vchart[:n_v].copy()
+
+
+@njit(cache=True)
+def pixel_ranks(pos, n_positions):
+    """``(N,) int64`` how many pixels before each one (in LDI order) share its position."""
+    seen = np.zeros(n_positions, np.int64)
+    rank = np.empty(len(pos), np.int64)
+    for i in range(len(pos)):
+        rank[i] = seen[pos[i]]
+        seen[pos[i]] += 1
+    return rank

@@ -112,10 +112,16 @@ def planar_blocks(cnt, images, value, rows, cols, eps, big, small):
 def merged_faces(faces, face_layer, py, px, cnt, cols, blocks, images, sign):
     """Faces outside the blocks, then each block's fan; and their layer images.
 
-    ``sign`` is the sign of ``cross(v1 - v0, v2 - v0)`` in (x, y) of the input faces;
-    the fans are wound the same way.
+    A block's fan runs from its centre to the pixels of its border that something
+    else needs: its corners, every other block's corners and the vertices of the
+    faces kept. Where two blocks meet, the pixels between those are dropped from
+    both, so they share one straight edge (no crack, no T-junction) and a plane of
+    ``4 b`` border pixels becomes as few as 4 triangles. ``sign`` is the sign of
+    ``cross(v1 - v0, v2 - v0)`` in (x, y) of the input faces; the fans are wound the
+    same way.
     """
     keep = np.zeros(len(faces), np.bool_)
+    needed = np.zeros(len(py), np.bool_)
     n_keep = 0
     for f in range(len(faces)):
         y0 = min(py[faces[f, 0]], py[faces[f, 1]], py[faces[f, 2]])
@@ -123,11 +129,34 @@ def merged_faces(faces, face_layer, py, px, cnt, cols, blocks, images, sign):
         if cnt[face_layer[f], y0 * cols + x0] != 255:
             keep[f] = True
             n_keep += 1
-    n_fan = 0
+            for c in range(3):
+                needed[faces[f, c]] = True
     for i in range(len(blocks)):
-        n_fan += 4 * blocks[i, 3]
-    out = np.empty((n_keep + n_fan, 3), np.int64)
-    layer = np.empty(n_keep + n_fan, np.int64)
+        k, y0, x0, b = blocks[i, 0], blocks[i, 1], blocks[i, 2], blocks[i, 3]
+        for y, x in ((y0, x0), (y0, x0 + b), (y0 + b, x0 + b), (y0 + b, x0)):
+            needed[images[k, y * cols + x]] = True
+    rings = np.empty((len(blocks), 2), np.int64)  # start and length in `ring`
+    ring = np.empty(4 * int(blocks[:, 3].sum()) if len(blocks) else 0, np.int64)
+    n = 0
+    for i in range(len(blocks)):
+        k, y0, x0, b = blocks[i, 0], blocks[i, 1], blocks[i, 2], blocks[i, 3]
+        rings[i, 0] = n
+        # the border clockwise on screen (y down): top, right, bottom, left edges
+        for t in range(4 * b):
+            if t < b:
+                q = images[k, y0 * cols + x0 + t]
+            elif t < 2 * b:
+                q = images[k, (y0 + t - b) * cols + x0 + b]
+            elif t < 3 * b:
+                q = images[k, (y0 + b) * cols + x0 + 3 * b - t]
+            else:
+                q = images[k, (y0 + 4 * b - t) * cols + x0]
+            if needed[q]:
+                ring[n] = q
+                n += 1
+        rings[i, 1] = n - rings[i, 0]
+    out = np.empty((n_keep + n, 3), np.int64)
+    layer = np.empty(n_keep + n, np.int64)
     j = 0
     for f in range(len(faces)):
         if keep[f]:
@@ -137,15 +166,9 @@ def merged_faces(faces, face_layer, py, px, cnt, cols, blocks, images, sign):
     for i in range(len(blocks)):
         k, y0, x0, b = blocks[i, 0], blocks[i, 1], blocks[i, 2], blocks[i, 3]
         centre = images[k, (y0 + b // 2) * cols + x0 + b // 2]
-        # the border clockwise on screen (y down): top, right, bottom, left edges
-        ring = np.empty(4 * b, np.int64)
-        for t in range(b):
-            ring[t] = images[k, y0 * cols + x0 + t]
-            ring[b + t] = images[k, (y0 + t) * cols + x0 + b]
-            ring[2 * b + t] = images[k, (y0 + b) * cols + x0 + b - t]
-            ring[3 * b + t] = images[k, (y0 + b - t) * cols + x0]
-        for t in range(4 * b):
-            u, v = ring[t], ring[(t + 1) % (4 * b)]
+        s, m = rings[i, 0], rings[i, 1]
+        for t in range(m):
+            u, v = ring[s + t], ring[s + (t + 1) % m]
             if sign > 0:  # the ring is clockwise on screen: cross > 0 as (c, u, v)
                 out[j, 0], out[j, 1], out[j, 2] = centre, u, v
             else:

@@ -193,9 +193,12 @@ def save_npz(ldi: LDI, path: str | Path, *, meta: dict | None = None) -> None:
         "header": np.frombuffer(json.dumps(header).encode(), np.uint8),
     }
     # A regular .npz (np.load reads it) with fast deflate: np.savez_compressed's
-    # default level is several times slower for a few percent smaller files.
+    # default level is several times slower for a few percent smaller files. The
+    # colours are stored: deflate shrinks float32 colours by only a quarter (18.7 to
+    # 14 MB for a 1024 px photo) in half the time of the whole file.
     with zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED, compresslevel=1) as zf:
         for name, array in arrays.items():
+            zf.compression = zipfile.ZIP_STORED if name == "color" else zipfile.ZIP_DEFLATED
             with zf.open(f"{name}.npy", "w", force_zip64=True) as f:
                 np.lib.format.write_array(f, np.ascontiguousarray(array), allow_pickle=False)
 

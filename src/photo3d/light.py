@@ -42,18 +42,19 @@ The result's faces list the input layer first, as the full mesh does.
 
 from __future__ import annotations
 
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
 
-from photo3d._charts import claim_faces, fill_charts
+from photo3d._charts import chart_vertices, claim_faces, fill_charts, pixel_ranks
 from photo3d._planar import merged_faces, planar_blocks, quad_counts
 from photo3d.errors import InputError
 from photo3d.ldi import LDI
 from photo3d.mesh import Mesh, build_mesh
 
 _GUTTER = 1
-_BLOCKS = (32, 4)  # sides of the planar blocks merged before meshoptimizer
+_BLOCKS = (32, 2)  # sides of the planar blocks merged before meshoptimizer
 PLANAR_SHARE = 0.3
 """Planarity bound of those blocks, as a share of ``max_error``."""
 LIGHT_ERROR = 0.5
@@ -173,7 +174,8 @@ def build_light_mesh(ldi: LDI, *, max_error: float = LIGHT_ERROR, parallax: floa
     images[rank, pos] = np.arange(ldi.size)
     faces = full.faces.astype(np.int64)
     face_layer = np.zeros(len(faces), np.int64)
-    hidden = rank[faces].max(axis=1) > 0
+    deep = rank > 0
+    hidden = deep[faces[:, 0]] | deep[faces[:, 1]] | deep[faces[:, 2]]
     face_layer[hidden], n_layers = claim_faces(faces[hidden], pos, rank, images, n_layers)
     if max_error > 0:
         k = ldi.intrinsics
@@ -195,9 +197,10 @@ def _merge_planar(faces: np.ndarray, face_layer: np.ndarray, pos: np.ndarray,
         return faces, face_layer
     rows, cols = shape
     py, px = np.divmod(pos, cols)
-    f0 = faces[:, 0]
-    cross = ((px[faces[:, 1]] - px[f0]) * (py[faces[:, 2]] - py[f0])
-             - (py[faces[:, 1]] - py[f0]) * (px[faces[:, 2]] - px[f0]))
+    some = faces[:10_000]  # all faces are wound alike: a sample tells which way
+    f0 = some[:, 0]
+    cross = ((px[some[:, 1]] - px[f0]) * (py[some[:, 2]] - py[f0])
+             - (py[some[:, 1]] - py[f0]) * (px[some[:, 2]] - px[f0]))
     sign = 1 if np.median(np.sign(cross)) > 0 else -1
     cnt = quad_counts(faces, face_layer, py, px, len(images), rows, cols)
     blocks = planar_blocks(cnt, images, value.astype(np.float64), rows, cols, float(eps),
@@ -208,29 +211,73 @@ def _merge_planar(faces: np.ndarray, face_layer: np.ndarray, pos: np.ndarray,
 def _simplify(points: np.ndarray, faces: np.ndarray, max_error: float) -> np.ndarray:
     """``(F', 3) int64`` faces of ``points (N, 3)`` simplified by edge collapses
     (meshoptimizer: vertices keep their places; open borders and texture seams,
-    i.e. vertices sharing a position, collapse only along themselves)."""
-    try:
-        import meshoptimizer
-    except ImportError as err:  # pragma: no cover - core dependency
-        raise ImportError("the light mesh needs meshoptimizer: pip install meshoptimizer") from err
+    i.e. vertices sharing a position, collapse only along themselves).
+
+    Two tiles (left and right of the median face) are simplified in two threads
+    (meshoptimizer's C code runs without the GIL), with the vertices they share
+    locked so they still meet without cracks: 2.2 times faster on the sample for 1.5 %
+    more triangles. Faces keep their tile order, so the result does not depend on
+    the machine.
+    """
     if max_error <= 0 or not len(faces):
         return faces
+    points = np.ascontiguousarray(points, np.float32)
+    if len(faces) < _TILE_FACES:
+        return _simplify_locked(points, faces, None, max_error)
+    x = points[:, 0]
+    cut = np.median(x[faces[:, 0]])
+    side = x >= cut
+    tile = side[faces[:, 0]]
+    lock = np.zeros(len(points), np.uint8)
+    lock[faces[side[faces] != tile[:, None]]] = 1  # used by faces of both tiles
+    with ThreadPoolExecutor(max_workers=2) as pool:
+        parts = list(pool.map(lambda t: _simplify_locked(points, faces[tile == t], lock,
+                                                         max_error), (False, True)))
+    return np.concatenate(parts)
+
+
+_TILE_FACES = 200_000  # fewer faces than this are simplified in one piece
+
+
+def _simplify_locked(points: np.ndarray, faces: np.ndarray, lock: np.ndarray | None,
+                     max_error: float) -> np.ndarray:
+    """meshoptimizer's ``meshopt_simplifyWithAttributes`` (no attributes) on ``faces``
+    of the vertex buffer ``points``, with the vertices where ``lock`` is 1 fixed
+    (None: none). Called through ctypes: the Python wrapper does not declare this
+    function's argument types."""
+    import ctypes
+
+    try:
+        import meshoptimizer
+        from meshoptimizer._loader import lib
+    except ImportError as err:  # pragma: no cover - core dependency
+        raise ImportError("the light mesh needs meshoptimizer: pip install meshoptimizer") from err
+    fn = lib["meshopt_simplifyWithAttributes"]  # a private function object per call
+    uint_p, float_p = ctypes.POINTER(ctypes.c_uint), ctypes.POINTER(ctypes.c_float)
+    byte_p = ctypes.POINTER(ctypes.c_ubyte)
+    fn.restype = ctypes.c_size_t
+    fn.argtypes = [uint_p, uint_p, ctypes.c_size_t, float_p, ctypes.c_size_t, ctypes.c_size_t,
+                   float_p, ctypes.c_size_t, float_p, ctypes.c_size_t, byte_p, ctypes.c_size_t,
+                   ctypes.c_float, ctypes.c_uint, float_p]
     indices = np.ascontiguousarray(faces.ravel(), np.uint32)
     out = np.empty_like(indices)
-    n = meshoptimizer.simplify(out, indices, np.ascontiguousarray(points, np.float32),
-                               target_index_count=0, target_error=max_error,
-                               options=meshoptimizer.SIMPLIFY_ERROR_ABSOLUTE)
+    options = meshoptimizer.SIMPLIFY_ERROR_ABSOLUTE
+    if lock is not None:
+        options |= meshoptimizer.SIMPLIFY_SPARSE  # faces use a part of the vertex buffer
+    n = fn(out.ctypes.data_as(uint_p), indices.ctypes.data_as(uint_p), len(indices),
+           points.ctypes.data_as(float_p), len(points), points.strides[0], None, 0, None, 0,
+           None if lock is None else lock.ctypes.data_as(byte_p), 0, max_error, options, None)
     return out[:n].reshape(-1, 3).astype(np.int64)
 
 
 def _ranks(pos: np.ndarray, n_positions: int) -> np.ndarray:
-    """``(N,) int64`` index of each pixel among the pixels at its position (LDI order)."""
-    order = np.argsort(pos, kind="stable")
-    starts = np.zeros(n_positions + 1, np.int64)
-    np.cumsum(np.bincount(pos, minlength=n_positions), out=starts[1:])
-    rank = np.empty(len(pos), np.int64)
-    rank[order] = np.arange(len(pos)) - np.repeat(starts[:-1], np.diff(starts))
-    return rank
+    """``(N,) int64`` index of each pixel among the pixels at its position (LDI order).
+
+    Example:
+        >>> _ranks(np.array([2, 0, 2, 2, 0]), 3).tolist()
+        [0, 0, 1, 2, 1]
+    """
+    return pixel_ranks(np.ascontiguousarray(pos, np.int64), n_positions)
 
 
 def _textured(ldi: LDI, full: Mesh, faces: np.ndarray, face_layer: np.ndarray,
@@ -254,13 +301,17 @@ def _textured(ldi: LDI, full: Mesh, faces: np.ndarray, face_layer: np.ndarray,
     slot = block + 1 + 2 * _GUTTER
     slot_y, slot_x, tex_h, tex_w = _pack(len(charts), slot, rows, cols)
     # vertices: one per (pixel, chart)
-    vkey = faces * (len(charts) + 1) + (chart[:, None] + 1)
-    uniq, inverse = np.unique(vkey.ravel(), return_inverse=True)
-    pixel, vchart = np.divmod(uniq, len(charts) + 1)
+    corners, pixel, vchart = chart_vertices(faces, chart, ldi.size)
     k = ldi.intrinsics
     points = np.stack([px[pixel], py[pixel],
                        max(k.fx, k.fy) * parallax / full.vertices[pixel, 2]], 1)
-    faces = _simplify(points, inverse.reshape(-1, 3), max_error)
+    c_layer, c_rest = np.divmod(charts, (-(-rows // block)) * nbx)
+    c_by, c_bx = np.divmod(c_rest, nbx)
+    with ThreadPoolExecutor(max_workers=1) as pool:  # the texture while meshoptimizer runs
+        texture = pool.submit(_texture, images, full.colors, (rows, cols), (tex_h, tex_w),
+                              c_layer, c_by * block, c_bx * block, slot_y, slot_x, block)
+        faces = _simplify(points, corners, max_error)
+        texture = texture.result()
     input_face = vchart[faces[:, 0]] == 0
     faces = faces[np.argsort(~input_face, kind="stable")]  # input layer first
     n_input = int(np.count_nonzero(input_face))
@@ -272,31 +323,38 @@ def _textured(ldi: LDI, full: Mesh, faces: np.ndarray, face_layer: np.ndarray,
     tx = px[pixel].astype(np.float64)
     ty = py[pixel].astype(np.float64)
     hid = vchart >= 0
-    c_layer, c_rest = np.divmod(charts, (-(-rows // block)) * nbx)
-    c_by, c_bx = np.divmod(c_rest, nbx)
     origin_y = slot_y + _GUTTER - c_by * block  # texel row = lattice row + origin
     origin_x = slot_x + _GUTTER - c_bx * block
     tx[hid] += origin_x[vchart[hid]]
     ty[hid] += origin_y[vchart[hid]]
     uv = np.stack([(tx + 0.5) / tex_w, (ty + 0.5) / tex_h], 1).astype(np.float32)
-    texture = np.zeros((tex_h, tex_w, 3), np.uint8)
-    colors = full.colors
-    texture[:rows, :cols] = _filled(images[0], colors, rows, cols)
-    if len(charts):
-        g = np.arange(-_GUTTER, block + 1 + _GUTTER)
-        ly = np.clip(c_by[:, None] * block + g[None, :], 0, rows - 1)  # (C, slot)
-        lx = np.clip(c_bx[:, None] * block + g[None, :], 0, cols - 1)
-        flat = ly[:, :, None] * cols + lx[:, None, :]  # (C, slot, slot)
-        src = images[c_layer[:, None, None], flat]
-        texels = fill_charts(src, colors)
-        ty_ = slot_y[:, None, None] + np.arange(slot)[None, :, None]
-        tx_ = slot_x[:, None, None] + np.arange(slot)[None, None, :]
-        texture[ty_, tx_] = texels
     return TexturedMesh(
         vertices=full.vertices[pixel], uv=uv, texture=texture, labels=full.labels[pixel],
         faces=faces.astype(np.int32), n_input=n_input, width=full.width,
         height=full.height, hfov=full.hfov, vfov=full.vfov,
     )
+
+
+def _texture(images: np.ndarray, colors: np.ndarray, shape: tuple[int, int],
+             size: tuple[int, int], c_layer: np.ndarray, c_y: np.ndarray, c_x: np.ndarray,
+             slot_y: np.ndarray, slot_x: np.ndarray, block: int) -> np.ndarray:
+    """``(T, U, 3) uint8`` the texture: layer image 0 (the photo on the lattice) at the
+    top left, and chart ``i`` (layer image ``c_layer[i]``'s ``block`` square at lattice
+    ``(c_y[i], c_x[i])``, with its gutter) at texel ``(slot_y[i], slot_x[i])``."""
+    rows, cols = shape
+    texture = np.zeros((*size, 3), np.uint8)
+    texture[:rows, :cols] = _filled(images[0], colors, rows, cols)
+    if len(c_layer):
+        g = np.arange(-_GUTTER, block + 1 + _GUTTER)
+        ly = np.clip(c_y[:, None] + g[None, :], 0, rows - 1)  # (C, slot)
+        lx = np.clip(c_x[:, None] + g[None, :], 0, cols - 1)
+        flat = ly[:, :, None] * cols + lx[:, None, :]  # (C, slot, slot)
+        texels = fill_charts(images[c_layer[:, None, None], flat], colors)
+        slot = len(g)
+        ty = slot_y[:, None, None] + np.arange(slot)[None, :, None]
+        tx = slot_x[:, None, None] + np.arange(slot)[None, None, :]
+        texture[ty, tx] = texels
+    return texture
 
 
 def _pack(n: int, slot: int, rows: int, cols: int) -> tuple[np.ndarray, np.ndarray, int, int]:

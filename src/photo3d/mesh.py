@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from photo3d._meshfaces import mesh_faces
 from photo3d.camera import unproject
 from photo3d.errors import InputError
 from photo3d.ldi import LDI
@@ -96,46 +97,15 @@ def build_mesh(ldi: LDI) -> Mesh:
         >>> m.vertices.shape, m.faces.shape
         ((9, 3), (8, 3))
     """
-    links = ldi.links
-    idx = np.arange(ldi.size, dtype=np.int64)
-
-    def nb(pix: np.ndarray, d: int) -> np.ndarray:
-        out = np.full(pix.shape, -1, np.int64)
-        ok = pix >= 0
-        out[ok] = links[pix[ok], d]
-        return out
-
-    right, down, left, up = links[:, 1], links[:, 3], links[:, 0], links[:, 2]
-    faces = []
-    # T_a from every pixel with right and down links.
-    a = idx[(right >= 0) & (down >= 0)]
-    faces.append(np.stack([a, down[a], right[a]], 1))
-    # T_d from every pixel with up and left links.
-    d = idx[(up >= 0) & (left >= 0)]
-    faces.append(np.stack([up[d], left[d], d], 1))
-    # T_b: corner b links left (a) and down (d); no T_a (a has no down) and no T_d.
-    b = idx[(left >= 0) & (down >= 0)]
-    a_of_b, d_of_b = left[b], down[b]
-    ok = (nb(a_of_b, 3) < 0) & (nb(d_of_b, 0) < 0)
-    b, a_of_b, d_of_b = b[ok], a_of_b[ok], d_of_b[ok]
-    faces.append(np.stack([a_of_b, d_of_b, b], 1))
-    # T_c: corner c links up (a) and right (d); no T_a (a has no right) and no T_d.
-    c = idx[(up >= 0) & (right >= 0)]
-    a_of_c, d_of_c = up[c], right[c]
-    ok = (nb(a_of_c, 1) < 0) & (nb(d_of_c, 2) < 0)
-    c, a_of_c, d_of_c = c[ok], a_of_c[ok], d_of_c[ok]
-    faces.append(np.stack([a_of_c, c, d_of_c], 1))
-
-    faces = np.concatenate(faces)
     # Faces in order of their last vertex: the input layer's faces come first (its
     # pixels are the first H * W), and neighbouring faces are close in memory.
-    faces = faces[np.argsort(faces.max(axis=1), kind="stable")]
+    faces = mesh_faces(np.ascontiguousarray(ldi.links, np.int32))
     hfov, vfov = ldi.intrinsics.fov
     return Mesh(
         vertices=unproject(ldi.x, ldi.y, ldi.depth(), ldi.intrinsics),
         colors=np.clip(np.round(ldi.color * 255.0), 0, 255).astype(np.uint8),
         labels=ldi.label.copy(),
-        faces=faces.astype(np.int32),
+        faces=faces,
         width=ldi.width,
         height=ldi.height,
         hfov=hfov,

@@ -136,16 +136,18 @@ def _write_photo(photo: Photo3D, tmp: Path, *, title: str, ply, glb, viewer, vid
                  render_settings, progress, full_glb, light_error) -> None:
     """Write the files of a 3D photo folder into ``tmp``.
 
-    ``photo3d.npz`` is compressed in a second thread (zlib releases the GIL) while
-    the meshes are built and written in this one."""
+    The meshes are built in this thread; the files are written by two writer threads
+    as soon as what they hold is ready (``photo3d.npz`` first, its deflate and the
+    writes release the GIL), so writing overlaps building the light mesh."""
     meta = {"config": photo.config.to_dict(), "stats": photo.stats,
             "timings": photo.timings}
-    with ThreadPoolExecutor(max_workers=1) as pool:
-        npz = pool.submit(save_npz, photo.ldi, tmp / LDI_FILE, meta=meta)
+    with ThreadPoolExecutor(max_workers=2) as pool:
+        jobs = [pool.submit(save_npz, photo.ldi, tmp / LDI_FILE, meta=meta)]
         (tmp / "config.json").write_text(json.dumps(meta, indent=2))
-        mesh, light = _write_meshes(photo, tmp, title=title, ply=ply, glb=glb, viewer=viewer,
-                      full_glb=full_glb, light_error=light_error)
-        npz.result()
+        mesh, light = _write_meshes(photo, tmp, pool, jobs, title=title, ply=ply, glb=glb,
+                                    viewer=viewer, full_glb=full_glb, light_error=light_error)
+        for job in jobs:
+            job.result()
     if progress:
         progress("save", 1.0)
     if videos:
@@ -165,20 +167,22 @@ def _video_mesh(photo: Photo3D, mesh, light, settings: RenderSettings | None, li
                                                             max_error=light_error)
 
 
-def _write_meshes(photo: Photo3D, tmp: Path, *, title: str, ply, glb, viewer, full_glb,
+def _write_meshes(photo: Photo3D, tmp: Path, pool: ThreadPoolExecutor, jobs: list, *,
+                  title: str, ply, glb, viewer, full_glb,
                   light_error) -> tuple[Mesh | None, TexturedMesh | None]:
-    """Write ``mesh.ply``, ``mesh.glb`` and ``viewer.html`` as asked into ``tmp``;
+    """Build the meshes and have ``pool`` write ``mesh.ply``, ``mesh.glb`` and
+    ``viewer.html`` as asked into ``tmp`` (their futures are added to ``jobs``);
     returns the full and light meshes if they were built."""
     mesh = photo.mesh() if ply or glb or viewer else None
     light = None
+    if ply:
+        jobs.append(pool.submit(write_ply, tmp / "mesh.ply", mesh, binary=ply == "binary"))
+    if glb and full_glb:
+        jobs.append(pool.submit(write_glb, tmp / "mesh.glb", mesh))
     if (glb and not full_glb) or viewer:
         light = build_light_mesh(photo.ldi, full=mesh, max_error=light_error)
-    if ply:
-        write_ply(tmp / "mesh.ply", mesh, binary=ply == "binary")
-    if glb and full_glb:
-        write_glb(tmp / "mesh.glb", mesh)
-    elif glb:
-        write_textured_glb(tmp / "mesh.glb", light)
+    if glb and not full_glb:
+        jobs.append(pool.submit(write_textured_glb, tmp / "mesh.glb", light))
     if viewer:
         from photo3d.viewer import write_viewer
 
