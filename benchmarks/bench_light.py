@@ -5,16 +5,18 @@ timed), then:
 
 * sizes: ``mesh.glb`` (light, textured) and ``viewer.html`` as ``save`` writes them,
   against the full vertex-coloured GLB (``--full-glb``);
-* save time: ``Photo3D.save`` (light GLB, viewer from the light mesh) vs the save
-  of photo3d before the light mesh (npz, full mesh, PLY, full GLB, viewer from the
-  full mesh: the same writers called one by one), interleaved, median of ``--runs``;
+* save time: ``Photo3D.save`` now (light GLB, viewer from the light mesh) vs
+  ``Photo3D.save`` of photo3d before issue 17 (commit ``BEFORE``: npz, PLY, full
+  GLB, viewer from the full mesh), that commit's own code (``git archive``'d into a
+  temporary folder); each in its own process after its own ``make``, the two
+  processes alternated ``--rounds`` times, ``--runs`` saves each; medians;
 * fidelity: frames of the four standard paths (``--frames`` per path, spread
   over the path) rendered from the light mesh and from the full mesh with the same
   renderer (numba, 2x supersampling, the authors' crop); PSNR per frame;
 * render time per frame, light vs full, interleaved per frame; the same with the
   OpenGL backend (fewer frames) when EGL works.
 
-Usage: python benchmarks/bench_light.py [--runs 3] [--frames 24] [--size 1280x720]
+Usage: python benchmarks/bench_light.py [--runs 3] [--rounds 2] [--frames 24] [--size 1280x720]
 """
 
 from __future__ import annotations
@@ -38,49 +40,31 @@ from photo3d.light import build_light_mesh
 from photo3d.render.animate import VideoSpec, path_cameras
 from photo3d.render.paths import PRESETS
 from photo3d.render.renderer import AUTHORS_CROP, Renderer, RenderSettings
-frames, width, height, runs, max_error = (int(sys.argv[1]), int(sys.argv[2]),
-                                          int(sys.argv[3]), int(sys.argv[4]),
-                                          float(sys.argv[5]))
+frames, width, height, max_error = (int(sys.argv[1]), int(sys.argv[2]),
+                                    int(sys.argv[3]), float(sys.argv[4]))
 s = motorcycle()
 photo = photo3d.make(s.left, depth=np.asarray(s.disparity))
 full = photo.mesh()
+import photo3d.light as light_module
+seen = {}
+simplify = light_module._simplify
+def spy(points, faces, error):  # how many triangles reach meshoptimizer
+    seen["faces"] = len(faces)
+    return simplify(points, faces, error)
+light_module._simplify = spy
 t = time.perf_counter()
 light = build_light_mesh(photo.ldi, full=full, max_error=max_error)
 light_s = time.perf_counter() - t
+light_module._simplify = simplify
 out = {"ldi_pixels": int(photo.ldi.size), "full_faces": int(len(full.faces)),
        "light_faces": int(len(light.faces)), "light_vertices": int(len(light.vertices)),
        "texture": list(light.texture.shape[:2]), "build_light_s": light_s,
-       "max_error": max_error}
-from photo3d.io.gltf import write_glb
-from photo3d.io.ply import write_ply
-from photo3d.ldi import save_npz
-from photo3d.viewer import write_viewer
-
-
-def save_before(target):
-    target.mkdir()
-    meta = {"config": photo.config.to_dict(), "stats": photo.stats, "timings": photo.timings}
-    save_npz(photo.ldi, target / "photo3d.npz", meta=meta)
-    (target / "config.json").write_text(json.dumps(meta, indent=2))
-    mesh = photo.mesh()
-    write_ply(target / "mesh.ply", mesh)
-    write_glb(target / "mesh.glb", mesh)
-    write_viewer(mesh, target / "viewer.html", title=target.name)
-
-
-save = {"light": [], "full": []}
+       "max_error": max_error, "simplify_faces": seen["faces"]}
 with tempfile.TemporaryDirectory() as tmp:
-    for r in range(runs):
-        for kind in ("full", "light"):
-            target = Path(tmp) / f"{kind}{r}"
-            t = time.perf_counter()
-            if kind == "full":
-                save_before(target)
-            else:
-                photo.save(target, light_error=max_error)
-            save[kind].append(time.perf_counter() - t)
-            out[f"{kind}_sizes"] = {p.name: p.stat().st_size for p in target.iterdir()}
-out["save_s"] = save
+    photo.save(Path(tmp) / "light", light_error=max_error)
+    out["light_sizes"] = {p.name: p.stat().st_size for p in (Path(tmp) / "light").iterdir()}
+    photo.save(Path(tmp) / "full", full_glb=True)
+    out["full_glb_bytes"] = (Path(tmp) / "full" / "mesh.glb").stat().st_size
 settings = RenderSettings(ssaa=2, crop=AUTHORS_CROP, backend="numba")
 psnr, times = {}, {"light": [], "full": []}
 with Renderer(full, settings) as rf, Renderer(light, settings) as rl:
@@ -119,10 +103,62 @@ except Exception as err:  # no EGL here: the benchmark still reports the rest
 print(json.dumps(out))
 """
 
+BEFORE = "8e45671"
+"""The last commit before issue 17 (the light mesh): its save is the "before"."""
+
+SAVE_CHILD = r"""
+import json, sys, tempfile, time
+from pathlib import Path
+import numpy as np
+import photo3d
+from photo3d.data import motorcycle
+runs = int(sys.argv[1])
+s = motorcycle()
+photo = photo3d.make(s.left, depth=np.asarray(s.disparity))
+times = []
+with tempfile.TemporaryDirectory() as tmp:
+    for r in range(runs):
+        target = Path(tmp) / f"run{r}"
+        t = time.perf_counter()
+        photo.save(target)
+        times.append(time.perf_counter() - t)
+    sizes = {p.name: p.stat().st_size for p in target.iterdir()}
+print(json.dumps({"save_s": times, "sizes": sizes, "photo3d": photo3d.__file__}))
+"""
+
+
+def save_times(runs: int, rounds: int) -> dict:
+    """Save times of photo3d now and at ``BEFORE``, alternated ``rounds`` times."""
+    import subprocess
+    import tempfile
+
+    root = Path(__file__).resolve().parent.parent
+    out = {"now": [], "before": []}
+    with tempfile.TemporaryDirectory() as old:
+        archive = subprocess.run(["git", "-C", str(root), "archive", BEFORE, "src"],
+                                 capture_output=True, check=True).stdout
+        subprocess.run(["tar", "-x", "-C", old], input=archive, check=True)
+        for _ in range(rounds):
+            for kind in ("before", "now"):
+                env = dict(os.environ)
+                if kind == "before":
+                    env["PYTHONPATH"] = os.pathsep.join([str(Path(old) / "src"),
+                                                         env.get("PYTHONPATH", "")])
+                r = json.loads(subprocess.run(
+                    [sys.executable, "-c", SAVE_CHILD, str(runs)], env=env,
+                    capture_output=True, text=True, check=True).stdout.strip().splitlines()[-1])
+                if kind == "before" and not r["photo3d"].startswith(old):
+                    raise RuntimeError(f"the old save imported {r['photo3d']}")
+                out[kind] += r["save_s"]
+                out[f"{kind}_sizes"] = r["sizes"]
+    return out
+
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--runs", type=int, default=3)
+    parser.add_argument("--runs", type=int, default=3, help="saves per process")
+    parser.add_argument("--rounds", type=int, default=2,
+                        help="processes per version, alternated")
     parser.add_argument("--frames", type=int, default=24)
     parser.add_argument("--size", type=lambda t: tuple(int(v) for v in t.split("x")),
                         default=(1280, 720))
@@ -132,7 +168,10 @@ def main() -> None:
     args = parser.parse_args()
     w, h = args.size
     load = [os.getloadavg()[0]]
-    r = run_child(CHILD, args.frames, w, h, args.runs, args.max_error)
+    saves = save_times(args.runs, args.rounds)
+    r = run_child(CHILD, args.frames, w, h, args.max_error)
+    r["save_s"] = {k: saves[k] for k in ("now", "before")}
+    r["save_sizes"] = {k: saves[f"{k}_sizes"] for k in ("now", "before")}
     import numpy as np
 
     allp = np.concatenate([np.asarray(v) for v in r["psnr"].values()])
@@ -140,18 +179,21 @@ def main() -> None:
     ft = {k: float(np.median(v)) for k, v in r["frame_s"].items()}
     record = {"benchmark": "light", **r, "size": [w, h], "mean_psnr": float(allp.mean()),
               "min_psnr": float(allp.min()), "median_save_s": med, "median_frame_s": ft,
-              "machine": machine_info(), "load_1min": [*load, os.getloadavg()[0]],
+              "before_commit": BEFORE, "machine": machine_info(),
+              "load_1min": [*load, os.getloadavg()[0]],
               "command": " ".join(["python", "benchmarks/bench_light.py", *sys.argv[1:]])}
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps(record, indent=2))
     print(f"light mesh: {r['light_faces']:,} triangles, {r['light_vertices']:,} vertices, "
           f"texture {r['texture'][1]}x{r['texture'][0]} (full: {r['full_faces']:,} triangles); "
           f"built in {r['build_light_s']:.2f} s")
-    for kind in ("full", "light"):
-        sizes = r[f"{kind}_sizes"]
-        label = {"full": "before (full GLB + viewer)", "light": "now (light GLB + viewer)"}
-        print(f"{label[kind]}: save {med[kind]:.2f} s median: " + ", ".join(
-            f"{k} {v / 1e6:.2f} MB" for k, v in sorted(sizes.items())))
+    for kind in ("before", "now"):
+        sizes = r["save_sizes"][kind]
+        label = {"before": f"before (commit {BEFORE}: full GLB + viewer)",
+                 "now": "now (light GLB + viewer)"}
+        print(f"{label[kind]}: save {med[kind]:.2f} s median of {len(r['save_s'][kind])}: "
+              + ", ".join(f"{k} {v / 1e6:.2f} MB" for k, v in sorted(sizes.items())))
+    print(f"save now / before: {med['now'] / med['before']:.2f}")
     print(f"fidelity, {len(allp)} frames of the 4 paths at {w}x{h}: PSNR mean "
           f"{allp.mean():.2f} dB, min {allp.min():.2f} dB; per path: " + ", ".join(
               f"{k} {np.mean(v):.2f}/{np.min(v):.2f}" for k, v in r["psnr"].items()))

@@ -23,7 +23,7 @@ from results_light import section_light  # noqa: E402
 RESULTS = HERE / "results"
 BENCHMARKS = [
     ["bench_make.py", "--runs", "5"],
-    ["bench_light.py", "--runs", "3", "--frames", "12"],
+    ["bench_light.py", "--runs", "3", "--rounds", "2", "--frames", "12"],
     ["bench_viewer.py", "--runs", "3", "--full-mesh", "--out",
      "benchmarks/results/viewer_full.json"],
     ["bench_render.py", "--runs", "3"],
