@@ -104,3 +104,37 @@ def test_bad_arguments_are_one_line_errors():
                         np.ones(3), np.array([[0, 1, 2]]), 1, 4, 4, 1.0, 1.0)
     with pytest.raises(InputError, match="uv"):
         mesh.checked()
+
+
+def _open_edges(faces: np.ndarray) -> set:
+    edges = np.sort(np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]), 1)
+    uniq, count = np.unique(edges, axis=0, return_counts=True)
+    return {tuple(e) for e in uniq[count == 1].tolist()}
+
+
+def test_tiled_simplification_meets_at_the_tile_seam(monkeypatch):
+    """Two tiles simplified apart (two threads) still form one surface: the open
+    edges are the grid's outline only (the vertices the tiles share are locked;
+    unlocked, each tile collapses its side of the seam its own way)."""
+    import photo3d.light as light
+
+    n = 120
+    yy, xx = np.mgrid[0:n, 0:n].astype(np.float32)
+    # curved (many triangles stay) but flat along the seam, where unlocked tiles
+    # would collapse their borders each its own way (cracks)
+    z = 20.0 + 3.0 * np.sin(xx / 9.0) * np.cos(yy / 13.0) * (np.abs(xx - n / 2) > 12)
+    points = np.stack([xx.ravel(), yy.ravel(), z.ravel()], 1)
+    q = (np.arange(n - 1)[:, None] * n + np.arange(n - 1)[None, :]).ravel()
+    faces = np.concatenate([np.stack([q, q + n, q + 1], 1), np.stack([q + 1, q + n, q + n + 1], 1)])
+    whole = light._simplify(points, faces, 2.0)
+    monkeypatch.setattr(light, "_TILE_FACES", 1000)
+    tiled = light._simplify(points, faces, 2.0)
+    assert len(whole) < len(tiled) < len(faces) / 10  # the locked seam keeps its vertices
+    outline = set()
+    for f in _open_edges(tiled):
+        a, b = points[list(f), :2]
+        assert a[0] in (0, n - 1) and b[0] == a[0] or a[1] in (0, n - 1) and b[1] == a[1], f
+        outline.add(f)
+    # the outline's length is the grid's perimeter: no edge is missing
+    length = sum(np.abs(points[a, :2] - points[b, :2]).sum() for a, b in outline)
+    assert length == 4 * (n - 1)

@@ -18,10 +18,10 @@ camera positions a 3D photo is seen from, at a few percent of the triangles:
   few large triangles while depth edges, silhouettes and thin structures keep their
   outline to within the bound, for any camera shift up to ``parallax``. Every vertex
   is an LDI pixel, exactly where the full mesh has it. Before that, lattice blocks
-  (32 to 4 pixels) that are whole in one layer and planar to within
-  ``PLANAR_SHARE * max_error`` become fans from their centre to their border
-  (:mod:`photo3d._planar`): about half the triangles reach meshoptimizer, whose
-  time is most of the light mesh's.
+  (32 to 2 pixels) that are whole in one layer and planar to within
+  ``PLANAR_SHARE * max_error`` become fans from their centre to the border pixels
+  that their neighbours need (:mod:`photo3d._planar`): about a third of the
+  triangles reach meshoptimizer, which runs on two tiles in two threads.
 * Texture: one sRGB image, the photo on the lattice at the top left, the charts
   (each with a one-texel gutter, holes filled from their neighbours) beside and
   below it.
