@@ -138,3 +138,28 @@ def test_tiled_simplification_meets_at_the_tile_seam(monkeypatch):
     # the outline's length is the grid's perimeter: no edge is missing
     length = sum(np.abs(points[a, :2] - points[b, :2]).sum() for a, b in outline)
     assert length == 4 * (n - 1)
+
+
+def test_layer_images_grow_when_the_first_room_is_short(monkeypatch):
+    """Faces of hidden layers claim extra layer images; when the first allocation is
+    too small it is doubled and the result is the same."""
+    import photo3d.light as light
+
+    disp = np.ones((64, 80), np.float32)
+    for y, x, d in ((8, 10, 2.0), (20, 30, 3.0), (30, 45, 4.5), (14, 55, 6.0)):
+        disp[y:y + 22, x:x + 20] = d  # overlapping boxes: hidden faces need new layers
+    photo = photo3d.make(texture(64, 80, seed=5), depth=disp, config=exact_config(border=8))
+    expected = build_light_mesh(photo.ldi)
+    calls = []
+    claim = light.claim_faces
+
+    def spy(*args):
+        calls.append(args[3].shape[0])
+        return claim(*args)
+
+    monkeypatch.setattr(light, "claim_faces", spy)
+    monkeypatch.setattr(light, "_LAYER_ROOM", 0)  # one spare layer image at first
+    got = build_light_mesh(photo.ldi)
+    assert len(calls) >= 2 and calls[1] == 2 * calls[0]
+    np.testing.assert_array_equal(got.faces, expected.faces)
+    np.testing.assert_array_equal(got.texture, expected.texture)

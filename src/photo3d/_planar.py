@@ -3,7 +3,7 @@
 meshoptimizer's cost grows with the triangles it is given (3 million for a 1024 px
 photo, most of the save time). Most of them lie in blocks of the lattice whose
 surface is a plane to well within the light mesh's error bound; such a block's
-``2 b^2`` triangles are replaced by a fan of ``4 b`` triangles from its centre pixel
+``2 b^2`` triangles are replaced by a fan of at most ``4 b`` triangles from its centre pixel
 to the pixels on its border that its neighbours also use (corners of blocks,
 vertices of kept faces), so the block still meets its neighbours (merged or not) at
 the same vertices: no cracks, no T-junctions. Blocks are tried in a quadtree

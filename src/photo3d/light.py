@@ -55,6 +55,7 @@ from photo3d.mesh import Mesh, build_mesh
 
 _GUTTER = 1
 _BLOCKS = (32, 2)  # sides of the planar blocks merged before meshoptimizer
+_LAYER_ROOM = 1  # spare layer images first allocated per layer (doubled if short)
 PLANAR_SHARE = 0.3
 """Planarity bound of those blocks, as a share of ``max_error``."""
 LIGHT_ERROR = 0.5
@@ -170,13 +171,20 @@ def build_light_mesh(ldi: LDI, *, max_error: float = LIGHT_ERROR, parallax: floa
     pos = ldi.positions()
     rank = _ranks(pos, rows * cols)
     n_layers = int(rank.max()) + 1 if ldi.size else 1
-    images = np.full((2 * n_layers + 16, rows * cols), -1, np.int32)
-    images[rank, pos] = np.arange(ldi.size)
     faces = full.faces.astype(np.int64)
     face_layer = np.zeros(len(faces), np.int64)
     deep = rank > 0
     hidden = deep[faces[:, 0]] | deep[faces[:, 1]] | deep[faces[:, 2]]
-    face_layer[hidden], n_layers = claim_faces(faces[hidden], pos, rank, images, n_layers)
+    room = n_layers + max(1, _LAYER_ROOM * n_layers)  # the sample needs 18 for 9 layers
+    while True:
+        images = np.full((room, rows * cols), -1, np.int32)
+        images[rank, pos] = np.arange(ldi.size)
+        try:
+            face_layer[hidden], n_layers = claim_faces(faces[hidden], pos, rank, images,
+                                                       n_layers)
+            break
+        except ValueError:  # more layer images needed than there was room for
+            room *= 2
     if max_error > 0:
         k = ldi.intrinsics
         value = max(k.fx, k.fy) * parallax / full.vertices[:, 2]
