@@ -83,6 +83,28 @@ def test_npz_round_trip_is_exact(tmp_path):
     assert back.intrinsics == ldi.intrinsics and back.border == 2
 
 
+def test_npz_stores_links_relative_and_checks_them(tmp_path):
+    """Version 2 keeps links as offsets from their pixel (0 = none); hostile offsets
+    pointing outside the pixels are refused like absolute ones."""
+    import zipfile
+
+    ldi, _, _ = planes_ldi(border=2)
+    save_npz(ldi, tmp_path / "a.npz")
+    with np.load(tmp_path / "a.npz") as f:
+        stored = f["links"]
+        arrays = {k: f[k] for k in f.files}
+    own = np.arange(ldi.size)[:, None]
+    np.testing.assert_array_equal(np.where(stored != 0, stored + own, -1), ldi.links)
+    _, counts = np.unique(stored, return_counts=True)
+    assert np.sort(counts)[-5:].sum() > 0.9 * stored.size  # a few offsets: deflate packs them
+    arrays["links"] = stored.copy()
+    arrays["links"][5, 1] = ldi.size  # 5 + size: outside
+    np.savez(tmp_path / "b.npz", **arrays)
+    with pytest.raises(InputError, match="links point outside"):
+        load_npz(tmp_path / "b.npz")
+    assert zipfile.ZipFile(tmp_path / "a.npz").getinfo("color.npy").compress_type == 0
+
+
 def test_npz_loader_refuses_foreign_and_pickled_files(tmp_path):
     np.savez(tmp_path / "other.npz", a=np.zeros(3))
     with pytest.raises(InputError, match="cannot read 3D photo"):

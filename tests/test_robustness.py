@@ -382,10 +382,12 @@ def test_broken_saved_photos(photos, capsys):
     check("not a photo3d file", "view", saved, "--no-browser")
     (photos.parent / "text.npz").write_text("hello")
     check("not a photo3d file", "view", photos.parent / "text.npz", "--no-browser")
+    from photo3d.ldi import load_npz
+
     n = np.load(npz)["links"].shape[0]
     for changes, message in [
         ({"links": np.full((n, 4), n + 5, np.int32)}, "links point outside"),
-        ({"links": np.roll(np.load(npz)["links"], 1, axis=0)}, "inconsistent links"),
+        ({"links": np.roll(load_npz(npz)[0].links, 1, axis=0)}, "inconsistent links"),
         ({"intrinsics": [1e300, 1, 0, 0, 64, 48]}, "not plausible"),
         ({"intrinsics": [10, 10, 0, 0, 1e9, 48]}, "not between 1 and 65536"),
         ({"intrinsics": [float("nan"), 10, 0, 0, 64, 48]}, "not finite"),
@@ -393,6 +395,7 @@ def test_broken_saved_photos(photos, capsys):
         ({"y": np.zeros(n, np.float32)}, "y has shape"),
         ({"border": -3}, "border"),
         ({"format": "other"}, "not a photo3d file"),
+        ({"version": 9}, "format version 9"),
     ]:
         _rewrite_npz(npz, **changes)
         check(message)
