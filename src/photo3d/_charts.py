@@ -110,7 +110,7 @@ def fill_charts(src, colors):
     return out
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def chart_vertices(faces, chart, n_pixels):
     """One vertex per (pixel, chart) that the faces use: texture seams split vertices.
 

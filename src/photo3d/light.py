@@ -295,29 +295,30 @@ def _textured(ldi: LDI, full: Mesh, faces: np.ndarray, face_layer: np.ndarray,
     rows, cols = ldi.lattice_shape
     order = np.argsort(face_layer > 0, kind="stable")  # input layer first
     faces, face_layer = faces[order], face_layer[order]
+    n_flat = len(faces) - int(np.count_nonzero(face_layer))
     pos = ldi.positions()
     py, px = np.divmod(pos, cols)
     # chart of each hidden face: its layer and the block holding its centroid
-    hidden = face_layer > 0
-    cy = py[faces[hidden]].sum(axis=1) // 3 // block
-    cx = px[faces[hidden]].sum(axis=1) // 3 // block
+    deep = faces[n_flat:]
+    cy = py[deep].sum(axis=1) // 3 // block
+    cx = px[deep].sum(axis=1) // 3 // block
     nbx = -(-cols // block)
-    key = (face_layer[hidden] * (-(-rows // block)) + cy) * nbx + cx
+    key = (face_layer[n_flat:] * (-(-rows // block)) + cy) * nbx + cx
     charts, chart_of = np.unique(key, return_inverse=True)
     chart = np.full(len(faces), -1, np.int64)
-    chart[hidden] = chart_of
+    chart[n_flat:] = chart_of
     slot = block + 1 + 2 * _GUTTER
     slot_y, slot_x, tex_h, tex_w = _pack(len(charts), slot, rows, cols)
-    # vertices: one per (pixel, chart)
-    corners, pixel, vchart = chart_vertices(faces, chart, ldi.size)
-    k = ldi.intrinsics
-    points = np.stack([px[pixel], py[pixel],
-                       max(k.fx, k.fy) * parallax / full.vertices[pixel, 2]], 1)
     c_layer, c_rest = np.divmod(charts, (-(-rows // block)) * nbx)
     c_by, c_bx = np.divmod(c_rest, nbx)
-    with ThreadPoolExecutor(max_workers=1) as pool:  # the texture while meshoptimizer runs
+    with ThreadPoolExecutor(max_workers=1) as pool:  # the texture meanwhile
         texture = pool.submit(_texture, images, full.colors, (rows, cols), (tex_h, tex_w),
                               c_layer, c_by * block, c_bx * block, slot_y, slot_x, block)
+        # vertices: one per (pixel, chart)
+        corners, pixel, vchart = chart_vertices(faces, chart, ldi.size)
+        k = ldi.intrinsics
+        points = np.stack([px[pixel], py[pixel],
+                           max(k.fx, k.fy) * parallax / full.vertices[pixel, 2]], 1)
         faces = _simplify(points, corners, max_error)
         texture = texture.result()
     input_face = vchart[faces[:, 0]] == 0
