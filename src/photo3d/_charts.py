@@ -6,7 +6,7 @@ import numpy as np
 from numba import njit
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def claim_faces(faces, pos, rank, images, n_layers):
     """Give every leftover face a layer image holding its three pixels.
 
@@ -176,7 +176,7 @@ def chart_vertices(faces, chart, n_pixels):
     return corners, pixel[:n_v].copy(), vchart[:n_v].copy()
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def pixel_ranks(pos, n_positions):
     """``(N,) int64`` how many pixels before each one (in LDI order) share its position."""
     seen = np.zeros(n_positions, np.int64)

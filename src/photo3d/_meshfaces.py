@@ -12,7 +12,7 @@ import numpy as np
 from numba import njit
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _emit(links, out, kind, n):
     """Append the faces of corner kind ``kind`` (0: T_a, 1: T_d, 2: T_b, 3: T_c;
     see :func:`photo3d.mesh.build_mesh`) to ``out`` from row ``n``; returns the new
@@ -41,7 +41,7 @@ def _emit(links, out, kind, n):
     return n
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def mesh_faces(links):
     """``(M, 3) int32`` faces of the LDI with ``links (N, 4)`` (left, right, up,
     down; -1 = none): T_a, T_d, T_b, T_c faces in that order, then stably sorted by

@@ -16,7 +16,7 @@ import numpy as np
 from numba import njit
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def quad_counts(faces, face_layer, py, px, n_layers, rows, cols):
     """``(L, rows * cols) uint8`` faces of layer image ``l`` in the lattice quad whose
     top-left corner is at each position (2: the quad is whole)."""
@@ -31,7 +31,7 @@ def quad_counts(faces, face_layer, py, px, n_layers, rows, cols):
     return cnt
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _planar(images, k, value, y0, x0, b, cols, eps):
     """Whether ``value`` at the ``(b+1)^2`` pixels of block ``(y0, x0, b)`` of layer
     image ``k`` is a plane in (x, y) to within ``eps`` (least squares)."""
@@ -61,7 +61,7 @@ def _planar(images, k, value, y0, x0, b, cols, eps):
     return True
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _whole(cnt, k, y0, x0, b, cols):
     """Whether every quad of the block has both its triangles in layer image ``k``."""
     for y in range(y0, y0 + b):
@@ -71,7 +71,7 @@ def _whole(cnt, k, y0, x0, b, cols):
     return True
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def planar_blocks(cnt, images, value, rows, cols, eps, big, small):
     """Quadtree of blocks (sides ``big`` .. ``small``, powers of two) whose quads are
     whole and whose ``value`` is planar within ``eps``.
@@ -109,7 +109,7 @@ def planar_blocks(cnt, images, value, rows, cols, eps, big, small):
     return result
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def merged_faces(faces, face_layer, py, px, cnt, cols, blocks, images, sign):
     """Faces outside the blocks, then each block's fan; and their layer images.
 
