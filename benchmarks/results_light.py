@@ -61,11 +61,12 @@ def section_light(load, machine_line, missing) -> str:
             "their edges without the pixels between block corners, so "
             f"{rec['simplify_faces']:,} of the {rec['full_faces']:,} triangles reach "
             "meshoptimizer; meshoptimizer runs on "
-            "two tiles in two threads with the vertices they share locked (1.5 % more "
+            "four vertical strips in two threads with the vertices they share locked (5 % more "
             "triangles); the texture is built while it runs; the full mesh's faces come from "
-            "a numba kernel; writer threads write `photo3d.npz` (colours stored, the rest "
-            "deflated), `mesh.ply` and `mesh.glb` while the light mesh is built. Light mesh "
-            f"built alone (first build in the process, with numba's compilation): "
+            "a numba kernel; writer threads write `photo3d.npz` (format 2: colours stored, "
+            "links relative to their pixel, deflated with the rest), `mesh.ply` and "
+            "`mesh.glb` while the light mesh is built. Light mesh built alone (the first "
+            "build in the process): "
             f"{rec['build_light_s']:.2f} s.", ""]
     if frames["light"] >= frames["full"]:
         out += ["Videos are **not** faster from the light mesh with the numba rasterizer at "

@@ -113,7 +113,7 @@ def _open_edges(faces: np.ndarray) -> set:
 
 
 def test_tiled_simplification_meets_at_the_tile_seam(monkeypatch):
-    """Two tiles simplified apart (two threads) still form one surface: the open
+    """Strips simplified apart (two threads) still form one surface: the open
     edges are the grid's outline only (the vertices the tiles share are locked;
     unlocked, each tile collapses its side of the seam its own way)."""
     import photo3d.light as light

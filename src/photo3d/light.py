@@ -21,7 +21,7 @@ camera positions a 3D photo is seen from, at a few percent of the triangles:
   (32 to 2 pixels) that are whole in one layer and planar to within
   ``PLANAR_SHARE * max_error`` become fans from their centre to the border pixels
   that their neighbours need (:mod:`photo3d._planar`): about a third of the
-  triangles reach meshoptimizer, which runs on two tiles in two threads.
+  triangles reach meshoptimizer, which runs on four strips in two threads.
 * Texture: one sRGB image, the photo on the lattice at the top left, the charts
   (each with a one-texel gutter, holes filled from their neighbours) beside and
   below it.
@@ -221,11 +221,11 @@ def _simplify(points: np.ndarray, faces: np.ndarray, max_error: float) -> np.nda
     (meshoptimizer: vertices keep their places; open borders and texture seams,
     i.e. vertices sharing a position, collapse only along themselves).
 
-    Two tiles (left and right of the median face) are simplified in two threads
-    (meshoptimizer's C code runs without the GIL), with the vertices they share
-    locked so they still meet without cracks: 2.2 times faster on the sample for 1.5 %
-    more triangles. Faces keep their tile order, so the result does not depend on
-    the machine.
+    Four vertical strips of equal face counts are simplified by two threads
+    (meshoptimizer's C code runs without the GIL), with the vertices strips share
+    locked so they still meet without cracks: on the sample 2.5 times faster than one
+    piece for 5 % more triangles (smaller pieces also stay in the cache). The strips
+    depend only on the mesh, so the result does not depend on the machine.
     """
     if max_error <= 0 or not len(faces):
         return faces
@@ -233,18 +233,19 @@ def _simplify(points: np.ndarray, faces: np.ndarray, max_error: float) -> np.nda
     if len(faces) < _TILE_FACES:
         return _simplify_locked(points, faces, None, max_error)
     x = points[:, 0]
-    cut = np.median(x[faces[:, 0]])
-    side = x >= cut
+    cuts = np.quantile(x[faces[:, 0]], np.linspace(0, 1, _TILES + 1)[1:-1])
+    side = np.searchsorted(cuts, x, side="right")  # tile of each vertex
     tile = side[faces[:, 0]]
     lock = np.zeros(len(points), np.uint8)
-    lock[faces[side[faces] != tile[:, None]]] = 1  # used by faces of both tiles
+    lock[faces[side[faces] != tile[:, None]]] = 1  # used by faces of two strips
     with ThreadPoolExecutor(max_workers=2) as pool:
         parts = list(pool.map(lambda t: _simplify_locked(points, faces[tile == t], lock,
-                                                         max_error), (False, True)))
+                                                         max_error), range(_TILES)))
     return np.concatenate(parts)
 
 
 _TILE_FACES = 200_000  # fewer faces than this are simplified in one piece
+_TILES = 4  # vertical strips of equal face counts; 2 threads
 
 
 def _simplify_locked(points: np.ndarray, faces: np.ndarray, lock: np.ndarray | None,
