@@ -30,10 +30,11 @@ Per patch, as the authors' inference does (their margin of 20 px is this backend
    back bicubically.
 
 The patches of a pass share work (issue 18; ``share=False`` turns it off): the edge
-net runs over all of them together (in bands of about ``joint_pixels``), the depth
-net on clusters and the colour net on groups of patches that do not conflict
-(:mod:`photo3d.inpaint.canvas`); after the first pass contexts are half as deep
-(``later_context``, the authors' 140 then 70 px).
+net runs over all of them together, on crops of their joint canvas that cover every
+synthesis pixel with ``edge_halo`` pixels of surroundings (:mod:`photo3d.inpaint.crops`;
+each at most about ``joint_pixels``), the depth net on clusters and the colour net on
+groups of patches that do not conflict (:mod:`photo3d.inpaint.canvas`); after the
+first pass contexts are half as deep (``later_context``, the authors' 140 then 70 px).
 
 The authors' graph-based edge clean-up and depth smoothing between context and
 synthesis are not part of this backend. Patches of the same
@@ -50,7 +51,6 @@ CPUs with AVX-512 BF16 or AMX; edge probabilities move by up to ~0.01).
 
 from __future__ import annotations
 
-import math
 import time
 from collections.abc import Sequence
 from pathlib import Path
@@ -62,6 +62,7 @@ from photo3d.camera import DepthMapping
 from photo3d.errors import ConfigError
 from photo3d.inpaint.base import InpaintResult, Patch, Progress, register
 from photo3d.inpaint.canvas import edges_in, joint_patch, share_canvases
+from photo3d.inpaint.crops import Box, cover
 from photo3d.inpaint.netinputs import NetInputs, close_gaps
 from photo3d.inpaint.netrun import (  # noqa: F401  (re-exported)
     PRECISIONS,
@@ -114,14 +115,19 @@ class LearnedInpainter:
         share: fill the patches of a pass on shared canvases
             (:func:`~photo3d.inpaint.canvas.share_canvases`; False: one net run per
             patch).
-        joint_pixels: the joint edge-net run of a pass is split into horizontal bands
-            of about this many padded pixels (its memory: the authors' edge net needs
-            about 1.5 GB per Mpx).
+        joint_pixels: at most about this many padded pixels per joint edge-net run
+            (its memory: the authors' edge net needs about 1.5 GB per Mpx).
+        edge_halo: the joint edge-net runs cover the synthesis pixels with crops that
+            add this many pixels of the joint canvas on every side
+            (:func:`~photo3d.inpaint.crops.cover`); None: the whole joint canvas, in
+            horizontal bands of about ``joint_pixels``.
 
     Attributes:
         units: per net (``"edge"``, ``"depth"``, ``"color"``), the multiple its
             input is padded to.
         timings: seconds spent in each net since construction.
+        edge_runs: the windows ``(y0, x0, y1, x1)`` of each joint edge-net run (one
+            list of crops per run, joint-canvas pixels) since construction.
 
     Example:
         >>> from photo3d.nets import InpaintingNets, build_net
@@ -149,7 +155,8 @@ class LearnedInpainter:
                  edge_threshold: float = 0.002, edge_repeats: int = 2, edge_passes: int = 1,
                  edge_unit: int | None = None, precision: str = "fp32", color_size: int = 512,
                  batch_size: int = 8, batch_pixels: int = 8 * 256 * 256,
-                 share: bool = True, joint_pixels: int = 600_000) -> None:
+                 share: bool = True, joint_pixels: int = 600_000,
+                 edge_halo: int | None = 64) -> None:
         if edge_unit is not None and (edge_unit <= 0 or edge_unit % 4):
             raise ConfigError(f"edge_unit must be a positive multiple of 4, not {edge_unit}")
         if precision not in PRECISIONS:
@@ -175,6 +182,9 @@ class LearnedInpainter:
         self.color_size = color_size
         self.share = share
         self.joint_pixels = joint_pixels
+        self.edge_halo = edge_halo
+        # Windows of the joint edge-net runs, one list per run over the pass's crops.
+        self.edge_runs: list[list[Box]] = []
         self.batch = dict(batch_size=batch_size, batch_pixels=batch_pixels)
         self.mapping = DepthMapping()
         # Seconds spent in each net since construction (read by the benchmark).
@@ -239,34 +249,37 @@ class LearnedInpainter:
         return result
 
     def _joint_edges(self, patches: Sequence[Patch]) -> list | None:
-        """New edges of all ``patches`` from edge-net runs over them together
-        (:func:`~photo3d.inpaint.canvas.joint_patch` of those whose context edges touch
-        their synthesis), in horizontal bands of about ``joint_pixels`` padded pixels
-        (memory): a list of ``(new (H, W) bool, origin)`` per band (empty when none
-        needs the edge net), or None when their contexts cannot share one image."""
-        todo = sorted((p for p in patches if NetInputs.touches(p)),
-                      key=lambda p: 2 * p.origin[0] + p.shape[0])
+        """New edges of all ``patches`` from edge-net runs over them together: the
+        :func:`~photo3d.inpaint.canvas.joint_patch` of those whose context edges touch
+        their synthesis, cut into crops around its synthesis pixels
+        (:func:`~photo3d.inpaint.crops.cover`, ``edge_halo``, at most about
+        ``joint_pixels`` padded pixels per run). Returns ``[(new (H, W) bool,
+        origin)]`` (empty when no patch needs the edge net), or None when their
+        contexts cannot share one image."""
+        todo = [p for p in patches if NetInputs.touches(p)]
         if not todo:
             return []
         whole = joint_patch(todo)
         if whole is None:
             return None
-        area = np.prod(padded_shape(*whole.shape, self.units["edge"]))
-        bands = max(1, min(len(todo), math.ceil(area / self.joint_pixels)))
-        cuts = np.linspace(0, len(todo), bands + 1).round().astype(int)
-        out = []
-        for a, b in zip(cuts[:-1], cuts[1:], strict=True):
-            joint = whole if bands == 1 else joint_patch(todo[a:b])
-            it = NetInputs(joint, self.mapping)
-            edges, new = it.edges, np.zeros(joint.shape, bool)
-            for r in range(1 + self.edge_repeats):
-                res = self._run("edge", [it.edge_input(edges)])[0][0]
-                new = (res > self.edge_threshold) & (it.syn > 0)
-                edges = np.maximum(it.edges, new.astype(np.float32))
-                if r == 0 and not new.any():
-                    break
-            out.append((new, joint.origin))
-        return out
+        it = NetInputs(whole, self.mapping)
+        syn = it.syn > 0
+        new = np.zeros(whole.shape, bool)
+        crops = cover(syn, halo=self.edge_halo, unit=self.units["edge"],
+                      max_pixels=self.joint_pixels,
+                      phase=getattr(self.nets.edge, "input_multiple", 1))
+        for r in range(1 + self.edge_repeats):
+            full = it.edge_input(np.maximum(it.edges, new))
+            outs = self._run("edge", [c.take(full) for c in crops])
+            del full
+            new = np.zeros(whole.shape, bool)
+            for c, o in zip(crops, outs, strict=True):
+                core = c.slices()
+                new[core] = (o[0][c.local()] > self.edge_threshold) & syn[core]
+            self.edge_runs.append([c.window for c in crops])
+            if r == 0 and not new.any():
+                break
+        return [(new, whole.origin)]
 
     def _depths(self, items: list[NetInputs], edges: list[np.ndarray]) -> list[np.ndarray]:
         outs = self._run("depth", [np.stack([it.log_depth, e, it.ctx, it.hole])
