@@ -131,7 +131,9 @@ def test_edge_threshold_and_repeats():
     nets = stub_nets(edge=0.003)  # just above the authors' 0.002 everywhere
     r = LearnedInpainter(nets=nets).inpaint([p])[0]
     np.testing.assert_array_equal(r.edges, np.maximum(p.edges, p.synthesis))
-    assert len(nets.edge.calls) == 3  # once + two repeats, new edges fed back
+    # once, then a repeat with the new edges fed back; it finds the same edges, so a
+    # third run would see the same input: none follows
+    assert len(nets.edge.calls) == 2
     fed_back = nets.edge.calls[-1][0, 4].numpy()
     assert fed_back.sum() == pytest.approx((p.edges + p.synthesis).sum())
     nets = stub_nets(edge=0.001)
@@ -225,14 +227,14 @@ def test_edge_net_runs_in_the_first_pass_only():
     inp = LearnedInpainter(nets=nets)
     first = inp.inpaint([make_patch()], pass_index=0)[0]
     runs = len(nets.edge.calls)
-    assert runs == 3  # one run + the authors' two repeats
+    assert runs == 2  # one run + a repeat (that changes nothing: the second is skipped)
     later = inp.inpaint([make_patch()], pass_index=1)[0]
     assert len(nets.edge.calls) == runs  # no edge net in pass 1
     assert len(nets.depth.calls) == 2 and len(nets.color.calls) == 2
     syn = make_patch().synthesis
     assert first.edges[syn].all() and not later.edges[syn].any()
     LearnedInpainter(nets=nets, edge_passes=2).inpaint([make_patch()], pass_index=1)
-    assert len(nets.edge.calls) == runs + 3
+    assert len(nets.edge.calls) == runs + 2
 
 
 def test_edge_unit_sets_the_edge_padding_only():
@@ -430,3 +432,44 @@ def test_crop_cores_hold_every_target_pixel_once_with_its_halo(halo, unit, max_p
     if halo is not None and halo < 64:
         assert sum((c.window[2] - c.window[0]) * (c.window[3] - c.window[1])
                    for c in crops) < h * w  # it did crop
+
+
+class Grow(torch.nn.Module):
+    """Stub edge net: its input edges grown by one pixel (a 3 x 3 maximum)."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.calls = []
+
+    def forward(self, x):
+        self.calls.append(x.clone())
+        return torch.nn.functional.max_pool2d(x[:, 4:5], 3, stride=1, padding=1)
+
+
+@pytest.mark.parametrize("share", [True, False])
+def test_edge_repeats_run_where_edges_changed_and_stop_when_none_did(share):
+    """A grows its new edges by a column per run (wide synthesis); B's one-column
+    synthesis is full after the first run, so the second repeat skips B."""
+    a = make_patch(40, 56, split=24)  # synthesis columns 24..47, context edge at 23
+    b = make_patch(40, 33, split=24, seed=1)
+    b = Patch(b.color, b.disparity, b.edges, b.context, b.synthesis, (0, 200))
+    assert b.synthesis[0].sum() == 1
+    nets = InpaintingNets(Grow(), Const(1, 0.0), Const(3, 0.5), torch.device("cpu"), {})
+    inp = LearnedInpainter(nets=nets, share=share, edge_unit=8, edge_halo=8)
+    ra, rb = inp.inpaint([a, b])
+    new_a = ra.edges * a.synthesis
+    np.testing.assert_array_equal(np.nonzero(new_a.any(0))[0], [24, 25, 26])  # 3 runs
+    assert rb.edges[b.synthesis].all()
+    if share:
+        windows = inp.edge_runs
+        assert len(windows) == 3
+        reach = [max(x1 for _, _, _, x1 in run) for run in windows]
+        assert reach[0] > 200 and reach[1] > 200  # B's crop: changed by the first run
+        assert reach[2] < 100  # the second repeat only where A changed
+    else:
+        assert sum(c.shape[0] for c in nets.edge.calls) == 5  # A and B, A and B, A
+    # B alone, however many repeats are allowed: the first repeat changes nothing
+    nets.edge.calls.clear()
+    LearnedInpainter(nets=nets, share=share, edge_unit=8, edge_halo=8,
+                     edge_repeats=5).inpaint([b])
+    assert sum(c.shape[0] for c in nets.edge.calls) == 2  # B alone: run + one repeat

@@ -13,8 +13,10 @@ Per patch, as the authors' inference does (their margin of 20 px is this backend
    first only, and only if a context edge touches the synthesis region, dilated by
    one pixel): the edge net sees (rgb, inverse depth / its maximum over the context,
    edges, context, synthesis); new edges = output > 0.002 inside the synthesis
-   region. If any appear, the net runs ``edge_repeats`` more times (authors: 2) with
-   them added to its edge input. Edges out = context edges + new edges.
+   region. If any appear, the net runs up to ``edge_repeats`` more times (authors: 2)
+   with them added to its edge input, each time only where the previous run changed
+   them (within ``edge_halo``), and stops after a run that changed nothing (the next
+   would see the same input). Edges out = context edges + new edges.
 3. **Depth**: the patch's normalised disparity ``d`` becomes camera depth
    ``z = DepthMapping().depth(d)`` (``1 / max(3 d, 0.05)``, DESIGN section 3); the
    net sees (log z minus its mean over the context, edges, context, synthesis) and
@@ -62,7 +64,7 @@ from photo3d.camera import DepthMapping
 from photo3d.errors import ConfigError
 from photo3d.inpaint.base import InpaintResult, Patch, Progress, register
 from photo3d.inpaint.canvas import edges_in, joint_patch, share_canvases
-from photo3d.inpaint.crops import Box, cover
+from photo3d.inpaint.crops import Box, cover, grow
 from photo3d.inpaint.netinputs import NetInputs, close_gaps
 from photo3d.inpaint.netrun import (  # noqa: F401  (re-exported)
     PRECISIONS,
@@ -209,13 +211,16 @@ class LearnedInpainter:
         if not run:
             return edges
         todo = [i for i, it in enumerate(items) if it.needs_edges]
-        for r in range(1 + self.edge_repeats):
+        for _ in range(1 + self.edge_repeats):
+            if not todo:
+                break
             outs = self._run("edge", [items[i].edge_input(edges[i]) for i in todo])
             new = {i: ((o[0] > self.edge_threshold) & (items[i].syn > 0)).astype(np.float32)
                    for i, o in zip(todo, outs, strict=True)}
+            changed = [i for i in todo if (np.maximum(items[i].edges, new[i]) != edges[i]).any()]
             for i in todo:
                 edges[i] = np.maximum(items[i].edges, new[i])
-            todo = [i for i in todo if new[i].any()] if r == 0 else todo
+            todo = changed  # a run that changes nothing would repeat itself
         return edges
 
     def _colors(self, items: list[NetInputs], edges: list[np.ndarray]) -> list[np.ndarray]:
@@ -253,7 +258,10 @@ class LearnedInpainter:
         :func:`~photo3d.inpaint.canvas.joint_patch` of those whose context edges touch
         their synthesis, cut into crops around its synthesis pixels
         (:func:`~photo3d.inpaint.crops.cover`, ``edge_halo``, at most about
-        ``joint_pixels`` padded pixels per run). Returns ``[(new (H, W) bool,
+        ``joint_pixels`` padded pixels per run). A repeat (``edge_repeats``) runs only
+        where the previous run changed the new edges (within ``edge_halo``: their
+        crops cover the synthesis pixels there), and none follows a run that changed
+        nothing (it would see the same input). Returns ``[(new (H, W) bool,
         origin)]`` (empty when no patch needs the edge net), or None when their
         contexts cannot share one image."""
         todo = [p for p in patches if NetInputs.touches(p)]
@@ -264,21 +272,24 @@ class LearnedInpainter:
             return None
         it = NetInputs(whole, self.mapping)
         syn = it.syn > 0
-        new = np.zeros(whole.shape, bool)
-        crops = cover(syn, halo=self.edge_halo, unit=self.units["edge"],
-                      max_pixels=self.joint_pixels,
-                      phase=getattr(self.nets.edge, "input_multiple", 1))
-        for r in range(1 + self.edge_repeats):
+        new, target = np.zeros(whole.shape, bool), syn
+        for _ in range(1 + self.edge_repeats):
+            crops = cover(target, halo=self.edge_halo, unit=self.units["edge"],
+                          max_pixels=self.joint_pixels,
+                          phase=getattr(self.nets.edge, "input_multiple", 1))
             full = it.edge_input(np.maximum(it.edges, new))
             outs = self._run("edge", [c.take(full) for c in crops])
             del full
-            new = np.zeros(whole.shape, bool)
+            before = new.copy()
             for c, o in zip(crops, outs, strict=True):
                 core = c.slices()
-                new[core] = (o[0][c.local()] > self.edge_threshold) & syn[core]
+                new[core] = np.where(target[core], o[0][c.local()] > self.edge_threshold,
+                                     new[core])
             self.edge_runs.append([c.window for c in crops])
-            if r == 0 and not new.any():
+            changed = new != before
+            if not changed.any():  # the next run would see the same input
                 break
+            target = syn & grow(changed, self.edge_halo)
         return [(new, whole.origin)]
 
     def _depths(self, items: list[NetInputs], edges: list[np.ndarray]) -> list[np.ndarray]:
