@@ -267,7 +267,8 @@ def test_padding_unit_follows_the_architecture():
     assert inp.units == {"edge": 4, "depth": 8, "color": 8}  # 2**levels, levels=3
     inp.inpaint([make_patch(h=42, w=50)])
     assert compact["edge"].shapes[0] == (44, 52)
-    assert compact["depth"].shapes == compact["color"].shapes == [(48, 56)]
+    # columns 42..49 hold neither context nor synthesis: dropped (trim), 42 -> 48
+    assert compact["depth"].shapes == compact["color"].shapes == [(48, 48)]
     authors = build_net("edge")  # not run: only its config is read
     big = InpaintingNets(authors, compact["depth"], compact["color"], torch.device("cpu"), {})
     assert LearnedInpainter(nets=big).units["edge"] == 128
@@ -473,3 +474,47 @@ def test_edge_repeats_run_where_edges_changed_and_stop_when_none_did(share):
     LearnedInpainter(nets=nets, share=share, edge_unit=8, edge_halo=8,
                      edge_repeats=5).inpaint([b])
     assert sum(c.shape[0] for c in nets.edge.calls) == 2  # B alone: run + one repeat
+
+
+@pytest.mark.parametrize("share", [True, False])
+def test_depth_and_colour_canvases_lose_the_margin_that_only_adds_padding(share):
+    """Rows 0..19 and 120..139 hold neither context nor synthesis: 140 rows would pad
+    to 256, their 100 rows pad to 128. Every synthesis pixel is still filled."""
+    rows = (np.arange(140) >= 20) & (np.arange(140) < 120)
+    base = make_patch(140, 56)
+    ctx, syn = base.context & rows[:, None], base.synthesis & rows[:, None]
+    p = Patch(base.color * ctx[..., None], np.where(ctx, 0.4, 0).astype(np.float32),
+              base.edges * ctx, ctx, syn, (3, 7))
+    nets = stub_nets(depth=0.0, color=0.25)
+    r = LearnedInpainter(nets=nets, share=share).inpaint([p])[0]
+    assert tuple(nets.edge.calls[0].shape[2:]) == (256, 128)  # the edge net: as before
+    assert tuple(nets.depth.calls[0].shape[2:]) == tuple(nets.color.calls[0].shape[2:]) \
+        == (128, 128)
+    assert r.color.shape == (140, 56, 3) and r.disparity.shape == (140, 56)
+    np.testing.assert_allclose(r.color[syn], 0.25)
+    np.testing.assert_allclose(r.disparity[syn], 0.4, rtol=1e-5)
+    assert r.edges[syn].all()  # the stub edge net's 0.5 everywhere
+
+
+def test_trim_keeps_every_mask_pixel_and_never_pads_more():
+    from photo3d.inpaint.canvas import trim
+    from photo3d.inpaint.netrun import padded_shape
+
+    rng = np.random.default_rng(2)
+    for _ in range(30):
+        h, w = (int(v) for v in rng.integers(20, 400, 2))
+        ctx = np.zeros((h, w), bool)
+        syn = np.zeros((h, w), bool)
+        y, x = int(rng.integers(0, h - 5)), int(rng.integers(0, w - 5))
+        ctx[y:y + int(rng.integers(1, h)), x:x + int(rng.integers(1, w))] = True
+        syn[y:, x + 3:] = True
+        syn &= ~ctx
+        p = Patch(np.zeros((h, w, 3), np.float32), np.zeros((h, w), np.float32),
+                  np.zeros((h, w), np.float32), ctx, syn, (int(y), 5))
+        for unit in (8, 128):
+            t = trim(p, unit)
+            assert all(a <= b for a, b in zip(padded_shape(*t.shape, unit),
+                                              padded_shape(h, w, unit), strict=True))
+            dy, dx = t.origin[0] - p.origin[0], t.origin[1] - p.origin[1]
+            assert dy >= 0 and dx >= 0 and dy + t.shape[0] <= h and dx + t.shape[1] <= w
+            assert t.context.sum() == ctx.sum() and t.synthesis.sum() == syn.sum()

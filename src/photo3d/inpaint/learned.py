@@ -37,6 +37,9 @@ synthesis pixel with ``edge_halo`` pixels of surroundings (:mod:`photo3d.inpaint
 each at most about ``joint_pixels``), the depth net on clusters and the colour net on
 groups of patches that do not conflict (:mod:`photo3d.inpaint.canvas`); after the
 first pass contexts are half as deep (``later_context``, the authors' 140 then 70 px).
+The depth and colour nets see each canvas (or patch) without the part of its empty
+margin (the 20 px around the bounding box) that alone would grow its padded size
+(:func:`~photo3d.inpaint.canvas.trim`).
 
 The authors' graph-based edge clean-up and depth smoothing between context and
 synthesis are not part of this backend. Patches of the same
@@ -63,7 +66,7 @@ import numpy as np
 from photo3d.camera import DepthMapping
 from photo3d.errors import ConfigError
 from photo3d.inpaint.base import InpaintResult, Patch, Progress, register
-from photo3d.inpaint.canvas import edges_in, joint_patch, share_canvases
+from photo3d.inpaint.canvas import edges_in, joint_patch, share_canvases, trim
 from photo3d.inpaint.crops import Box, cover, grow
 from photo3d.inpaint.netinputs import NetInputs, close_gaps
 from photo3d.inpaint.netrun import (  # noqa: F401  (re-exported)
@@ -92,6 +95,18 @@ def bundled_weights() -> Path:
         ['color.safetensors', 'depth.safetensors', 'edge.safetensors']
     """
     return Path(__file__).resolve().parents[1] / "nets" / "compact"
+
+def _window(a: np.ndarray, origin: tuple[int, int], p: Patch) -> np.ndarray:
+    """The part of ``a`` (``(h, w, ...)``, top-left pixel at lattice ``origin``) under
+    ``p``'s window, zeros where ``a`` does not reach (there ``p`` synthesises nothing)."""
+    out = np.zeros((*p.shape, *a.shape[2:]), a.dtype)
+    y0, x0 = p.origin[0] - origin[0], p.origin[1] - origin[1]
+    ys, xs = max(0, -y0), max(0, -x0)
+    ye, xe = min(p.shape[0], a.shape[0] - y0), min(p.shape[1], a.shape[1] - x0)
+    if ye > ys and xe > xs:
+        out[ys:ye, xs:xe] = a[y0 + ys:y0 + ye, x0 + xs:x0 + xe]
+    return out
+
 
 class LearnedInpainter:
     """Backend ``"learned"``: edge, depth and colour nets (see the module docstring).
@@ -304,7 +319,9 @@ class LearnedInpainter:
 
     def _shared(self, patches: Sequence[Patch], joint, progress: Progress | None):
         """Depth on clusters of non-conflicting patches, colour on whole groups (so
-        the colour size limit shrinks them), edges from the joint run."""
+        the colour size limit shrinks them), edges from the joint run; each canvas
+        without the empty margin that alone would grow its padded size
+        (:func:`~photo3d.inpaint.canvas.trim`)."""
         color = [None] * len(patches)
         disparity = [None] * len(patches)
         edges = [None] * len(patches)
@@ -312,35 +329,39 @@ class LearnedInpainter:
                   ("color", share_canvases(patches, cluster=False)))
         done = 0
         for kind, canvases in stages:
-            order = sorted(canvases, key=lambda c: padded_shape(*c.patch.shape))
+            nets_see = [trim(c.patch, self.units[kind]) for c in canvases]
+            order = sorted(range(len(canvases)), key=lambda k: padded_shape(*nets_see[k].shape))
             step = self.batch["batch_size"]
             for s in range(0, len(order), step):
-                chunk = order[s:s + step]
-                items = [NetInputs(c.patch, self.mapping) for c in chunk]
-                es = [edges_in(c.patch, joint) for c in chunk]
+                chunk = [nets_see[k] for k in order[s:s + step]]
+                items = [NetInputs(c, self.mapping) for c in chunk]
+                es = [edges_in(c, joint) for c in chunk]
                 outs = (self._depths if kind == "depth" else self._colors)(items, es)
-                for c, o, e in zip(chunk, outs, es, strict=True):
-                    y0, x0 = c.patch.origin
-                    for i in c.members:
-                        q = patches[i]
-                        win = (slice(q.origin[0] - y0, q.origin[0] - y0 + q.shape[0]),
-                               slice(q.origin[1] - x0, q.origin[1] - x0 + q.shape[1]))
+                for k, c, o, e in zip(order[s:s + step], chunk, outs, es, strict=True):
+                    for i in canvases[k].members:
                         if kind == "depth":
-                            disparity[i], edges[i] = o[win], e[win]
+                            disparity[i] = _window(o, c.origin, patches[i])
+                            edges[i] = _window(e, c.origin, patches[i])
                         else:
-                            color[i] = o[win]
+                            color[i] = _window(o, c.origin, patches[i])
                             done += 1
                             if progress is not None:
                                 progress(done, len(patches))
         return [InpaintResult(c, d, e) for c, d, e in zip(color, disparity, edges, strict=True)]
 
     def _chunk(self, patches: Sequence[Patch], *, run_edges: bool) -> list[InpaintResult]:
-        items = [NetInputs(p, self.mapping) for p in patches]
-        edges = self._edges(items, run=run_edges)
-        disparity = self._depths(items, edges)
-        colors = self._colors(items, edges)
+        edges = self._edges([NetInputs(p, self.mapping) for p in patches], run=run_edges)
+        out = {}
+        for kind in ("depth", "color"):  # without the margin that only adds padding
+            seen = [trim(p, self.units[kind]) for p in patches]
+            fill = self._depths if kind == "depth" else self._colors
+            res = fill([NetInputs(t, self.mapping) for t in seen],
+                       [_window(e, p.origin, t) for e, p, t in zip(edges, patches, seen,
+                                                                   strict=True)])
+            out[kind] = [_window(r, t.origin, p) for r, t, p in zip(res, seen, patches,
+                                                                    strict=True)]
         return [InpaintResult(color=c, disparity=d, edges=e.astype(np.float32))
-                for e, d, c in zip(edges, disparity, colors, strict=True)]
+                for e, d, c in zip(edges, out["depth"], out["color"], strict=True)]
 
     def inpaint(self, patches: Sequence[Patch], *, progress: Progress | None = None,
                 pass_index: int = 0) -> list[InpaintResult]:
