@@ -334,3 +334,35 @@ def edges_in(p: Patch, joint: Sequence[tuple[np.ndarray, tuple[int, int]]]) -> n
         if ye > ys and xe > xs:
             crop[ys:ye, xs:xe] |= new[y0 + ys:y0 + ye, x0 + xs:x0 + xe]
     return np.maximum(own, (crop & p.synthesis & ~p.context).astype(np.float32))
+
+
+def trim(p: Patch, unit: int) -> Patch:
+    """``p`` cropped towards the bounding box of its context and synthesis: of the empty
+    margin around them it keeps what fits in their size rounded up to multiples of
+    ``unit`` (a net pads its input to those anyway), so the padded size shrinks where
+    the margin alone made it grow, and nothing changes elsewhere.
+
+    Example:
+        >>> ctx = np.zeros((140, 40), bool); ctx[20:120, 10:30] = True
+        >>> syn = np.zeros((140, 40), bool); syn[20:120, 30:35] = True
+        >>> p = Patch(np.zeros((140, 40, 3), np.float32), np.zeros((140, 40), np.float32),
+        ...           np.zeros((140, 40), np.float32), ctx, syn, (5, 5))
+        >>> t = trim(p, 128); t.shape, t.origin  # 140 rows pad to 256, their 100 to 128
+        ((128, 40), (11, 5))
+    """
+    m = p.context.astype(bool) | p.synthesis.astype(bool)
+    if not m.any():
+        return p
+    box = []
+    for axis, size in enumerate(p.shape):
+        idx = np.nonzero(m.any(1 - axis))[0]
+        lo, hi = int(idx[0]), int(idx[-1]) + 1
+        want = min(size, -(-(hi - lo) // unit) * unit)
+        a = max(0, min(lo - (want - (hi - lo)) // 2, size - want))
+        box.append((a, a + want))
+    (y0, y1), (x0, x1) = box
+    if (y0, x0, y1, x1) == (0, 0, *p.shape):
+        return p
+    win = (slice(y0, y1), slice(x0, x1))
+    return Patch(p.color[win], p.disparity[win], p.edges[win], p.context[win],
+                 p.synthesis[win], (p.origin[0] + y0, p.origin[1] + x0), p.scale)

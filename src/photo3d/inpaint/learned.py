@@ -13,8 +13,10 @@ Per patch, as the authors' inference does (their margin of 20 px is this backend
    first only, and only if a context edge touches the synthesis region, dilated by
    one pixel): the edge net sees (rgb, inverse depth / its maximum over the context,
    edges, context, synthesis); new edges = output > 0.002 inside the synthesis
-   region. If any appear, the net runs ``edge_repeats`` more times (authors: 2) with
-   them added to its edge input. Edges out = context edges + new edges.
+   region. If any appear, the net runs up to ``edge_repeats`` more times (authors: 2)
+   with them added to its edge input, each time only where the previous run changed
+   them (within ``edge_halo``), and stops after a run that changed nothing (the next
+   would see the same input). Edges out = context edges + new edges.
 3. **Depth**: the patch's normalised disparity ``d`` becomes camera depth
    ``z = DepthMapping().depth(d)`` (``1 / max(3 d, 0.05)``, DESIGN section 3); the
    net sees (log z minus its mean over the context, edges, context, synthesis) and
@@ -30,10 +32,14 @@ Per patch, as the authors' inference does (their margin of 20 px is this backend
    back bicubically.
 
 The patches of a pass share work (issue 18; ``share=False`` turns it off): the edge
-net runs over all of them together (in bands of about ``joint_pixels``), the depth
-net on clusters and the colour net on groups of patches that do not conflict
-(:mod:`photo3d.inpaint.canvas`); after the first pass contexts are half as deep
-(``later_context``, the authors' 140 then 70 px).
+net runs over all of them together, on crops of their joint canvas that cover every
+synthesis pixel with ``edge_halo`` pixels of surroundings (:mod:`photo3d.inpaint.crops`;
+each at most about ``joint_pixels``), the depth net on clusters and the colour net on
+groups of patches that do not conflict (:mod:`photo3d.inpaint.canvas`); after the
+first pass contexts are half as deep (``later_context``, the authors' 140 then 70 px).
+The depth and colour nets see each canvas (or patch) without the part of its empty
+margin (the 20 px around the bounding box) that alone would grow its padded size
+(:func:`~photo3d.inpaint.canvas.trim`).
 
 The authors' graph-based edge clean-up and depth smoothing between context and
 synthesis are not part of this backend. Patches of the same
@@ -50,7 +56,6 @@ CPUs with AVX-512 BF16 or AMX; edge probabilities move by up to ~0.01).
 
 from __future__ import annotations
 
-import math
 import time
 from collections.abc import Sequence
 from pathlib import Path
@@ -61,7 +66,8 @@ import numpy as np
 from photo3d.camera import DepthMapping
 from photo3d.errors import ConfigError
 from photo3d.inpaint.base import InpaintResult, Patch, Progress, register
-from photo3d.inpaint.canvas import edges_in, joint_patch, share_canvases
+from photo3d.inpaint.canvas import edges_in, joint_patch, share_canvases, trim
+from photo3d.inpaint.crops import Box, cover, grow
 from photo3d.inpaint.netinputs import NetInputs, close_gaps
 from photo3d.inpaint.netrun import (  # noqa: F401  (re-exported)
     PRECISIONS,
@@ -90,6 +96,18 @@ def bundled_weights() -> Path:
     """
     return Path(__file__).resolve().parents[1] / "nets" / "compact"
 
+def _window(a: np.ndarray, origin: tuple[int, int], p: Patch) -> np.ndarray:
+    """The part of ``a`` (``(h, w, ...)``, top-left pixel at lattice ``origin``) under
+    ``p``'s window, zeros where ``a`` does not reach (there ``p`` synthesises nothing)."""
+    out = np.zeros((*p.shape, *a.shape[2:]), a.dtype)
+    y0, x0 = p.origin[0] - origin[0], p.origin[1] - origin[1]
+    ys, xs = max(0, -y0), max(0, -x0)
+    ye, xe = min(p.shape[0], a.shape[0] - y0), min(p.shape[1], a.shape[1] - x0)
+    if ye > ys and xe > xs:
+        out[ys:ye, xs:xe] = a[y0 + ys:y0 + ye, x0 + xs:x0 + xe]
+    return out
+
+
 class LearnedInpainter:
     """Backend ``"learned"``: edge, depth and colour nets (see the module docstring).
 
@@ -114,14 +132,19 @@ class LearnedInpainter:
         share: fill the patches of a pass on shared canvases
             (:func:`~photo3d.inpaint.canvas.share_canvases`; False: one net run per
             patch).
-        joint_pixels: the joint edge-net run of a pass is split into horizontal bands
-            of about this many padded pixels (its memory: the authors' edge net needs
-            about 1.5 GB per Mpx).
+        joint_pixels: at most about this many padded pixels per joint edge-net run
+            (its memory: the authors' edge net needs about 1.5 GB per Mpx).
+        edge_halo: the joint edge-net runs cover the synthesis pixels with crops that
+            add this many pixels of the joint canvas on every side
+            (:func:`~photo3d.inpaint.crops.cover`); None: the whole joint canvas, in
+            horizontal bands of about ``joint_pixels``.
 
     Attributes:
         units: per net (``"edge"``, ``"depth"``, ``"color"``), the multiple its
             input is padded to.
         timings: seconds spent in each net since construction.
+        edge_runs: the windows ``(y0, x0, y1, x1)`` of each joint edge-net run (one
+            list of crops per run, joint-canvas pixels) since construction.
 
     Example:
         >>> from photo3d.nets import InpaintingNets, build_net
@@ -149,7 +172,8 @@ class LearnedInpainter:
                  edge_threshold: float = 0.002, edge_repeats: int = 2, edge_passes: int = 1,
                  edge_unit: int | None = None, precision: str = "fp32", color_size: int = 512,
                  batch_size: int = 8, batch_pixels: int = 8 * 256 * 256,
-                 share: bool = True, joint_pixels: int = 600_000) -> None:
+                 share: bool = True, joint_pixels: int = 600_000,
+                 edge_halo: int | None = 64) -> None:
         if edge_unit is not None and (edge_unit <= 0 or edge_unit % 4):
             raise ConfigError(f"edge_unit must be a positive multiple of 4, not {edge_unit}")
         if precision not in PRECISIONS:
@@ -175,6 +199,9 @@ class LearnedInpainter:
         self.color_size = color_size
         self.share = share
         self.joint_pixels = joint_pixels
+        self.edge_halo = edge_halo
+        # Windows of the joint edge-net runs, one list per run over the pass's crops.
+        self.edge_runs: list[list[Box]] = []
         self.batch = dict(batch_size=batch_size, batch_pixels=batch_pixels)
         self.mapping = DepthMapping()
         # Seconds spent in each net since construction (read by the benchmark).
@@ -199,13 +226,16 @@ class LearnedInpainter:
         if not run:
             return edges
         todo = [i for i, it in enumerate(items) if it.needs_edges]
-        for r in range(1 + self.edge_repeats):
+        for _ in range(1 + self.edge_repeats):
+            if not todo:
+                break
             outs = self._run("edge", [items[i].edge_input(edges[i]) for i in todo])
             new = {i: ((o[0] > self.edge_threshold) & (items[i].syn > 0)).astype(np.float32)
                    for i, o in zip(todo, outs, strict=True)}
+            changed = [i for i in todo if (np.maximum(items[i].edges, new[i]) != edges[i]).any()]
             for i in todo:
                 edges[i] = np.maximum(items[i].edges, new[i])
-            todo = [i for i in todo if new[i].any()] if r == 0 else todo
+            todo = changed  # a run that changes nothing would repeat itself
         return edges
 
     def _colors(self, items: list[NetInputs], edges: list[np.ndarray]) -> list[np.ndarray]:
@@ -239,34 +269,43 @@ class LearnedInpainter:
         return result
 
     def _joint_edges(self, patches: Sequence[Patch]) -> list | None:
-        """New edges of all ``patches`` from edge-net runs over them together
-        (:func:`~photo3d.inpaint.canvas.joint_patch` of those whose context edges touch
-        their synthesis), in horizontal bands of about ``joint_pixels`` padded pixels
-        (memory): a list of ``(new (H, W) bool, origin)`` per band (empty when none
-        needs the edge net), or None when their contexts cannot share one image."""
-        todo = sorted((p for p in patches if NetInputs.touches(p)),
-                      key=lambda p: 2 * p.origin[0] + p.shape[0])
+        """New edges of all ``patches`` from edge-net runs over them together: the
+        :func:`~photo3d.inpaint.canvas.joint_patch` of those whose context edges touch
+        their synthesis, cut into crops around its synthesis pixels
+        (:func:`~photo3d.inpaint.crops.cover`, ``edge_halo``, at most about
+        ``joint_pixels`` padded pixels per run). A repeat (``edge_repeats``) runs only
+        where the previous run changed the new edges (within ``edge_halo``: their
+        crops cover the synthesis pixels there), and none follows a run that changed
+        nothing (it would see the same input). Returns ``[(new (H, W) bool,
+        origin)]`` (empty when no patch needs the edge net), or None when their
+        contexts cannot share one image."""
+        todo = [p for p in patches if NetInputs.touches(p)]
         if not todo:
             return []
         whole = joint_patch(todo)
         if whole is None:
             return None
-        area = np.prod(padded_shape(*whole.shape, self.units["edge"]))
-        bands = max(1, min(len(todo), math.ceil(area / self.joint_pixels)))
-        cuts = np.linspace(0, len(todo), bands + 1).round().astype(int)
-        out = []
-        for a, b in zip(cuts[:-1], cuts[1:], strict=True):
-            joint = whole if bands == 1 else joint_patch(todo[a:b])
-            it = NetInputs(joint, self.mapping)
-            edges, new = it.edges, np.zeros(joint.shape, bool)
-            for r in range(1 + self.edge_repeats):
-                res = self._run("edge", [it.edge_input(edges)])[0][0]
-                new = (res > self.edge_threshold) & (it.syn > 0)
-                edges = np.maximum(it.edges, new.astype(np.float32))
-                if r == 0 and not new.any():
-                    break
-            out.append((new, joint.origin))
-        return out
+        it = NetInputs(whole, self.mapping)
+        syn = it.syn > 0
+        new, target = np.zeros(whole.shape, bool), syn
+        for _ in range(1 + self.edge_repeats):
+            crops = cover(target, halo=self.edge_halo, unit=self.units["edge"],
+                          max_pixels=self.joint_pixels,
+                          phase=getattr(self.nets.edge, "input_multiple", 1))
+            full = it.edge_input(np.maximum(it.edges, new))
+            outs = self._run("edge", [c.take(full) for c in crops])
+            del full
+            before = new.copy()
+            for c, o in zip(crops, outs, strict=True):
+                core = c.slices()
+                new[core] = np.where(target[core], o[0][c.local()] > self.edge_threshold,
+                                     new[core])
+            self.edge_runs.append([c.window for c in crops])
+            changed = new != before
+            if not changed.any():  # the next run would see the same input
+                break
+            target = syn & grow(changed, self.edge_halo)
+        return [(new, whole.origin)]
 
     def _depths(self, items: list[NetInputs], edges: list[np.ndarray]) -> list[np.ndarray]:
         outs = self._run("depth", [np.stack([it.log_depth, e, it.ctx, it.hole])
@@ -280,7 +319,9 @@ class LearnedInpainter:
 
     def _shared(self, patches: Sequence[Patch], joint, progress: Progress | None):
         """Depth on clusters of non-conflicting patches, colour on whole groups (so
-        the colour size limit shrinks them), edges from the joint run."""
+        the colour size limit shrinks them), edges from the joint run; each canvas
+        without the empty margin that alone would grow its padded size
+        (:func:`~photo3d.inpaint.canvas.trim`)."""
         color = [None] * len(patches)
         disparity = [None] * len(patches)
         edges = [None] * len(patches)
@@ -288,35 +329,39 @@ class LearnedInpainter:
                   ("color", share_canvases(patches, cluster=False)))
         done = 0
         for kind, canvases in stages:
-            order = sorted(canvases, key=lambda c: padded_shape(*c.patch.shape))
+            nets_see = [trim(c.patch, self.units[kind]) for c in canvases]
+            order = sorted(range(len(canvases)), key=lambda k: padded_shape(*nets_see[k].shape))
             step = self.batch["batch_size"]
             for s in range(0, len(order), step):
-                chunk = order[s:s + step]
-                items = [NetInputs(c.patch, self.mapping) for c in chunk]
-                es = [edges_in(c.patch, joint) for c in chunk]
+                chunk = [nets_see[k] for k in order[s:s + step]]
+                items = [NetInputs(c, self.mapping) for c in chunk]
+                es = [edges_in(c, joint) for c in chunk]
                 outs = (self._depths if kind == "depth" else self._colors)(items, es)
-                for c, o, e in zip(chunk, outs, es, strict=True):
-                    y0, x0 = c.patch.origin
-                    for i in c.members:
-                        q = patches[i]
-                        win = (slice(q.origin[0] - y0, q.origin[0] - y0 + q.shape[0]),
-                               slice(q.origin[1] - x0, q.origin[1] - x0 + q.shape[1]))
+                for k, c, o, e in zip(order[s:s + step], chunk, outs, es, strict=True):
+                    for i in canvases[k].members:
                         if kind == "depth":
-                            disparity[i], edges[i] = o[win], e[win]
+                            disparity[i] = _window(o, c.origin, patches[i])
+                            edges[i] = _window(e, c.origin, patches[i])
                         else:
-                            color[i] = o[win]
+                            color[i] = _window(o, c.origin, patches[i])
                             done += 1
                             if progress is not None:
                                 progress(done, len(patches))
         return [InpaintResult(c, d, e) for c, d, e in zip(color, disparity, edges, strict=True)]
 
     def _chunk(self, patches: Sequence[Patch], *, run_edges: bool) -> list[InpaintResult]:
-        items = [NetInputs(p, self.mapping) for p in patches]
-        edges = self._edges(items, run=run_edges)
-        disparity = self._depths(items, edges)
-        colors = self._colors(items, edges)
+        edges = self._edges([NetInputs(p, self.mapping) for p in patches], run=run_edges)
+        out = {}
+        for kind in ("depth", "color"):  # without the margin that only adds padding
+            seen = [trim(p, self.units[kind]) for p in patches]
+            fill = self._depths if kind == "depth" else self._colors
+            res = fill([NetInputs(t, self.mapping) for t in seen],
+                       [_window(e, p.origin, t) for e, p, t in zip(edges, patches, seen,
+                                                                   strict=True)])
+            out[kind] = [_window(r, t.origin, p) for r, t, p in zip(res, seen, patches,
+                                                                    strict=True)]
         return [InpaintResult(color=c, disparity=d, edges=e.astype(np.float32))
-                for e, d, c in zip(edges, disparity, colors, strict=True)]
+                for e, d, c in zip(edges, out["depth"], out["color"], strict=True)]
 
     def inpaint(self, patches: Sequence[Patch], *, progress: Progress | None = None,
                 pass_index: int = 0) -> list[InpaintResult]:
