@@ -137,7 +137,11 @@ class LearnedInpainter:
         edge_halo: the joint edge-net runs cover the synthesis pixels with crops that
             add this many pixels of the joint canvas on every side
             (:func:`~photo3d.inpaint.crops.cover`); None: the whole joint canvas, in
-            horizontal bands of about ``joint_pixels``.
+            horizontal bands of about ``joint_pixels``. With the authors' edge net
+            (random weights) on the sample's first pass, edge probabilities inside
+            the synthesis differ from one run over the whole canvas by 0.020 on
+            average at 48 px (0.018 at 64 px, 0.061 for the bands), for 26 % fewer
+            pixels than 64 px.
 
     Attributes:
         units: per net (``"edge"``, ``"depth"``, ``"color"``), the multiple its
@@ -173,7 +177,7 @@ class LearnedInpainter:
                  edge_unit: int | None = None, precision: str = "fp32", color_size: int = 512,
                  batch_size: int = 8, batch_pixels: int = 8 * 256 * 256,
                  share: bool = True, joint_pixels: int = 600_000,
-                 edge_halo: int | None = 64) -> None:
+                 edge_halo: int | None = 48) -> None:
         if edge_unit is not None and (edge_unit <= 0 or edge_unit % 4):
             raise ConfigError(f"edge_unit must be a positive multiple of 4, not {edge_unit}")
         if precision not in PRECISIONS:
