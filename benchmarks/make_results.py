@@ -423,7 +423,8 @@ def section_learned_shared() -> str:
     run = rec["runs"][0]
     out += [f"Command: `{rec['command']}`. Machine: {machine_line(rec)}.", "",
             "Motorcycle at 1024 px, the authors' three architectures with random weights "
-            "(as the tests build them), one run. Pixels sent through each net (padded to "
+            f"(as the tests build them), median of {len(rec['runs'])} run(s). Pixels sent "
+            "through each net (padded to "
             "multiples of 128, as the authors' inference pads them), against the authors' "
             "code on the same input (issue 18's measurement):", "",
             "| net | photo3d before (per patch) | photo3d now | authors' code |",
@@ -443,6 +444,18 @@ def section_learned_shared() -> str:
         out.append(f"Pass {k}: " + ", ".join(f"{n} {v['runs']} runs / {v['mpx']:.2f} Mpx"
                                               for n, v in per.items()) + ".")
     out += ["", _learned_shared_targets(rec), ""]
+    base = load("learned_shared_base_xeon.json")
+    if base is not None:
+        bm, br = base["median"], base["runs"][0]
+        out += [f"The same benchmark of the code before the edge crops and trimmed canvases "
+                f"(commit d2c01e4), on this machine: `make` {bm['make_s']:.1f} s "
+                f"({bm['make_s'] / bm['diffusion_make_s']:.1f}x diffusion's "
+                f"{bm['diffusion_make_s']:.1f} s), nets " + ", ".join(
+                    f"{k} {v:.1f} s" for k, v in bm["net_s"].items()) +
+                f", edge net {br['net_mpx']['edge']:.2f} Mpx, peak memory "
+                f"{bm['peak_rss_mb']:.0f} MB (one run). Earlier rounds' numbers below were "
+                "measured on another 2-core machine (AMD EPYC), where the same code took "
+                "about twice as long.", ""]
     before = load("learned_shared_before.json")
     if before is not None:
         bm = before["median"]
@@ -479,7 +492,7 @@ def _learned_shared_targets(rec: dict) -> str:
             "(CPU time / wall time)" if used is not None else "load not recorded")
     ok = lambda c: "**met**" if c else "**not met**"  # noqa: E731
     return (f"Time: `make` {med['make_s']:.0f} s (target <= 199 s, a third of the authors' "
-            f"596 s: {ok(med['make_s'] <= 199)}), {ratio:.0f}x the diffusion default measured "
+            f"596 s: {ok(med['make_s'] <= 199)}), {ratio:.1f}x the diffusion default measured "
             f"in the same run ({med['diffusion_make_s']:.1f} s; target <= 21x: "
             f"{ok(ratio <= 21)}); nets: " + ", ".join(
                 f"{k} {v:.0f} s ({v / max(run['net_mpx'][k], 1e-9):.1f} s/Mpx)"
@@ -487,20 +500,17 @@ def _learned_shared_targets(rec: dict) -> str:
             f". Peak memory {med['peak_rss_mb']:.0f} MB (target < 3000 MB: "
             f"{ok(med['peak_rss_mb'] < 3000)}). Machine load: {load}; with other jobs on "
             "the cores the seconds (and the ratio, whose diffusion run saw a different "
-            "load) overstate an idle machine's. Each net alone (random inputs laid out like "
-            "the backend's, load 1-2 from other jobs) costs about 12 (edge), 2.6 (depth) "
-            "and 2.7 (colour) s per Mpx. Memory: the "
-            "motorcycle's joint edge input is 896x1280 padded (its patches reach 60-80 px "
-            "beyond the image), run in two bands of about 0.6 Mpx (`joint_pixels`); the "
-            "edge net's inference forward frees each activation after its last use and "
-            "never builds the full-resolution concatenation of its last layer (alone on "
-            "768x1024: peak 1.47 GB from a 0.29 GB base, 2.17 GB before), and the heap is "
-            "trimmed (`malloc_trim`) after every net run; with stub nets the pipeline "
-            "itself peaks at 1.9 GB. With the lean edge forward alone the peak was 2.84 "
-            "to 3.13 GB in three runs: traced per net call, the edge bands took the "
-            "process from 1.1 to 2.4 GB and the depth net on the first pass's largest "
-            "canvases (about 500x900, padded to 512x1024) from a 1.6 GB base to 2.84 GB; "
-            "the U-Nets' lean inference forward (below) removed that second peak.")
+            "load) overstate an idle machine's. The edge net no longer runs over the "
+            "pass's whole joint canvas (896x1280 padded, in two bands): crops "
+            "(`photo3d/inpaint/crops.py`) cover every synthesis pixel once with 48 px of "
+            "surroundings, a repeat runs only where the previous run changed the new edges "
+            "and none follows a run that changed nothing; the depth and colour canvases "
+            "lose the part of their 20 px margin that alone grows their padded size. "
+            "Memory: the edge net's inference forward frees each activation after its "
+            "last use and never builds the full-resolution concatenation of its last "
+            "layer, the U-Nets free their skips after their last use, and the heap is "
+            "trimmed (`malloc_trim`) after every net run.")
+
 
 
 def section_compact_quality() -> str:
