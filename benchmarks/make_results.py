@@ -447,11 +447,8 @@ def section_learned_shared() -> str:
     base = load("learned_shared_base_xeon.json")
     if base is not None:
         bm, br = base["median"], base["runs"][0]
-        out += [f"The same benchmark of the code before the edge crops and trimmed canvases "
-                f"(commit d2c01e4), on this machine: `make` {bm['make_s']:.1f} s "
-                f"({bm['make_s'] / bm['diffusion_make_s']:.1f}x diffusion's "
-                f"{bm['diffusion_make_s']:.1f} s), nets " + ", ".join(
-                    f"{k} {v:.1f} s" for k, v in bm["net_s"].items()) +
+        out += ["The same benchmark of the code before the edge crops and trimmed canvases "
+                f"(commit d2c01e4), on this machine: {_make_summary(bm, 1)}"
                 f", edge net {br['net_mpx']['edge']:.2f} Mpx, peak memory "
                 f"{bm['peak_rss_mb']:.0f} MB (one run). Earlier rounds' numbers below were "
                 "measured on another 2-core machine (AMD EPYC), where the same code took "
@@ -461,10 +458,8 @@ def section_learned_shared() -> str:
         bm = before["median"]
         out += [f"Before the lean edge forward and the heap trimming (main at the start of "
                 f"this work, `{before['command']}`, one run on a machine with other jobs): "
-                f"`make` {bm['make_s']:.0f} s ({bm['make_s'] / bm['diffusion_make_s']:.0f}x "
-                f"diffusion's {bm['diffusion_make_s']:.1f} s), nets " + ", ".join(
-                    f"{k} {v:.0f} s" for k, v in bm["net_s"].items()) +
-                f", peak memory {bm['peak_rss_mb']:.0f} MB; same pixel counts.", ""]
+                f"{_make_summary(bm, 0)}, peak memory {bm['peak_rss_mb']:.0f} MB; same pixel "
+                "counts.", ""]
     lean = load("learned_shared_lean_unet.json")
     if lean is not None:
         lm, lr = lean["median"], lean["runs"][0]
@@ -479,6 +474,14 @@ def section_learned_shared() -> str:
                 f"{lr['cpu_s'] / lr['make_s']:.2f} of 2 cores used) and says nothing about "
                 "speed; the change does not alter the nets' arithmetic.", ""]
     return "\n".join(out)
+
+
+def _make_summary(median: dict, digits: int) -> str:
+    """"`make` T s (Rx diffusion's D s), nets ..." of a bench_learned median."""
+    make, diffusion = median["make_s"], median["diffusion_make_s"]
+    nets = ", ".join(f"{k} {v:.{digits}f} s" for k, v in median["net_s"].items())
+    return (f"`make` {make:.{digits}f} s ({make / diffusion:.{digits}f}x diffusion's "
+            f"{diffusion:.1f} s), nets {nets}")
 
 
 def _learned_shared_targets(rec: dict) -> str:
