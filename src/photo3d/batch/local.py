@@ -30,6 +30,7 @@ from pathlib import Path
 from photo3d.batch.jobs import MakeOptions, PhotoJob
 from photo3d.batch.manifest import PhotoResult
 from photo3d.batch.worker import PhotoMaker, discard_partial, one_line
+from photo3d.io.signals import redeliver_swallowed
 
 _maker: PhotoMaker | None = None
 _init_error: str | None = None
@@ -70,10 +71,18 @@ def _on_term(signum, frame) -> None:
     os._exit(0)
 
 
+def _rearm() -> int:
+    """A ``_Stopped`` raised inside a C callback (numba compiling) was dropped: arm
+    the handler again and have SIGTERM sent once more."""
+    signal.signal(signal.SIGTERM, _on_term)
+    return signal.SIGTERM
+
+
 def _init(options: MakeOptions, threads: int) -> None:
     global _maker, _init_error
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, _on_term)
+    redeliver_swallowed((_Stopped,), _rearm)
     set_threads(threads)
     try:
         _maker = PhotoMaker(options)

@@ -7,8 +7,11 @@ Used by the command line around every command: a temporary output folder
 from __future__ import annotations
 
 import contextlib
+import os
 import signal
-from collections.abc import Iterator
+import sys
+import threading
+from collections.abc import Callable, Iterator
 
 
 class Interrupted(KeyboardInterrupt):
@@ -21,6 +24,47 @@ class Interrupted(KeyboardInterrupt):
     def __init__(self, signum: int) -> None:
         super().__init__(signal.Signals(signum).name)
         self.signum = signum
+
+
+def redeliver_swallowed(kinds: tuple[type[BaseException], ...],
+                        rearm: Callable[[], int | None]) -> Callable[[], None]:
+    """Keep an interrupt that lands inside a C callback from getting lost.
+
+    A signal handler's exception raised while Python code runs as a callback of C
+    code (numba compiling through LLVM, ctypes) cannot propagate: Python prints
+    "Exception ignored in ..." with a traceback and carries on. This installs a
+    ``sys.unraisablehook`` that, for exceptions of ``kinds``, prints nothing, calls
+    ``rearm()`` (which restores the handler and returns the signal to send, or None)
+    and sends that signal to this process again 50 ms later from a helper thread, so
+    that the handler runs once the C code has returned (if it lands in a callback
+    again, the same happens again). Other unraisable exceptions go to the
+    previous hook. Returns a function that restores the previous hook.
+
+    Example:
+        >>> restore = redeliver_swallowed((KeyboardInterrupt,), lambda: None)
+        >>> restore()
+    """
+    previous = sys.unraisablehook
+
+    def hook(unraisable) -> None:
+        if not isinstance(unraisable.exc_value, kinds):
+            previous(unraisable)
+            return
+        signum = rearm()
+        if signum is not None:  # later, so that it does not land in this hook again
+            timer = threading.Timer(_REDELIVER_S, os.kill, (os.getpid(), signum))
+            timer.daemon = True
+            timer.start()
+
+    sys.unraisablehook = hook
+
+    def restore() -> None:
+        sys.unraisablehook = previous
+
+    return restore
+
+
+_REDELIVER_S = 0.05
 
 
 class SignalGuard:
@@ -38,7 +82,9 @@ def handle_signals() -> Iterator[SignalGuard]:
     which removes its temporary folder. The guard remembers the signal, because an
     interrupt that lands inside compiled code (numba) can surface as another
     exception (``SystemError``): callers should treat any exception raised after
-    ``guard.signum`` was set as the interruption. Signals ignored when the process
+    ``guard.signum`` was set as the interruption; one raised inside a C callback
+    (numba's compiler), which Python would print and drop, is raised again once the
+    C code returns (:func:`redeliver_swallowed`). Signals ignored when the process
 started stay ignored (``nohup``, background jobs). Does nothing outside the main
 thread.
 
@@ -73,8 +119,15 @@ thread.
                 previous[signum] = signal.signal(signum, handler)
     except ValueError:  # not the main thread: leave the handlers alone
         pass
+    def rearm() -> int | None:  # the exception was swallowed: raise it again later
+        signum, guard.signum = guard.signum, None
+        return signum
+
+    restore = redeliver_swallowed((KeyboardInterrupt,), rearm) if previous else None
     try:
         yield guard
     finally:
         for signum, old in previous.items():
             signal.signal(signum, old)
+        if restore is not None:
+            restore()
