@@ -31,7 +31,7 @@ sys.path.insert(0, str(Path(__file__).parent))
 from _machine import machine_info, run_child  # noqa: E402
 
 CHILD = r"""
-import json, statistics, sys, tempfile, time
+import json, sys, time
 from pathlib import Path
 import numpy as np
 import photo3d
@@ -60,11 +60,6 @@ out = {"ldi_pixels": int(photo.ldi.size), "full_faces": int(len(full.faces)),
        "light_faces": int(len(light.faces)), "light_vertices": int(len(light.vertices)),
        "texture": list(light.texture.shape[:2]), "build_light_s": light_s,
        "max_error": max_error, "simplify_faces": seen["faces"]}
-with tempfile.TemporaryDirectory() as tmp:
-    photo.save(Path(tmp) / "light", light_error=max_error)
-    out["light_sizes"] = {p.name: p.stat().st_size for p in (Path(tmp) / "light").iterdir()}
-    photo.save(Path(tmp) / "full", full_glb=True)
-    out["full_glb_bytes"] = (Path(tmp) / "full" / "mesh.glb").stat().st_size
 settings = RenderSettings(ssaa=2, crop=AUTHORS_CROP, backend="numba")
 psnr, times = {}, {"light": [], "full": []}
 with Renderer(full, settings) as rf, Renderer(light, settings) as rl:

@@ -93,6 +93,7 @@ def main() -> None:
                 "peak_rss_mb": max(r["peak_rss_mb"] for r in runs),
                 "pixels": runs[0]["pixels"], "ldi_pixels": runs[0]["ldi_pixels"],
                 "faces": runs[0]["faces"], "edges": runs[0]["edges"],
+                "cpu": machine_info()["cpu"],  # a merged file may mix machines
             }
             record["results"].setdefault(backend, {})[str(size)] = {"median": med, "runs": runs}
             stages = ", ".join(f"{k} {v:.2f}" for k, v in med["stages"].items())

@@ -116,6 +116,7 @@ def test_tiled_simplification_meets_at_the_tile_seam(monkeypatch):
     """Strips simplified apart (two threads) still form one surface: the open
     edges are the grid's outline only (the vertices the tiles share are locked;
     unlocked, each tile collapses its side of the seam its own way)."""
+    import photo3d._simplify
     import photo3d.light as light
 
     n = 120
@@ -127,7 +128,7 @@ def test_tiled_simplification_meets_at_the_tile_seam(monkeypatch):
     q = (np.arange(n - 1)[:, None] * n + np.arange(n - 1)[None, :]).ravel()
     faces = np.concatenate([np.stack([q, q + n, q + 1], 1), np.stack([q + 1, q + n, q + n + 1], 1)])
     whole = light._simplify(points, faces, 2.0)
-    monkeypatch.setattr(light, "_TILE_FACES", 1000)
+    monkeypatch.setattr(photo3d._simplify, "_TILE_FACES", 1000)
     tiled = light._simplify(points, faces, 2.0)
     assert len(whole) < len(tiled) < len(faces) / 10  # the locked seam keeps its vertices
     outline = set()

@@ -263,6 +263,18 @@ def _relative_links(links: np.ndarray) -> np.ndarray:
     return np.where(links >= 0, links - own, 0).astype(np.int32)
 
 
+def _absolute_links(relative: np.ndarray) -> np.ndarray:
+    """Inverse of :func:`_relative_links`, in int64 (a hostile file's offsets may
+    overflow int32; the caller checks the range).
+
+    Example:
+        >>> _absolute_links(np.array([[0, 1], [-1, 0]])).tolist()
+        [[-1, 1], [0, -1]]
+    """
+    rel = relative.astype(np.int64)
+    return np.where(rel != 0, rel + np.arange(len(rel), dtype=np.int64)[:, None], -1)
+
+
 def _reason(err: BaseException) -> str:
     if isinstance(err, InputError):
         return str(err)
@@ -322,8 +334,7 @@ def _checked_ldi(arrays: dict[str, np.ndarray], header: dict) -> LDI:
         raise InputError(f"format version {version!r} is not one this photo3d reads "
                          f"(1 to {FORMAT_VERSION}); a newer photo3d wrote it")
     if version >= 2:
-        rel = links.astype(np.int64)
-        links = np.where(rel != 0, rel + np.arange(n, dtype=np.int64)[:, None], -1)
+        links = _absolute_links(links)
     if n and (y.min() < -border or y.max() >= h + border or x.min() < -border
               or x.max() >= w + border):
         raise InputError("pixel positions lie outside the image and its border")

@@ -49,6 +49,7 @@ import numpy as np
 
 from photo3d._charts import chart_vertices, claim_faces, fill_charts, pixel_ranks
 from photo3d._planar import merged_faces, planar_blocks, quad_counts
+from photo3d._simplify import simplify as _simplify
 from photo3d.errors import InputError
 from photo3d.ldi import LDI
 from photo3d.mesh import Mesh, build_mesh
@@ -214,69 +215,6 @@ def _merge_planar(faces: np.ndarray, face_layer: np.ndarray, pos: np.ndarray,
     blocks = planar_blocks(cnt, images, value.astype(np.float64), rows, cols, float(eps),
                            _BLOCKS[0], _BLOCKS[-1])
     return merged_faces(faces, face_layer, py, px, cnt, cols, blocks, images, sign)
-
-
-def _simplify(points: np.ndarray, faces: np.ndarray, max_error: float) -> np.ndarray:
-    """``(F', 3) int64`` faces of ``points (N, 3)`` simplified by edge collapses
-    (meshoptimizer: vertices keep their places; open borders and texture seams,
-    i.e. vertices sharing a position, collapse only along themselves).
-
-    Four vertical strips of equal face counts are simplified by two threads
-    (meshoptimizer's C code runs without the GIL), with the vertices strips share
-    locked so they still meet without cracks: on the sample 2.5 times faster than one
-    piece for 5 % more triangles (smaller pieces also stay in the cache). The strips
-    depend only on the mesh, so the result does not depend on the machine.
-    """
-    if max_error <= 0 or not len(faces):
-        return faces
-    points = np.ascontiguousarray(points, np.float32)
-    if len(faces) < _TILE_FACES:
-        return _simplify_locked(points, faces, None, max_error)
-    x = points[:, 0]
-    cuts = np.quantile(x[faces[:, 0]], np.linspace(0, 1, _TILES + 1)[1:-1])
-    side = np.searchsorted(cuts, x, side="right")  # tile of each vertex
-    tile = side[faces[:, 0]]
-    lock = np.zeros(len(points), np.uint8)
-    lock[faces[side[faces] != tile[:, None]]] = 1  # used by faces of two strips
-    with ThreadPoolExecutor(max_workers=2) as pool:
-        parts = list(pool.map(lambda t: _simplify_locked(points, faces[tile == t], lock,
-                                                         max_error), range(_TILES)))
-    return np.concatenate(parts)
-
-
-_TILE_FACES = 200_000  # fewer faces than this are simplified in one piece
-_TILES = 4  # vertical strips of equal face counts; 2 threads
-
-
-def _simplify_locked(points: np.ndarray, faces: np.ndarray, lock: np.ndarray | None,
-                     max_error: float) -> np.ndarray:
-    """meshoptimizer's ``meshopt_simplifyWithAttributes`` (no attributes) on ``faces``
-    of the vertex buffer ``points``, with the vertices where ``lock`` is 1 fixed
-    (None: none). Called through ctypes: the Python wrapper does not declare this
-    function's argument types."""
-    import ctypes
-
-    try:
-        import meshoptimizer
-        from meshoptimizer._loader import lib
-    except ImportError as err:  # pragma: no cover - core dependency
-        raise ImportError("the light mesh needs meshoptimizer: pip install meshoptimizer") from err
-    fn = lib["meshopt_simplifyWithAttributes"]  # a private function object per call
-    uint_p, float_p = ctypes.POINTER(ctypes.c_uint), ctypes.POINTER(ctypes.c_float)
-    byte_p = ctypes.POINTER(ctypes.c_ubyte)
-    fn.restype = ctypes.c_size_t
-    fn.argtypes = [uint_p, uint_p, ctypes.c_size_t, float_p, ctypes.c_size_t, ctypes.c_size_t,
-                   float_p, ctypes.c_size_t, float_p, ctypes.c_size_t, byte_p, ctypes.c_size_t,
-                   ctypes.c_float, ctypes.c_uint, float_p]
-    indices = np.ascontiguousarray(faces.ravel(), np.uint32)
-    out = np.empty_like(indices)
-    options = meshoptimizer.SIMPLIFY_ERROR_ABSOLUTE
-    if lock is not None:
-        options |= meshoptimizer.SIMPLIFY_SPARSE  # faces use a part of the vertex buffer
-    n = fn(out.ctypes.data_as(uint_p), indices.ctypes.data_as(uint_p), len(indices),
-           points.ctypes.data_as(float_p), len(points), points.strides[0], None, 0, None, 0,
-           None if lock is None else lock.ctypes.data_as(byte_p), 0, max_error, options, None)
-    return out[:n].reshape(-1, 3).astype(np.int64)
 
 
 def _ranks(pos: np.ndarray, n_positions: int) -> np.ndarray:

@@ -38,6 +38,7 @@ import numpy as np
 from scipy.ndimage import binary_dilation
 
 from photo3d.inpaint.base import InpaintResult, Patch
+from photo3d.inpaint.crops import overlap
 
 
 @dataclass(frozen=True)
@@ -327,12 +328,11 @@ def edges_in(p: Patch, joint: Sequence[tuple[np.ndarray, tuple[int, int]]]) -> n
     own = np.where(p.context, p.edges, 0).astype(np.float32)
     h, w = p.shape
     crop = np.zeros((h, w), bool)
+    y0, x0 = p.origin
     for new, origin in joint:
-        y0, x0 = p.origin[0] - origin[0], p.origin[1] - origin[1]
-        ys, xs = max(0, -y0), max(0, -x0)
-        ye, xe = min(h, new.shape[0] - y0), min(w, new.shape[1] - x0)
-        if ye > ys and xe > xs:
-            crop[ys:ye, xs:xe] |= new[y0 + ys:y0 + ye, x0 + xs:x0 + xe]
+        both = overlap((y0, x0, y0 + h, x0 + w), new.shape, origin)
+        if both is not None:
+            crop[both[0]] |= new[both[1]]
     return np.maximum(own, (crop & p.synthesis & ~p.context).astype(np.float32))
 
 

@@ -34,6 +34,25 @@ Box = tuple[int, int, int, int]
 """``(y0, x0, y1, x1)``: rows ``y0:y1``, columns ``x0:x1``."""
 
 
+def overlap(window: Box, shape: tuple[int, int],
+            origin: tuple[int, int] = (0, 0)) -> tuple[tuple[slice, slice],
+                                                      tuple[slice, slice]] | None:
+    """Where ``window`` and an array of ``shape`` placed at ``origin`` (both in one
+    frame) overlap: ``(slices in the window, slices in the array)``, or None.
+
+    Example:
+        >>> overlap((-2, 1, 3, 4), (2, 2))  # rows -2..2, cols 1..3 over a 2x2 array
+        ((slice(2, 4, None), slice(0, 1, None)), (slice(0, 2, None), slice(1, 2, None)))
+    """
+    y0, x0, y1, x1 = window
+    a, b = max(y0, origin[0]), max(x0, origin[1])
+    c, d = min(y1, origin[0] + shape[0]), min(x1, origin[1] + shape[1])
+    if c <= a or d <= b:
+        return None
+    return ((slice(a - y0, c - y0), slice(b - x0, d - x0)),
+            (slice(a - origin[0], c - origin[0]), slice(b - origin[1], d - origin[1])))
+
+
 @dataclass(frozen=True)
 class Crop:
     """One net run over part of a canvas.
@@ -59,8 +78,9 @@ class Crop:
         if y0 >= 0 and x0 >= 0 and y1 <= h and x1 <= w:
             return image[..., y0:y1, x0:x1]
         out = np.zeros((*image.shape[:-2], y1 - y0, x1 - x0), image.dtype)
-        a, b, c, d = max(y0, 0), max(x0, 0), min(y1, h), min(x1, w)
-        out[..., a - y0:c - y0, b - x0:d - x0] = image[..., a:c, b:d]
+        both = overlap(self.window, (h, w))
+        if both is not None:
+            out[(..., *both[0])] = image[(..., *both[1])]
         return out
 
     def local(self) -> tuple[slice, slice]:

@@ -67,7 +67,7 @@ from photo3d.camera import DepthMapping
 from photo3d.errors import ConfigError
 from photo3d.inpaint.base import InpaintResult, Patch, Progress, register
 from photo3d.inpaint.canvas import edges_in, joint_patch, share_canvases, trim
-from photo3d.inpaint.crops import Box, cover, grow
+from photo3d.inpaint.crops import Box, cover, grow, overlap
 from photo3d.inpaint.netinputs import NetInputs, close_gaps
 from photo3d.inpaint.netrun import (  # noqa: F401  (re-exported)
     PRECISIONS,
@@ -100,11 +100,10 @@ def _window(a: np.ndarray, origin: tuple[int, int], p: Patch) -> np.ndarray:
     """The part of ``a`` (``(h, w, ...)``, top-left pixel at lattice ``origin``) under
     ``p``'s window, zeros where ``a`` does not reach (there ``p`` synthesises nothing)."""
     out = np.zeros((*p.shape, *a.shape[2:]), a.dtype)
-    y0, x0 = p.origin[0] - origin[0], p.origin[1] - origin[1]
-    ys, xs = max(0, -y0), max(0, -x0)
-    ye, xe = min(p.shape[0], a.shape[0] - y0), min(p.shape[1], a.shape[1] - x0)
-    if ye > ys and xe > xs:
-        out[ys:ye, xs:xe] = a[y0 + ys:y0 + ye, x0 + xs:x0 + xe]
+    (y0, x0), (h, w) = p.origin, p.shape
+    both = overlap((y0, x0, y0 + h, x0 + w), a.shape[:2], origin)
+    if both is not None:
+        out[both[0]] = a[both[1]]
     return out
 
 
