@@ -3,7 +3,10 @@
 ``old-perpatch``: the compact weights before issue 14 (uncentred colour net, in
 ``OLD_WEIGHTS``), one net run per patch, same context depth in every pass (before
 issue 18); ``new-perpatch``: the shipped (centred, fine-tuned) colour net, per patch;
-``new-shared``: the shipped nets on shared canvases (the default). Scores the
+``new-shared``: the shipped nets on shared canvases; a name ending in
+``-whole-fills`` turns off the merge's fill rules (steps inside one fill tear only
+along the edge paths; fills clamped to their context's depth range) and the edge
+paths, as before issue 18's point 3. Scores the
 motorcycle pair and the first N synthetic scenes with ``photo3d.eval.evaluate``;
 writes ``results/compact_quality.json`` (merged over invocations).
 
@@ -29,6 +32,10 @@ weights = sys.argv[3] if variant.startswith("old") else None
 if variant.endswith("perpatch"):
     L.LearnedInpainter.__init__.__kwdefaults__["share"] = False
     L.LearnedInpainter.later_context = 1.0
+if variant.endswith("-whole-fills"):  # before issue 18's fill rules (merge, edge paths)
+    import photo3d.merge as M
+    M.merge.__kwdefaults__.update(link_fills=False, clamp=False)
+    L.LearnedInpainter.__init__.__kwdefaults__["paths"] = False
 pairs = {"motorcycle": motorcycle_pair} | {f"synthetic{i}": partial(synthetic_pair, i)
                                            for i in range(int(sys.argv[2]))}
 path = Path(__file__).parent / "results" / "compact_quality.json"

@@ -12,6 +12,22 @@ get their re-synthesised values in place only if ``overwrite_band`` is set.
 Multi-layer inpainting (paper, Sec. 3.3) continues where new pixels meet other new
 pixels of this pass across a discontinuity: the farther ones form the background
 silhouettes of the next pass's depth edges.
+
+Two rules keep a poor or random net from flooding the later passes with edges
+(issue 18): with a compact depth net the 1024 px sample went from 208 edges in the
+first pass to 932 in the second, against 177 with diffusion.
+
+* **One fill is one surface unless its edges say otherwise.** Neighbouring new
+  pixels of the same job are linked even across a step of more than the threshold,
+  unless either lies on an edge the backend reported in the synthesis region (the
+  paper's edge stage: structure first, then depth and colour that follow it; the
+  authors' code likewise tears a synthesised region only along its predicted edge
+  paths). Steps the depth net leaves elsewhere are its errors, not occlusions.
+  Where fills of different jobs meet, the threshold decides as before.
+* **A fill stays within its context's depth range.** A new pixel's disparity is
+  clipped to the range of its job's context: interpolating fills (diffusion,
+  structured) never leave it, and a net that does invents depth the context gives no
+  evidence for.
 """
 
 from __future__ import annotations
@@ -91,6 +107,27 @@ def _link_new(first, pos, disp, links, starts, order, rows, cols, thr):  # pragm
 
 
 @numba.njit(cache=True)
+def _link_fill(first, pos, links, starts, order, rows, cols, job, on_edge):  # pragma: no cover
+    """Link free facing slots of neighbouring new pixels of one job off its edges."""
+    for n in range(first, pos.shape[0]):
+        if on_edge[n - first]:
+            continue
+        for d in range(4):
+            if links[n, d] >= 0:
+                continue
+            b = step(pos[n], d, rows, cols)
+            if b < 0:
+                continue
+            for k in range(starts[b], starts[b + 1]):
+                m = order[k]
+                if (m >= first and job[m - first] == job[n - first] and not on_edge[m - first]
+                        and links[m, d ^ 1] < 0):
+                    links[n, d] = m
+                    links[m, d ^ 1] = n
+                    break
+
+
+@numba.njit(cache=True)
 def _new_edges(first, pos, disp, links, starts, order, rows, cols, thr):  # pragma: no cover
     """Union-find roots of new background silhouettes (-1 = not a silhouette)."""
     n_all = pos.shape[0]
@@ -138,6 +175,8 @@ def merge(
     threshold: float,
     min_edge_length: int,
     overwrite_band: bool = False,
+    link_fills: bool = True,
+    clamp: bool = True,
 ) -> Merged:
     """Merge one pass of inpainting results into ``ldi``.
 
@@ -150,13 +189,17 @@ def merge(
         min_edge_length: new edges with fewer pixels are ignored.
         overwrite_band: replace the dilation band's colour and disparity by the
             inpainted values (else the input view stays exactly the photo).
+        link_fills: link neighbouring new pixels of one job across steps unless
+            either is on an edge of its result (False: every step above
+            ``threshold`` is a new edge, as before issue 18).
+        clamp: clip new disparities to the range of their job's context.
 
     Returns:
         :class:`Merged`.
     """
     color, disparity = ldi.color.copy(), ldi.disparity.copy()
-    new_y, new_x, new_c, new_d = [], [], [], []
-    for job, res in zip(jobs, results, strict=True):
+    new_y, new_x, new_c, new_d, new_j, new_e = [], [], [], [], [], []
+    for j, (job, res) in enumerate(zip(jobs, results, strict=True)):
         y0, x0 = job.patch.origin
         if overwrite_band and job.band.size:
             by, bx = ldi.y[job.band] - y0, ldi.x[job.band] - x0
@@ -165,7 +208,14 @@ def merge(
         new_y.append(job.new_y)
         new_x.append(job.new_x)
         new_c.append(res.color[job.new_y - y0, job.new_x - x0])
-        new_d.append(res.disparity[job.new_y - y0, job.new_x - x0])
+        d = res.disparity[job.new_y - y0, job.new_x - x0]
+        ctx = job.patch.context.astype(bool)
+        if clamp and ctx.any():
+            known = job.patch.disparity[ctx]
+            d = np.clip(d, known.min(), known.max())
+        new_d.append(d)
+        new_j.append(np.full(job.new_y.size, j, np.int32))
+        new_e.append(res.edges[job.new_y - y0, job.new_x - x0] > 0.5)
     ldi = replace(ldi, color=color, disparity=disparity)
     if not new_y or sum(a.size for a in new_y) == 0:
         return Merged(ldi, 0, np.zeros(1, np.int64), np.zeros(0, np.int64))
@@ -195,6 +245,9 @@ def merge(
     starts, order = ldi.position_index()
     _link_new(first, pos, ldi.disparity, links, starts, order, rows, cols,
               np.float32(threshold))
+    if link_fills:
+        _link_fill(first, pos, links, starts, order, rows, cols,
+                   np.concatenate(new_j)[keep], np.concatenate(new_e)[keep])
     roots = _new_edges(first, pos, ldi.disparity, links, starts, order, rows, cols,
                        np.float32(threshold))
     sil = np.nonzero(roots >= 0)[0]

@@ -129,7 +129,7 @@ def test_never_reads_outside_the_context():
 def test_edge_threshold_and_repeats():
     p = make_patch()
     nets = stub_nets(edge=0.003)  # just above the authors' 0.002 everywhere
-    r = LearnedInpainter(nets=nets).inpaint([p])[0]
+    r = LearnedInpainter(nets=nets, paths=False).inpaint([p])[0]
     np.testing.assert_array_equal(r.edges, np.maximum(p.edges, p.synthesis))
     # once, then a repeat with the new edges fed back; it finds the same edges, so a
     # third run would see the same input: none follows
@@ -143,6 +143,23 @@ def test_edge_threshold_and_repeats():
     nets = stub_nets()
     LearnedInpainter(nets=nets).inpaint([make_patch(edge_col=False)])
     assert nets.edge.calls == []  # no context edge touches the synthesis region
+
+
+def test_new_edges_are_reported_as_thin_paths_from_context_edges():
+    # the stub edge net fires over the whole synthesis region: a blob touching the
+    # context's edge column
+    p = make_patch()
+    nets = stub_nets(edge=0.003)
+    r = LearnedInpainter(nets=nets).inpaint([p])[0]
+    syn = p.synthesis & ~p.context
+    new = (r.edges > 0) & syn
+    assert new.any()
+    # one pixel thick along the blob's long side (rows), connected to the context edge
+    assert (new.sum(axis=1) <= 2).mean() > 0.9 and new.sum() < 0.1 * syn.sum()
+    np.testing.assert_array_equal(r.edges[p.context], p.edges[p.context])
+    # what the depth net saw is the edge net's own output (the authors' input)
+    fed = nets.depth.calls[-1][0, 1].numpy()
+    assert fed.sum() >= syn.sum()
 
 
 def test_inputs_are_laid_out_like_the_authors():
@@ -224,7 +241,7 @@ def test_make_with_the_learned_backend():
 
 def test_edge_net_runs_in_the_first_pass_only():
     nets = stub_nets(edge=0.9)
-    inp = LearnedInpainter(nets=nets)
+    inp = LearnedInpainter(nets=nets, paths=False)
     first = inp.inpaint([make_patch()], pass_index=0)[0]
     runs = len(nets.edge.calls)
     assert runs == 2  # one run + a repeat (that changes nothing: the second is skipped)
@@ -456,7 +473,7 @@ def test_edge_repeats_run_where_edges_changed_and_stop_when_none_did(share):
     b = Patch(b.color, b.disparity, b.edges, b.context, b.synthesis, (0, 200))
     assert b.synthesis[0].sum() == 1
     nets = InpaintingNets(Grow(), Const(1, 0.0), Const(3, 0.5), torch.device("cpu"), {})
-    inp = LearnedInpainter(nets=nets, share=share, edge_unit=8, edge_halo=8)
+    inp = LearnedInpainter(nets=nets, share=share, edge_unit=8, edge_halo=8, paths=False)
     ra, rb = inp.inpaint([a, b])
     new_a = ra.edges * a.synthesis
     np.testing.assert_array_equal(np.nonzero(new_a.any(0))[0], [24, 25, 26])  # 3 runs
@@ -486,7 +503,7 @@ def test_depth_and_colour_canvases_lose_the_margin_that_only_adds_padding(share)
     p = Patch(base.color * ctx[..., None], np.where(ctx, 0.4, 0).astype(np.float32),
               base.edges * ctx, ctx, syn, (3, 7))
     nets = stub_nets(depth=0.0, color=0.25)
-    r = LearnedInpainter(nets=nets, share=share).inpaint([p])[0]
+    r = LearnedInpainter(nets=nets, share=share, paths=False).inpaint([p])[0]
     assert tuple(nets.edge.calls[0].shape[2:]) == (256, 128)  # the edge net: as before
     assert tuple(nets.depth.calls[0].shape[2:]) == tuple(nets.color.calls[0].shape[2:]) \
         == (128, 128)

@@ -41,8 +41,13 @@ The depth and colour nets see each canvas (or patch) without the part of its emp
 margin (the 20 px around the bounding box) that alone would grow its padded size
 (:func:`~photo3d.inpaint.canvas.trim`).
 
-The authors' graph-based edge clean-up and depth smoothing between context and
-synthesis are not part of this backend. Patches of the same
+The edges a result reports (what the merge tears a fill along) are the new edges as
+one-pixel paths that continue a context edge (:func:`~photo3d.inpaint.edgepaths.edge_paths`,
+``paths``): a poorly trained edge net fires in blobs, and every step its depth net
+then leaves around a blob would become an edge of the next pass. The nets themselves
+see the edge net's output as the authors' inference gives it to them. The authors'
+graph-based tracing of one path per context edge end and their depth smoothing between
+context and synthesis are not part of this backend. Patches of the same
 padded shape run as one batch (at most ``batch_size`` patches and about
 ``batch_pixels`` pixels), under ``torch.inference_mode()``, on CUDA when available.
 
@@ -68,6 +73,7 @@ from photo3d.errors import ConfigError
 from photo3d.inpaint.base import InpaintResult, Patch, Progress, register
 from photo3d.inpaint.canvas import edges_in, joint_patch, share_canvases, trim
 from photo3d.inpaint.crops import Box, cover, grow, overlap
+from photo3d.inpaint.edgepaths import reported_edges
 from photo3d.inpaint.netinputs import NetInputs, close_gaps
 from photo3d.inpaint.netrun import (  # noqa: F401  (re-exported)
     PRECISIONS,
@@ -141,6 +147,8 @@ class LearnedInpainter:
             the synthesis differ from one run over the whole canvas by 0.020 on
             average at 48 px (0.018 at 64 px, 0.061 for the bands), for 26 % fewer
             pixels than 64 px.
+        paths: report new edges as one-pixel paths continuing context edges (see the
+            module docstring; False: every pixel the edge net marks).
 
     Attributes:
         units: per net (``"edge"``, ``"depth"``, ``"color"``), the multiple its
@@ -176,7 +184,7 @@ class LearnedInpainter:
                  edge_unit: int | None = None, precision: str = "fp32", color_size: int = 512,
                  batch_size: int = 8, batch_pixels: int = 8 * 256 * 256,
                  share: bool = True, joint_pixels: int = 600_000,
-                 edge_halo: int | None = 48) -> None:
+                 edge_halo: int | None = 48, paths: bool = True) -> None:
         if edge_unit is not None and (edge_unit <= 0 or edge_unit % 4):
             raise ConfigError(f"edge_unit must be a positive multiple of 4, not {edge_unit}")
         if precision not in PRECISIONS:
@@ -203,6 +211,7 @@ class LearnedInpainter:
         self.share = share
         self.joint_pixels = joint_pixels
         self.edge_halo = edge_halo
+        self.paths = paths
         # Windows of the joint edge-net runs, one list per run over the pass's crops.
         self.edge_runs: list[list[Box]] = []
         self.batch = dict(batch_size=batch_size, batch_pixels=batch_pixels)
@@ -240,6 +249,9 @@ class LearnedInpainter:
                 edges[i] = np.maximum(items[i].edges, new[i])
             todo = changed  # a run that changes nothing would repeat itself
         return edges
+
+    def _tears(self, edges: np.ndarray, p: Patch) -> np.ndarray:
+        return reported_edges(edges, p) if self.paths else edges.astype(np.float32)
 
     def _colors(self, items: list[NetInputs], edges: list[np.ndarray]) -> list[np.ndarray]:
         import torch
@@ -344,7 +356,8 @@ class LearnedInpainter:
                     for i in canvases[k].members:
                         if kind == "depth":
                             disparity[i] = _window(o, c.origin, patches[i])
-                            edges[i] = _window(e, c.origin, patches[i])
+                            edges[i] = self._tears(_window(e, c.origin, patches[i]),
+                                                   patches[i])
                         else:
                             color[i] = _window(o, c.origin, patches[i])
                             done += 1
@@ -363,8 +376,8 @@ class LearnedInpainter:
                                                                    strict=True)])
             out[kind] = [_window(r, t.origin, p) for r, t, p in zip(res, seen, patches,
                                                                     strict=True)]
-        return [InpaintResult(color=c, disparity=d, edges=e.astype(np.float32))
-                for e, d, c in zip(edges, out["depth"], out["color"], strict=True)]
+        return [InpaintResult(color=c, disparity=d, edges=self._tears(e, p))
+                for e, d, c, p in zip(edges, out["depth"], out["color"], patches, strict=True)]
 
     def inpaint(self, patches: Sequence[Patch], *, progress: Progress | None = None,
                 pass_index: int = 0) -> list[InpaintResult]:
