@@ -44,6 +44,7 @@ BENCHMARKS = [
     ["bench_learned.py", "--edge-unit", "8", "--precision", "bf16"],
     ["bench_learned.py", "--runs", "3", "--out", "benchmarks/results/learned_shared.json"],
     ["bench_edge_crops.py"],
+    ["bench_later_passes.py"],
     ["bench_stereo.py"],
     ["bench_viewer.py"],
     ["bench_memory.py"],
@@ -562,7 +563,7 @@ def section_compact_quality() -> str:
             "`old-perpatch`: the compact nets as shipped before issue 14 (the colour net "
             "filled every hole orange-brown), one net run per patch; `new-perpatch`: the "
             "centred, fine-tuned colour net, one run per patch; `new-shared`: the same nets "
-            "on shared canvases with thinner later contexts (the default now).", "",
+            "on shared canvases with thinner later contexts.", "",
             "| variant | pair | PSNR | SSIM | LPIPS |", "| --- | --- | --- | --- | --- |"]
     for variant, pairs in rec["variants"].items():
         for pair, sc in pairs.items():
@@ -581,7 +582,7 @@ def section_compact_quality() -> str:
     if crops and bands:
         d = {k: (crops[k]["psnr"] - bands[k]["psnr"], crops[k]["lpips"] / bands[k]["lpips"] - 1)
              for k in crops if k in bands}
-        out += ["", "`new-shared-crops` (the default now): the joint edge-net run on crops "
+        out += ["", "`new-shared-crops`: the joint edge-net run on crops "
                 "with 48 px of surroundings instead of the whole canvas in bands, repeats "
                 "only where edges changed, depth and colour canvases without their "
                 "padding-only margin (issue 18). Against `new-shared-lean-1Mpx-bands`: " +
@@ -591,6 +592,65 @@ def section_compact_quality() -> str:
                 f"{100 * sum(q for _, q in d.values()) / len(d):+.1f} %: mixed, within the "
                 "few percent by which such layout changes move these scores "
                 "(new-perpatch -> new-shared moved LPIPS by up to 6 %)."]
+    rules = rec["variants"].get("new-shared-fill-rules")
+    whole = rec["variants"].get("new-shared-crops-whole-fills")
+    if rules and whole:
+        d = {k: (rules[k]["psnr"] - whole[k]["psnr"], rules[k]["lpips"] / whole[k]["lpips"] - 1)
+             for k in rules if k in whole}
+        out += ["", "`new-shared-fill-rules` (the default now): the merge's fill rules of "
+                "issue 18 (a step inside one fill tears only along the backend's reported "
+                "edges, given as one-pixel paths continuing context edges; fills clipped to "
+                "their context's depth range; section \"Later passes\"). "
+                "`new-shared-crops-whole-fills` is the same code with them off: it "
+                "reproduces `new-shared-crops` to the last digit. With the rules against "
+                "without: " + ", ".join(f"{k} {p:+.2f} dB PSNR, LPIPS {100 * q:+.1f} %"
+                                        for k, (p, q) in d.items()) +
+                f"; mean {sum(p for p, _ in d.values()) / len(d):+.2f} dB, LPIPS "
+                f"{100 * sum(q for _, q in d.values()) / len(d):+.1f} %."]
+    return "\n".join(out) + "\n"
+
+
+def section_later_passes() -> str:
+    out = ["## Later passes with good, poor and random fills (issue 18)", ""]
+    rec = load("later_passes.json")
+    if rec is None:
+        return "\n".join(out) + "\n" + missing("python benchmarks/bench_later_passes.py")
+    names = {"diffusion": "diffusion (default)", "structured": "structured",
+             "compact": "learned, shipped compact nets",
+             "authors-random": "learned, authors' architectures, random weights",
+             "compact-random": "learned, compact architectures, random weights"}
+    out += [f"Command: `{rec['command']}`. Machine: {machine_line(rec)}.", "",
+            "Motorcycle (ground-truth disparity) at 1024 px, one fresh process per row. "
+            "New depth edges found per inpainting pass, without and with the merge's fill "
+            "rules (`photo3d/merge.py`): inside one fill, neighbouring new pixels stay "
+            "joined across a depth step unless the backend reported an edge there (the "
+            "learned backend reports the edge net's new pixels as one-pixel paths that "
+            "continue a context edge, `photo3d/inpaint/edgepaths.py`), and a fill's "
+            "disparity is clipped to its context's range. Inpainting time from the same "
+            "runs (one each; the speed sections hold the medians).", "",
+            "| fill | edges per pass, rules off | rules on | inpaint s, off | on |",
+            "| --- | --- | --- | --- | --- |"]
+    for case, r in rec["results"].items():
+        off, on = r["off"], r["on"]
+        out.append(f"| {names.get(case, case)} | {off['edges']} | {on['edges']} | "
+                   f"{off['inpaint_s']:.1f} | {on['inpaint_s']:.1f} |")
+    out += ["", "Without the rules every depth step a net leaves inside its fill became an "
+            "edge of the next pass (the compact edge net fires in blobs, and the depth net "
+            "steps around them). With them, every fill's later passes find fewer edges "
+            "than the pass before; the edges that remain come from seams between the fills "
+            "of different edges, which diffusion has too. Scores with the rules: the "
+            "compact-nets section below (`new-shared-fill-rules`)."]
+    scores = rec.get("scores")
+    if scores:
+        out += ["", "Disoccluded scores of the interpolating fills without and with the "
+                "rules (`photo3d.eval.evaluate`, motorcycle and synthetic scenes):", "",
+                "| fill | pair | PSNR off | PSNR on | LPIPS off | LPIPS on |",
+                "| --- | --- | --- | --- | --- | --- |"]
+        for method, pairs in scores.items():
+            for pair, r in pairs.items():
+                out.append(f"| {method} | {pair} | {r['off']['psnr']:.2f} | "
+                           f"{r['on']['psnr']:.2f} | {r['off']['lpips']:.4f} | "
+                           f"{r['on']['lpips']:.4f} |")
     return "\n".join(out) + "\n"
 
 
@@ -682,6 +742,7 @@ def main() -> None:
         "",
         section_make(), section_render(), section_speed(), section_quality(),
         section_fill(), section_learned(), section_learned_shared(), section_edge_crops(),
+        section_later_passes(),
         section_compact_quality(),
         section_stereo(), section_viewer(),
         section_json("memory.json", "Peak memory of make (what --size can fit)",
