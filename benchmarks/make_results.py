@@ -577,37 +577,35 @@ def section_compact_quality() -> str:
             "`new-shared-lean-1Mpx-bands`: new-shared with the edge net's lean inference "
             "forward and joint edge bands of up to 1 Mpx (issue 18's memory work): the "
             "same scores to the last digit."]
-    crops = rec["variants"].get("new-shared-crops")
-    bands = rec["variants"].get("new-shared-lean-1Mpx-bands")
-    if crops and bands:
-        d = {k: (crops[k]["psnr"] - bands[k]["psnr"], crops[k]["lpips"] / bands[k]["lpips"] - 1)
-             for k in crops if k in bands}
+    variants = rec["variants"]
+    if "new-shared-crops" in variants and "new-shared-lean-1Mpx-bands" in variants:
         out += ["", "`new-shared-crops`: the joint edge-net run on crops "
                 "with 48 px of surroundings instead of the whole canvas in bands, repeats "
                 "only where edges changed, depth and colour canvases without their "
                 "padding-only margin (issue 18). Against `new-shared-lean-1Mpx-bands`: " +
-                ", ".join(f"{k} {p:+.2f} dB PSNR, LPIPS {100 * q:+.1f} %"
-                          for k, (p, q) in d.items()) +
-                f"; mean {sum(p for p, _ in d.values()) / len(d):+.2f} dB, LPIPS "
-                f"{100 * sum(q for _, q in d.values()) / len(d):+.1f} %: mixed, within the "
-                "few percent by which such layout changes move these scores "
-                "(new-perpatch -> new-shared moved LPIPS by up to 6 %)."]
-    rules = rec["variants"].get("new-shared-fill-rules")
-    whole = rec["variants"].get("new-shared-crops-whole-fills")
-    if rules and whole:
-        d = {k: (rules[k]["psnr"] - whole[k]["psnr"], rules[k]["lpips"] / whole[k]["lpips"] - 1)
-             for k in rules if k in whole}
+                _score_change(variants["new-shared-crops"],
+                              variants["new-shared-lean-1Mpx-bands"]) +
+                ": mixed, within the few percent by which such layout changes move these "
+                "scores (new-perpatch -> new-shared moved LPIPS by up to 6 %)."]
+    if "new-shared-fill-rules" in variants and "new-shared-crops-whole-fills" in variants:
         out += ["", "`new-shared-fill-rules` (the default now): the merge's fill rules of "
                 "issue 18 (a step inside one fill tears only along the backend's reported "
                 "edges, given as one-pixel paths continuing context edges; fills clipped to "
                 "their context's depth range; section \"Later passes\"). "
                 "`new-shared-crops-whole-fills` is the same code with them off: it "
                 "reproduces `new-shared-crops` to the last digit. With the rules against "
-                "without: " + ", ".join(f"{k} {p:+.2f} dB PSNR, LPIPS {100 * q:+.1f} %"
-                                        for k, (p, q) in d.items()) +
-                f"; mean {sum(p for p, _ in d.values()) / len(d):+.2f} dB, LPIPS "
-                f"{100 * sum(q for _, q in d.values()) / len(d):+.1f} %."]
+                "without: " + _score_change(variants["new-shared-fill-rules"],
+                                            variants["new-shared-crops-whole-fills"]) + "."]
     return "\n".join(out) + "\n"
+
+
+def _score_change(new: dict, old: dict) -> str:
+    """"pair +x dB PSNR, LPIPS +y %, ...; mean ..." of two variants' scores."""
+    d = {k: (new[k]["psnr"] - old[k]["psnr"], new[k]["lpips"] / old[k]["lpips"] - 1)
+         for k in new if k in old}
+    return (", ".join(f"{k} {p:+.2f} dB PSNR, LPIPS {100 * q:+.1f} %" for k, (p, q) in d.items())
+            + f"; mean {sum(p for p, _ in d.values()) / len(d):+.2f} dB, LPIPS "
+            f"{100 * sum(q for _, q in d.values()) / len(d):+.1f} %")
 
 
 def section_later_passes() -> str:

@@ -85,8 +85,14 @@ def _select(cand_pos, cand_disp, starts, order, disp, thr):  # pragma: no cover 
 
 
 @numba.njit(cache=True)
-def _link_new(first, pos, disp, links, starts, order, rows, cols, thr):  # pragma: no cover
+def _link_new(first, pos, disp, links, starts, order, rows, cols, thr, job, on_edge,
+              fills):  # pragma: no cover - jit
+    """Link the free slots of new pixels: to the neighbour of closest disparity within
+    ``thr`` or, with ``fills``, to the neighbour of the same job when neither is on an
+    edge of that job's result."""
     for n in range(first, pos.shape[0]):
+        if fills and on_edge[n - first]:
+            continue
         for d in range(4):
             if links[n, d] >= 0:
                 continue
@@ -97,34 +103,18 @@ def _link_new(first, pos, disp, links, starts, order, rows, cols, thr):  # pragm
             best_diff = thr
             for k in range(starts[b], starts[b + 1]):
                 m = order[k]
-                diff = abs(disp[m] - disp[n])
-                if links[m, d ^ 1] < 0 and diff < best_diff:
+                if links[m, d ^ 1] >= 0:
+                    continue
+                if fills:
+                    if m >= first and job[m - first] == job[n - first] and not on_edge[m - first]:
+                        best = m
+                        break
+                elif abs(disp[m] - disp[n]) < best_diff:
                     best = m
-                    best_diff = diff
+                    best_diff = abs(disp[m] - disp[n])
             if best >= 0:
                 links[n, d] = best
                 links[best, d ^ 1] = n
-
-
-@numba.njit(cache=True)
-def _link_fill(first, pos, links, starts, order, rows, cols, job, on_edge):  # pragma: no cover
-    """Link free facing slots of neighbouring new pixels of one job off its edges."""
-    for n in range(first, pos.shape[0]):
-        if on_edge[n - first]:
-            continue
-        for d in range(4):
-            if links[n, d] >= 0:
-                continue
-            b = step(pos[n], d, rows, cols)
-            if b < 0:
-                continue
-            for k in range(starts[b], starts[b + 1]):
-                m = order[k]
-                if (m >= first and job[m - first] == job[n - first] and not on_edge[m - first]
-                        and links[m, d ^ 1] < 0):
-                    links[n, d] = m
-                    links[m, d ^ 1] = n
-                    break
 
 
 @numba.njit(cache=True)
@@ -243,11 +233,10 @@ def merge(
     )
     pos = ldi.positions()
     starts, order = ldi.position_index()
-    _link_new(first, pos, ldi.disparity, links, starts, order, rows, cols,
-              np.float32(threshold))
-    if link_fills:
-        _link_fill(first, pos, links, starts, order, rows, cols,
-                   np.concatenate(new_j)[keep], np.concatenate(new_e)[keep])
+    job, on_edge = np.concatenate(new_j)[keep], np.concatenate(new_e)[keep]
+    for fills in (False, True) if link_fills else (False,):
+        _link_new(first, pos, ldi.disparity, links, starts, order, rows, cols,
+                  np.float32(threshold), job, on_edge, fills)
     roots = _new_edges(first, pos, ldi.disparity, links, starts, order, rows, cols,
                        np.float32(threshold))
     sil = np.nonzero(roots >= 0)[0]
