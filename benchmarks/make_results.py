@@ -569,8 +569,9 @@ def section_compact_quality() -> str:
         for pair, sc in pairs.items():
             out.append(f"| {variant} | {pair} | {sc['psnr']:.2f} | {sc['ssim']:.3f} | "
                        f"{sc['lpips']:.3f} |")
-    out += ["", "The `old-perpatch` rows reproduce the quality section's `learned` rows "
-            "exactly (scores are deterministic). The colour fix "
+    out += ["", "The `old-perpatch` rows reproduced the quality section's `learned` rows "
+            "of that time exactly (scores are deterministic; that section now holds the "
+            "current compact nets). The colour fix "
             "(old -> new-perpatch) helps on the motorcycle and synthetic0 and costs 1.4 dB "
             "PSNR on synthetic1; shared canvases (new-perpatch -> new-shared) change the "
             "scores by at most 0.3 dB PSNR and lower LPIPS on two of the three pairs. "
