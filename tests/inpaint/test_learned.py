@@ -145,12 +145,13 @@ def test_edge_threshold_and_repeats():
     assert nets.edge.calls == []  # no context edge touches the synthesis region
 
 
-def test_new_edges_are_reported_as_thin_paths_from_context_edges():
+@pytest.mark.parametrize("share", [True, False])
+def test_new_edges_are_reported_as_thin_paths_from_context_edges(share):
     # the stub edge net fires over the whole synthesis region: a blob touching the
     # context's edge column
     p = make_patch()
     nets = stub_nets(edge=0.003)
-    r = LearnedInpainter(nets=nets).inpaint([p])[0]
+    r = LearnedInpainter(nets=nets, share=share).inpaint([p])[0]
     syn = p.synthesis & ~p.context
     new = (r.edges > 0) & syn
     assert new.any()
