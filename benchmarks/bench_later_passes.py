@@ -9,7 +9,8 @@ merge's fill rules on (the default: steps inside one fill tear only along the
 backend's reported edges, which the learned backend gives as one-pixel paths
 continuing context edges; fills clipped to their context's depth range) and off (as
 before issue 18's point 3). Records edges and pixels added per pass and the
-inpainting time, one fresh process per case; then scores diffusion and structured
+inpainting time, one fresh process per case (rows of cases not run are kept from
+``--out``); then scores diffusion and structured
 (disoccluded pixels, motorcycle and ``--synthetic`` scenes) with the rules off and on.
 
 Usage: python benchmarks/bench_later_passes.py [--cases a,b,...] [--synthetic 5] [--out FILE]
@@ -18,6 +19,7 @@ Usage: python benchmarks/bench_later_passes.py [--cases a,b,...] [--synthetic 5]
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 from pathlib import Path
 
@@ -90,7 +92,8 @@ def main() -> None:
     ap.add_argument("--out", type=Path,
                     default=Path(__file__).parent / "results" / "later_passes.json")
     args = ap.parse_args()
-    rec = {"results": {}}
+    old = json.loads(args.out.read_text()) if args.out.is_file() else {}
+    rec = {"results": old.get("results", {})}  # cases not run keep their rows
     for case in args.cases.split(","):
         for rules in ("off", "on"):
             r = run_child(CHILD, case, rules)

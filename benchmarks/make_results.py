@@ -618,7 +618,11 @@ def section_later_passes() -> str:
              "compact": "learned, shipped compact nets",
              "authors-random": "learned, authors' architectures, random weights",
              "compact-random": "learned, compact architectures, random weights"}
-    out += [f"Command: `{rec['command']}`. Machine: {machine_line(rec)}.", "",
+    cmd = f"`{rec['command']}`"
+    if "--cases" in rec["command"]:
+        cmd = ("`python benchmarks/bench_later_passes.py`, its last run only for some rows "
+               f"({cmd}; the other rows kept from the previous full run)")
+    out += [f"Command: {cmd}. Machine: {machine_line(rec)}.", "",
             "Motorcycle (ground-truth disparity) at 1024 px, one fresh process per row. "
             "New depth edges found per inpainting pass, without and with the merge's fill "
             "rules (`photo3d/merge.py`): inside one fill, neighbouring new pixels stay "

@@ -145,3 +145,16 @@ def test_texture_patches_are_sized_in_photo_pixels(monkeypatch):
         inp.fill(Patch(col, np.zeros((20, 30), np.float32), np.zeros((20, 30), np.float32),
                        ctx, ~ctx, (0, 0), scale))
     assert radii == [2, 5]
+
+
+def test_structured_backend_reports_its_continued_lines_as_edges():
+    img, _ = slanted()
+    ctx = np.ones((H, W), bool)
+    ctx[20:80, 50:90] = False
+    p = Patch(img * ctx[..., None], np.full((H, W), 0.3, np.float32) * ctx,
+              np.zeros((H, W), np.float32), ctx, ~ctx, (0, 0))
+    inp = get_inpainter("structured")
+    (r,) = inp.inpaint([p])
+    lines = continue_edges(p.color, p.disparity, ctx, ~ctx, **inp.structure)
+    assert lines.sum() > 30
+    np.testing.assert_array_equal(r.edges > 0, lines)

@@ -60,3 +60,26 @@ def test_other_unraisable_exceptions_still_reach_the_previous_hook():
     finally:
         sys.unraisablehook = previous
     assert [type(u.exc_value) for u in seen] == [ValueError]
+
+
+def test_an_interrupt_at_shutdown_when_no_thread_can_start_is_dropped_quietly(
+        monkeypatch, capfd):
+    import threading
+    from types import SimpleNamespace
+
+    from photo3d.io.signals import redeliver_swallowed
+
+    def refuse(self):
+        raise RuntimeError("can't create new thread at interpreter shutdown")
+
+    monkeypatch.setattr(threading.Timer, "start", refuse)
+    rearmed = []
+    restore = redeliver_swallowed((KeyboardInterrupt,),
+                                  lambda: rearmed.append(1) or signal.SIGTERM)
+    try:
+        sys.unraisablehook(SimpleNamespace(exc_value=KeyboardInterrupt(), exc_type=None,
+                                           exc_traceback=None, err_msg=None, object=None))
+    finally:
+        restore()
+    assert rearmed == [1]
+    assert capfd.readouterr().err == ""

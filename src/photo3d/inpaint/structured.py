@@ -11,7 +11,9 @@ The classical counterpart of the paper's edge-then-colour order. Per patch:
    matches its neighbourhood, the step-2 colours included in the match so sources come
    from the matching side (:mod:`photo3d.inpaint.exemplar`, PatchMatch).
 
-Disparity is the step-2 result (no texture is added to depth). Every value read comes
+Disparity is the step-2 result (no texture is added to depth). The continued lines
+are the result's ``edges``: where the disparity steps across one, the merge tears the
+fill and the next pass fills behind it (:mod:`photo3d.merge`). Every value read comes
 from the patch's context: nothing from the foreground or outside the context.
 """
 
@@ -139,7 +141,7 @@ class StructuredInpainter:
                                 **self.exemplar)
             color = color + self.texture * (tex - color)
         return InpaintResult(color=np.clip(color, 0.0, 1.0), disparity=out[..., 3],
-                             edges=np.zeros(p.shape, np.float32))
+                             edges=lines.astype(np.float32))
 
     def inpaint(
         self, patches: Sequence[Patch], *, progress: Progress | None = None,

@@ -37,8 +37,9 @@ def redeliver_swallowed(kinds: tuple[type[BaseException], ...],
     ``rearm()`` (which restores the handler and returns the signal to send, or None)
     and sends that signal to this process again 50 ms later from a helper thread, so
     that the handler runs once the C code has returned (if it lands in a callback
-    again, the same happens again). Other unraisable exceptions go to the
-    previous hook. Returns a function that restores the previous hook.
+    again, the same happens again; during interpreter shutdown, when no thread can
+    start, the process is exiting anyway and nothing is sent). Other unraisable
+    exceptions go to the previous hook. Returns a function that restores the previous hook.
 
     Example:
         >>> restore = redeliver_swallowed((KeyboardInterrupt,), lambda: None)
@@ -54,7 +55,10 @@ def redeliver_swallowed(kinds: tuple[type[BaseException], ...],
         if signum is not None:  # later, so that it does not land in this hook again
             timer = threading.Timer(_REDELIVER_S, os.kill, (os.getpid(), signum))
             timer.daemon = True
-            timer.start()
+            try:
+                timer.start()
+            except RuntimeError:  # "can't create new thread at interpreter shutdown":
+                pass  # the process is exiting already, there is nothing left to stop
 
     sys.unraisablehook = hook
 
