@@ -56,7 +56,9 @@ class InpaintResult:
         color: ``(h, w, 3) float32`` in [0, 1].
         disparity: ``(h, w) float32`` normalised disparity.
         edges: ``(h, w) float32`` inpainted depth edges in [0, 1] (zeros if the
-            backend does not predict edges).
+            backend does not predict edges). Inside one result's synthesis region
+            the merge tears the new surface only along these (where its disparity
+            steps), see :mod:`photo3d.merge`.
     """
 
     color: np.ndarray
