@@ -40,19 +40,15 @@ if not rules:
     M.merge.__kwdefaults__.update(link_fills=False, clamp=False)
 backend, name = None, case
 if case in ("compact", "authors-random", "compact-random"):
-    import torch
+    from photo3d.eval.evaluate import random_nets
     from photo3d.inpaint.learned import LearnedInpainter, bundled_weights
-    from photo3d.nets import InpaintingNets, build_net
     name = "learned"
     if case == "compact":
         backend = LearnedInpainter(weights=bundled_weights(), paths=rules)
     else:
-        torch.manual_seed(0)
-        arch = {} if case == "authors-random" else json.loads(
+        arch = None if case == "authors-random" else json.loads(
             (bundled_weights() / "training.json").read_text())["architecture"]
-        nets = {k: build_net(k, **arch.get(k, {})).eval() for k in ("edge", "depth", "color")}
-        backend = LearnedInpainter(nets=InpaintingNets(**nets, device=torch.device("cpu"),
-                                                       sources={}), paths=rules)
+        backend = LearnedInpainter(nets=random_nets(0, arch), paths=rules)
 s = motorcycle()
 cfg = photo3d.Config(size=1024, inpainter=name)
 t = time.perf_counter()

@@ -188,24 +188,24 @@ def merge(
         :class:`Merged`.
     """
     color, disparity = ldi.color.copy(), ldi.disparity.copy()
-    new_y, new_x, new_c, new_d, new_j, new_e = [], [], [], [], [], []
-    for j, (job, res) in enumerate(zip(jobs, results, strict=True)):
+    new_y, new_x, new_c, new_d, new_e = [], [], [], [], []
+    for job, res in zip(jobs, results, strict=True):
         y0, x0 = job.patch.origin
         if overwrite_band and job.band.size:
             by, bx = ldi.y[job.band] - y0, ldi.x[job.band] - x0
             color[job.band] = res.color[by, bx]
             disparity[job.band] = res.disparity[by, bx]
+        ly, lx = job.new_y - y0, job.new_x - x0
         new_y.append(job.new_y)
         new_x.append(job.new_x)
-        new_c.append(res.color[job.new_y - y0, job.new_x - x0])
-        d = res.disparity[job.new_y - y0, job.new_x - x0]
+        new_c.append(res.color[ly, lx])
+        d = res.disparity[ly, lx]
         ctx = job.patch.context.astype(bool)
         if clamp and ctx.any():
             known = job.patch.disparity[ctx]
             d = np.clip(d, known.min(), known.max())
         new_d.append(d)
-        new_j.append(np.full(job.new_y.size, j, np.int32))
-        new_e.append(res.edges[job.new_y - y0, job.new_x - x0] > 0.5)
+        new_e.append(res.edges[ly, lx] > 0.5)
     ldi = replace(ldi, color=color, disparity=disparity)
     if not new_y or sum(a.size for a in new_y) == 0:
         return Merged(ldi, 0, np.zeros(1, np.int64), np.zeros(0, np.int64))
@@ -233,7 +233,8 @@ def merge(
     )
     pos = ldi.positions()
     starts, order = ldi.position_index()
-    job, on_edge = np.concatenate(new_j)[keep], np.concatenate(new_e)[keep]
+    job = np.repeat(np.arange(len(new_y), dtype=np.int32), [a.size for a in new_y])[keep]
+    on_edge = np.concatenate(new_e)[keep]
     for fills in (False, True) if link_fills else (False,):
         _link_new(first, pos, ldi.disparity, links, starts, order, rows, cols,
                   np.float32(threshold), job, on_edge, fills)

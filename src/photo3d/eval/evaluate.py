@@ -63,15 +63,18 @@ def _photo3d_view(pair: StereoPair, config: Config, inpainter=None) -> np.ndarra
     return photo.render(pair.right_camera, settings=RenderSettings(ssaa=2)).color
 
 
-def random_nets(seed: int = 0):
-    """The three nets at the authors' size with random weights (timing, or a learned
-    run without weights, reported as such)."""
+def random_nets(seed: int = 0, architecture: dict | None = None):
+    """The three nets with random weights (timing, or a learned run without weights,
+    reported as such): at the authors' size, or as ``architecture`` gives them (per
+    net, :func:`~photo3d.nets.build_net` keywords, e.g. the compact nets'
+    ``training.json`` ``"architecture"``)."""
     import torch
 
     from photo3d.nets import InpaintingNets, build_net
 
     torch.manual_seed(seed)
-    nets = {k: build_net(k).eval() for k in ("edge", "depth", "color")}
+    arch = architecture or {}
+    nets = {k: build_net(k, **arch.get(k, {})).eval() for k in ("edge", "depth", "color")}
     return InpaintingNets(**nets, device=torch.device("cpu"),
                           sources={k: "random" for k in nets})
 

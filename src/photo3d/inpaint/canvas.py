@@ -326,14 +326,29 @@ def edges_in(p: Patch, joint: Sequence[tuple[np.ndarray, tuple[int, int]]]) -> n
         [[0, 0, 1, 1], [0, 0, 1, 1]]
     """
     own = np.where(p.context, p.edges, 0).astype(np.float32)
-    h, w = p.shape
-    crop = np.zeros((h, w), bool)
-    y0, x0 = p.origin
+    crop = np.zeros(p.shape, bool)
     for new, origin in joint:
-        both = overlap((y0, x0, y0 + h, x0 + w), new.shape, origin)
-        if both is not None:
-            crop[both[0]] |= new[both[1]]
+        crop |= window(new, origin, p)
     return np.maximum(own, (crop & p.synthesis & ~p.context).astype(np.float32))
+
+
+def window(a: np.ndarray, origin: tuple[int, int], p: Patch) -> np.ndarray:
+    """The part of ``a`` (``(H, W, ...)``, top-left pixel at lattice ``origin``) under
+    ``p``'s lattice window, zeros where ``a`` does not reach.
+
+    Example:
+        >>> p = Patch(np.zeros((2, 3, 3), np.float32), np.zeros((2, 3), np.float32),
+        ...           np.zeros((2, 3), np.float32), np.zeros((2, 3), bool),
+        ...           np.ones((2, 3), bool), (1, 2))
+        >>> window(np.arange(12).reshape(3, 4), (0, 0), p).tolist()
+        [[6, 7, 0], [10, 11, 0]]
+    """
+    out = np.zeros((*p.shape, *a.shape[2:]), a.dtype)
+    (y0, x0), (h, w) = p.origin, p.shape
+    both = overlap((y0, x0, y0 + h, x0 + w), a.shape[:2], origin)
+    if both is not None:
+        out[both[0]] = a[both[1]]
+    return out
 
 
 def trim(p: Patch, unit: int) -> Patch:

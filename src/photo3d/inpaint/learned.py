@@ -71,8 +71,8 @@ import numpy as np
 from photo3d.camera import DepthMapping
 from photo3d.errors import ConfigError
 from photo3d.inpaint.base import InpaintResult, Patch, Progress, register
-from photo3d.inpaint.canvas import edges_in, joint_patch, share_canvases, trim
-from photo3d.inpaint.crops import Box, cover, grow, overlap
+from photo3d.inpaint.canvas import edges_in, joint_patch, share_canvases, trim, window
+from photo3d.inpaint.crops import Box, cover, grow
 from photo3d.inpaint.edgepaths import reported_edges
 from photo3d.inpaint.netinputs import NetInputs, close_gaps
 from photo3d.inpaint.netrun import (  # noqa: F401  (re-exported)
@@ -101,16 +101,6 @@ def bundled_weights() -> Path:
         ['color.safetensors', 'depth.safetensors', 'edge.safetensors']
     """
     return Path(__file__).resolve().parents[1] / "nets" / "compact"
-
-def _window(a: np.ndarray, origin: tuple[int, int], p: Patch) -> np.ndarray:
-    """The part of ``a`` (``(h, w, ...)``, top-left pixel at lattice ``origin``) under
-    ``p``'s window, zeros where ``a`` does not reach (there ``p`` synthesises nothing)."""
-    out = np.zeros((*p.shape, *a.shape[2:]), a.dtype)
-    (y0, x0), (h, w) = p.origin, p.shape
-    both = overlap((y0, x0, y0 + h, x0 + w), a.shape[:2], origin)
-    if both is not None:
-        out[both[0]] = a[both[1]]
-    return out
 
 
 class LearnedInpainter:
@@ -355,11 +345,11 @@ class LearnedInpainter:
                 for k, c, o, e in zip(order[s:s + step], chunk, outs, es, strict=True):
                     for i in canvases[k].members:
                         if kind == "depth":
-                            disparity[i] = _window(o, c.origin, patches[i])
-                            edges[i] = self._tears(_window(e, c.origin, patches[i]),
+                            disparity[i] = window(o, c.origin, patches[i])
+                            edges[i] = self._tears(window(e, c.origin, patches[i]),
                                                    patches[i])
                         else:
-                            color[i] = _window(o, c.origin, patches[i])
+                            color[i] = window(o, c.origin, patches[i])
                             done += 1
                             if progress is not None:
                                 progress(done, len(patches))
@@ -372,9 +362,9 @@ class LearnedInpainter:
             seen = [trim(p, self.units[kind]) for p in patches]
             fill = self._depths if kind == "depth" else self._colors
             res = fill([NetInputs(t, self.mapping) for t in seen],
-                       [_window(e, p.origin, t) for e, p, t in zip(edges, patches, seen,
+                       [window(e, p.origin, t) for e, p, t in zip(edges, patches, seen,
                                                                    strict=True)])
-            out[kind] = [_window(r, t.origin, p) for r, t, p in zip(res, seen, patches,
+            out[kind] = [window(r, t.origin, p) for r, t, p in zip(res, seen, patches,
                                                                     strict=True)]
         return [InpaintResult(color=c, disparity=d, edges=self._tears(e, p))
                 for e, d, c, p in zip(edges, out["depth"], out["color"], patches, strict=True)]
