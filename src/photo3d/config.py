@@ -39,6 +39,13 @@ class PreprocessConfig:
     attach_short: bool = True
     """Short segments touching a long edge join it instead of being dropped (the
     paper drops them; their links then stretch into streaks in novel views)."""
+    grow_foreground: float = 1.0
+    """The near side of every depth discontinuity grows by this many pixels of the
+    input photo (at least one working pixel; 0 = off). The photo's pixels along an
+    occluding contour mix both sides' colours; on the far side they would stay
+    behind as a thin foreground-coloured line along every revealed area, on the near
+    side they move with the object they mostly show, and the background behind them
+    is inpainted. The input view is unchanged."""
 
 
 @dataclass(frozen=True)

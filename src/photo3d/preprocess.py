@@ -74,6 +74,37 @@ def resize(array: np.ndarray, shape: tuple[int, int], *, nearest: bool = False) 
                      for c in range(array.shape[2])], axis=2)
 
 
+def grow_foreground(disparity: np.ndarray, steps: int, threshold: float) -> np.ndarray:
+    """Move every depth discontinuity ``steps`` pixels into its far side.
+
+    A pixel whose 4-neighbour is nearer by more than ``threshold`` takes the
+    nearest such neighbour's disparity, ``steps`` times; smooth slopes are untouched.
+
+    Args:
+        disparity: ``(H, W) float32`` normalised disparity (larger is nearer).
+        steps: pixels to grow.
+        threshold: the discontinuity threshold.
+
+    Returns:
+        ``(H, W) float32``.
+
+    Example:
+        >>> d = np.zeros((1, 6), np.float32); d[0, :2] = 1.0; d[0, 4:] = np.linspace(0, .02, 2)
+        >>> grow_foreground(d, 1, 0.04)[0].tolist()
+        [1.0, 1.0, 1.0, 0.0, 0.0, 0.019999999552965164]
+    """
+    out = np.array(disparity, np.float32, copy=True)
+    for _ in range(steps):
+        padded = np.pad(out, 1, mode="edge")
+        near = np.maximum.reduce([padded[:-2, 1:-1], padded[2:, 1:-1],
+                                  padded[1:-1, :-2], padded[1:-1, 2:]])
+        jump = near - out > threshold
+        if not jump.any():
+            break
+        out[jump] = near[jump]
+    return out
+
+
 def preprocess(image: np.ndarray, disparity: np.ndarray, *, config: Config) -> Preprocessed:
     """Resize, normalise, sharpen and find linked depth edges.
 
@@ -105,6 +136,10 @@ def preprocess(image: np.ndarray, disparity: np.ndarray, *, config: Config) -> P
         sigma_intensity=pre.sigma_intensity,
         threshold=pre.discontinuity,
     )
+    if pre.grow_foreground > 0:
+        scale = working / max(disparity.shape)  # working px per photo px
+        filtered = grow_foreground(filtered, max(1, round(pre.grow_foreground * scale)),
+                                   pre.discontinuity)
     edges = link_edges(filtered, threshold=pre.discontinuity,
                        min_length=config.spatial(pre.min_edge_length, working),
                        attach_short=pre.attach_short)
