@@ -40,6 +40,7 @@ BENCHMARKS = [
     ["bench_fill.py", "--runs", "5"],
     ["bench_fill_crops.py"],
     ["bench_fill_variants.py"],
+    ["bench_contours.py"],
     ["bench_learned.py", "--per-patch", "--out", "benchmarks/results/learned.json"],
     ["bench_learned.py", "--edge-unit", "8", "--precision", "bf16"],
     ["bench_learned.py", "--runs", "3", "--out", "benchmarks/results/learned_shared.json"],
@@ -320,6 +321,40 @@ def section_fill() -> str:
         out += [f"Crops: `{crops['command']}` -> `results/fill_crops.png` (real right view, "
                 "each fill, disoccluded mask).", ""]
     return "\n".join(out + section_fill_variants())
+
+
+def section_contours() -> str:
+    out = ["## Mixed contour pixels: the near side grows one photo pixel (issue 14)", ""]
+    rec = load("contours.json")
+    if rec is None:
+        return "\n".join(out) + "\n" + missing("python benchmarks/bench_contours.py")
+    scores = rec["scores"]
+    synth = [p for p in scores if p.startswith("synthetic")]
+    rows = [(p, scores[p]) for p in scores if not p.startswith("synthetic")]
+    if synth:
+        keys = scores[synth[0]]
+        rows.append((f"mean of {len(synth)} synthetic scenes", {
+            k: {m: sum(scores[p][k][m] for p in synth) / len(synth)
+                for m in ("psnr", "lpips", "uncovered", "input_view_psnr")} for k in keys}))
+    out += [f"Command: `{rec['command']}`. Machine: {machine_line(rec)}.", "",
+            "`PreprocessConfig.grow_foreground`: 0 = depth edges where the depth map puts "
+            "them (before), 1 = moved one photo pixel into the far side (the default now). "
+            "Disoccluded pixels of the right view (LPIPS, change against diffusion without "
+            "growth), the share of them that no triangle covers (the renderer's hole "
+            "filling paints those, whatever the fill), and the input view rendered from "
+            "the 3D photo against the photo.", "",
+            "| pair | fill | LPIPS grow 0 | LPIPS grow 1 | change | PSNR grow 0 | "
+            "PSNR grow 1 | uncovered | input view PSNR grow 0 / 1 |",
+            "| --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
+    for name, sc in rows:
+        base = sc["diffusion grow=0"]["lpips"]
+        for fill in ("diffusion", "structured"):
+            a, b = sc[f"{fill} grow=0"], sc[f"{fill} grow=1"]
+            out.append(f"| {name} | {fill} | {a['lpips']:.4f} | {b['lpips']:.4f} | "
+                       f"{100 * (b['lpips'] / base - 1):+.1f} % | {a['psnr']:.2f} | "
+                       f"{b['psnr']:.2f} | {100 * b['uncovered']:.1f} % | "
+                       f"{a['input_view_psnr']:.2f} / {b['input_view_psnr']:.2f} |")
+    return "\n".join(out + [""])
 
 
 def section_fill_variants() -> list[str]:
@@ -744,7 +779,7 @@ def main() -> None:
         "benchmark first). Every number below comes from the command named in its section.",
         "",
         section_make(), section_render(), section_speed(), section_quality(),
-        section_fill(), section_learned(), section_learned_shared(), section_edge_crops(),
+        section_fill(), section_contours(), section_learned(), section_learned_shared(), section_edge_crops(),
         section_later_passes(),
         section_compact_quality(),
         section_stereo(), section_viewer(),
