@@ -1,10 +1,11 @@
-"""Before/after crops of the contour growth (the README's picture).
+"""Before/after crops of the contour growth and far-first hole fill (README picture).
 
 Renders the right view of the Middlebury motorcycle and of synthetic scene 2 with
-the ``diffusion`` fill, depth edges where the depth map puts them
-(``grow_foreground=0``) and moved one photo pixel into the far side (``1``, the
-default), and writes the crops where the growth lowers the disoccluded LPIPS map
-most: real right view, before, after, disocclusion mask (zoomed, nearest).
+the ``diffusion`` fill, before (depth edges where the depth map puts them,
+``grow_foreground=0``; uncovered pixels filled from both sides, ``hole_fill="both"``)
+and now (edges moved one photo pixel into the far side, the farther side filled
+first: the defaults), and writes the crops where the change lowers the disoccluded
+LPIPS map most: real right view, before, now, disocclusion mask (zoomed, nearest).
 Writes ``benchmarks/results/contour_crops.png`` and ``contour_crops.json``.
 
 Usage: python benchmarks/bench_contour_crops.py [--crops 2]
@@ -23,12 +24,24 @@ from scipy import ndimage
 sys.path.insert(0, str(Path(__file__).parent))
 from _machine import save_record  # noqa: E402
 
+import photo3d  # noqa: E402
 from photo3d.config import Config  # noqa: E402
-from photo3d.eval.evaluate import render_method  # noqa: E402
 from photo3d.eval.lpips import lpips_map  # noqa: E402
 from photo3d.eval.stereo_pair import motorcycle_pair  # noqa: E402
 from photo3d.eval.synthetic import synthetic_pair  # noqa: E402
 from photo3d.eval.warp import forward_warp  # noqa: E402
+from photo3d.render.renderer import RenderSettings  # noqa: E402
+
+def right_view(pair, grow: float, holes: str) -> np.ndarray:
+    """The right view with the diffusion fill, ``grow_foreground`` and ``hole_fill``."""
+    config = Config().with_(depth_kind="depth", metric=True)
+    config = config.with_(preprocess=replace(config.preprocess, grow_foreground=grow))
+    z = pair.depth()
+    photo = photo3d.make(pair.left, depth=np.where(np.isfinite(z), z, np.nan),
+                         intrinsics=pair.left_camera, config=config)
+    return photo.render(pair.right_camera,
+                        settings=RenderSettings(ssaa=2, hole_fill=holes)).color
+
 
 PAIRS = {"motorcycle": (motorcycle_pair, 96, 2), "synthetic2": (lambda: synthetic_pair(2), 48, 4)}
 
@@ -53,13 +66,11 @@ def main() -> None:
     parser.add_argument("--crops", type=int, default=2, help="crops per pair")
     parser.add_argument("--out", type=Path, default=Path(__file__).parent / "results")
     args = parser.parse_args()
-    base = Config()
     rows, record = [], {}
     for name, (make_pair, size, zoom) in PAIRS.items():
         pair = make_pair()
         mask = forward_warp(pair.left, pair.disparity).disoccluded
-        views = [render_method("diffusion", pair, config=base.with_(
-            preprocess=replace(base.preprocess, grow_foreground=g)))[0] for g in (0.0, 1.0)]
+        views = [right_view(pair, 0.0, "both"), right_view(pair, 1.0, "far")]
         gain = (lpips_map(views[0], pair.right) - lpips_map(views[1], pair.right)) * mask
         corners = best_crops(gain, size, args.crops)
         record[name] = corners
@@ -71,11 +82,11 @@ def main() -> None:
             rows.append(tiles)
     width = max(sum(t.size[0] + 4 for t in r) for r in rows)
     label = 16
-    canvas = Image.new("RGB", (width, label + sum(r[0].size[1] + 4 for r in rows)), "white")
+    canvas = Image.new("RGB", (width, label + sum(r[0].size[1] + 4 for r in rows)),
+                       (170, 170, 170))
     draw = ImageDraw.Draw(canvas)
     cell = rows[0][0].size[0] + 4
-    for j, title in enumerate(("real right view", "before (grow 0)", "after (grow 1)",
-                               "disoccluded")):
+    for j, title in enumerate(("real right view", "before", "now", "disoccluded (white)")):
         draw.text((j * cell + 4, 2), title, fill="black")
     top = label
     for r in rows:

@@ -1,12 +1,16 @@
-"""Mixed contour pixels: depth edges where the depth map puts them, or one photo pixel out.
+"""Contours and uncovered pixels: the depth-edge growth and the far-first hole fill.
 
 At an occluding contour the photo's pixels mix both sides' colours. With the depth
 edge where the depth map puts it, the far side's mixed pixels stay with the
 background and draw a thin foreground-coloured line along the far side of every
 revealed area; ``PreprocessConfig.grow_foreground`` (default 1 photo pixel) moves
-the edge out so they go with the object. This scores, for ``diffusion`` and
-``structured`` with the growth off and on, on the motorcycle pair and the synthetic
-scenes (same renders as ``photo3d eval``):
+the edge out so they go with the object. Where no fill covers what the camera
+uncovers, the renderer fills the pixels from their surroundings:
+``RenderSettings.hole_fill`` ``"both"`` (both sides alike, before) or ``"far"``
+(the farther side first, the default). This scores, for ``diffusion`` and
+``structured`` in three settings (growth 0 / both sides = before; growth 1 / both
+sides; growth 1 / far side = now), on the motorcycle pair and the synthetic scenes
+(same renders as ``photo3d eval``):
 
 * disoccluded PSNR and LPIPS of the right view;
 * the share of disoccluded pixels that no triangle of the mesh covers (the renderer's
@@ -42,24 +46,24 @@ from photo3d.eval.warp import forward_warp  # noqa: E402
 from photo3d.render.renderer import RenderSettings  # noqa: E402
 
 FILLS = ("diffusion", "structured")
-GROWTH = (0.0, 1.0)
+SETTINGS = ((0.0, "both"), (1.0, "both"), (1.0, "far"))  # (grow_foreground, hole_fill)
 
 
 def score_pair(pair) -> dict[str, dict[str, float]]:
-    """Scores of every fill and growth on one pair (keys ``"<fill> grow=<px>"``)."""
+    """Scores of every fill and setting on one pair (keys ``"<fill> grow=<px> <hole_fill>"``)."""
     mask = forward_warp(pair.left, pair.disparity).disoccluded
     z = pair.depth()
-    settings = RenderSettings(ssaa=2)
     out = {}
     for fill in FILLS:
-        for grow in GROWTH:
+        for grow, holes in SETTINGS:
+            settings = RenderSettings(ssaa=2, hole_fill=holes)
             config = Config().with_(depth_kind="depth", metric=True, inpainter=fill)
             config = config.with_(preprocess=replace(config.preprocess, grow_foreground=grow))
             photo = photo3d.make(pair.left, depth=np.where(np.isfinite(z), z, np.nan),
                                  intrinsics=pair.left_camera, config=config)
             view = photo.render(pair.right_camera, settings=settings)
             same = photo.render(Camera(pair.left_camera, np.eye(4)), settings=settings)
-            out[f"{fill} grow={grow:g}"] = {
+            out[f"{fill} grow={grow:g} {holes}"] = {
                 "psnr": psnr(view.color, pair.right, mask),
                 "lpips": lpips(view.color, pair.right, mask),
                 "uncovered": float((~view.mask[mask]).mean()),

@@ -3,6 +3,8 @@ resolve is fused into the rasterizer (:func:`photo3d.render._kernels.resolve`)."
 
 from __future__ import annotations
 
+import heapq
+
 import numba
 import numpy as np
 from numba import prange
@@ -65,6 +67,79 @@ def grow_fill(color, coverage, iterations):  # pragma: no cover - jit
                 k += 1
         m = k
     return m
+
+
+@numba.njit(cache=True, nogil=True)
+def grow_fill_far(color, coverage, depth, iterations, tolerance):  # pragma: no cover - jit
+    """Fill pixels with coverage < 1 from their neighbours, the farthest surface first.
+
+    What a moving camera uncovers lies behind what it sees, so a hole takes the
+    colour of the farther side around it: a priority flood (farthest source depth
+    first, then the nearest ring) fills a pixel with the mean of its filled
+    8-neighbours (known, or filled in an earlier ring) whose depth is within
+    ``tolerance`` (relative) of that source's, and passes the source depth on. Pixels more than ``iterations`` rings from any
+    known pixel stay unfilled. A partly covered pixel keeps its own colour in
+    proportion to its coverage. Returns the number of pixels left unfilled.
+    """
+    h, w = coverage.shape
+    known = coverage >= 0.999
+    z = np.where(known, depth, np.inf)
+    ring = np.zeros((h, w), np.int32)
+    heap = [(0.0, 0, 0, 0)]
+    heap.pop()
+    for y in range(h):
+        for x in range(w):
+            if known[y, x]:
+                continue
+            far = -1.0
+            for dy in range(-1, 2):
+                for dx in range(-1, 2):
+                    yy, xx = y + dy, x + dx
+                    if 0 <= yy < h and 0 <= xx < w and known[yy, xx] and z[yy, xx] > far:
+                        far = z[yy, xx]
+            if far > 0.0:
+                heapq.heappush(heap, (-far, 1, y, x))
+    left = 0
+    for y in range(h):
+        for x in range(w):
+            if not known[y, x]:
+                left += 1
+    while len(heap) > 0:
+        key, r, y, x = heapq.heappop(heap)
+        if known[y, x]:
+            continue
+        src = -key
+        n = 0
+        acc0 = 0.0
+        acc1 = 0.0
+        acc2 = 0.0
+        for dy in range(-1, 2):
+            for dx in range(-1, 2):
+                yy, xx = y + dy, x + dx
+                if (0 <= yy < h and 0 <= xx < w and known[yy, xx] and ring[yy, xx] < r
+                        and z[yy, xx] >= src * (1.0 - tolerance)):
+                    n += 1
+                    acc0 += color[yy, xx, 0]
+                    acc1 += color[yy, xx, 1]
+                    acc2 += color[yy, xx, 2]
+        if n == 0:
+            continue
+        c = coverage[y, x]
+        color[y, x, 0] = c * color[y, x, 0] + (1.0 - c) * acc0 / n
+        color[y, x, 1] = c * color[y, x, 1] + (1.0 - c) * acc1 / n
+        color[y, x, 2] = c * color[y, x, 2] + (1.0 - c) * acc2 / n
+        known[y, x] = True
+        z[y, x] = src
+        ring[y, x] = r
+        left -= 1
+        if r >= iterations:
+            continue
+        for dy in range(-1, 2):
+            for dx in range(-1, 2):
+                yy, xx = y + dy, x + dx
+                if 0 <= yy < h and 0 <= xx < w and not known[yy, xx]:
+                    heapq.heappush(heap, (key, r + 1, yy, xx))
+    return left
 
 
 @numba.njit(cache=True, parallel=True, nogil=True)

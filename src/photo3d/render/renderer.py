@@ -23,7 +23,7 @@ from photo3d.camera import Camera, Intrinsics
 from photo3d.errors import ConfigError
 from photo3d.light import TexturedMesh
 from photo3d.mesh import Mesh
-from photo3d.render._resolve import grow_fill
+from photo3d.render._resolve import grow_fill, grow_fill_far
 
 AUTHORS_CROP = (0.03, 0.03, 0.05, 0.03)
 """Border crop of the authors' videos: top, left, bottom, right fractions."""
@@ -40,6 +40,10 @@ class RenderSettings:
     output; :data:`AUTHORS_CROP` reproduces the authors' videos."""
     fill_holes: bool = True
     """Fill pixels no triangle covers from their surroundings (else ``background``)."""
+    hole_fill: str = "far"
+    """How: ``far`` (the farther side of each hole first, up to 32 px, since what the
+    camera uncovers lies behind what surrounds it) or ``both`` (both sides alike, up
+    to 8 px, as before); a smooth pyramid fill takes what is left."""
     background: tuple[float, float, float] = (0.5, 0.5, 0.5)
     """Colour of uncovered pixels when ``fill_holes`` is off."""
     near: float = 1e-3
@@ -52,6 +56,8 @@ class RenderSettings:
             raise ConfigError(f"ssaa must be between 1 and 8, got {self.ssaa}")
         if len(self.crop) != 4 or any(not 0 <= c < 0.5 for c in self.crop):
             raise ConfigError(f"crop must be 4 fractions in [0, 0.5), got {self.crop}")
+        if self.hole_fill not in ("far", "both"):
+            raise ConfigError(f"hole_fill must be far or both, got {self.hole_fill!r}")
         if self.backend not in ("auto", "numba", "gl"):
             raise ConfigError(f"backend must be auto, numba or gl, got {self.backend!r}")
 
@@ -100,6 +106,7 @@ def output_intrinsics(k: Intrinsics, width: int, height: int) -> Intrinsics:
     s = max(width / k.width, height / k.height)
     return Intrinsics(k.fx * s, k.fy * s, k.cx * s + (width - k.width * s) / 2.0,
                       k.cy * s + (height - k.height * s) / 2.0, int(width), int(height))
+
 
 
 def fill_holes(color: np.ndarray, known: np.ndarray) -> np.ndarray:
@@ -202,7 +209,11 @@ class Renderer:
                                                               near=s.near)
         mask = coverage >= 1.0
         if s.fill_holes:
-            if grow_fill(color, coverage, 8):  # large holes left: smooth pyramid fill
+            if s.hole_fill == "far":
+                left = grow_fill_far(color, coverage, depth, 32, 0.05)
+            else:
+                left = grow_fill(color, coverage, 8)
+            if left:  # large holes left: smooth pyramid fill
                 color = fill_holes(color, np.where(mask, 1.0, coverage))
         else:
             bg = np.asarray(s.background, np.float32)
