@@ -70,66 +70,113 @@ def grow_fill(color, coverage, iterations):  # pragma: no cover - jit
 
 
 @numba.njit(cache=True, nogil=True)
+def _far_mean(color, known, ring, z, y, x, r, src, tolerance, out):  # pragma: no cover
+    """Mean colour of ``(y, x)``'s 8-neighbours filled before ring ``r`` whose depth
+    is within ``tolerance`` of ``src`` or farther; returns how many there were."""
+    h, w = known.shape
+    n = 0
+    out[0] = 0.0
+    out[1] = 0.0
+    out[2] = 0.0
+    for dy in range(-1, 2):
+        for dx in range(-1, 2):
+            yy, xx = y + dy, x + dx
+            if (0 <= yy < h and 0 <= xx < w and known[yy, xx] and ring[yy, xx] < r
+                    and z[yy, xx] >= src * (1.0 - tolerance)):
+                n += 1
+                for ch in range(3):
+                    out[ch] += color[yy, xx, ch]
+    return n
+
+
+@numba.njit(cache=True, nogil=True)
+def _farthest(known, ring, z, y, x):  # pragma: no cover - jit
+    """Depth and ring of ``(y, x)``'s farthest filled 8-neighbour (-1 if none)."""
+    h, w = known.shape
+    far = -1.0
+    r = 0
+    for dy in range(-1, 2):
+        for dx in range(-1, 2):
+            yy, xx = y + dy, x + dx
+            if 0 <= yy < h and 0 <= xx < w and known[yy, xx] and z[yy, xx] > far:
+                far = z[yy, xx]
+                r = ring[yy, xx]
+    return far, r
+
+
+@numba.njit(cache=True, nogil=True)
 def grow_fill_far(color, coverage, depth, iterations, tolerance):  # pragma: no cover - jit
     """Fill pixels with coverage < 1 from their neighbours, the farthest surface first.
 
     What a moving camera uncovers lies behind what it sees, so a hole takes the
-    colour of the farther side around it: a priority flood (farthest source depth
-    first, then the nearest ring) fills a pixel with the mean of its filled
-    8-neighbours (known, or filled in an earlier ring) whose depth is within
-    ``tolerance`` (relative) of that source's, and passes the source depth on. Pixels more than ``iterations`` rings from any
-    known pixel stay unfilled. A partly covered pixel keeps its own colour in
-    proportion to its coverage. Returns the number of pixels left unfilled.
+    colour of the farther side around it. Partly covered pixels next to a fully
+    covered one are filled first, from those neighbours; the rest by a priority flood
+    (farthest source depth first, then the nearest ring): a pixel takes the mean of
+    its 8-neighbours filled in an earlier ring whose depth is within ``tolerance``
+    (relative) of that source's, and passes the source depth on. Pixels more than
+    ``iterations`` rings from any covered pixel stay unfilled. A partly covered pixel
+    keeps its own colour in proportion to its coverage. Returns the number of
+    pixels left unfilled.
     """
     h, w = coverage.shape
     known = coverage >= 0.999
-    z = np.where(known, depth, np.inf)
+    z = depth.copy()
     ring = np.zeros((h, w), np.int32)
+    mean = np.zeros(3)
+    # Ring 1: partly covered pixels from their fully covered neighbours (order-free).
+    py = np.empty(h * w, np.int64)
+    px = np.empty(h * w, np.int64)
+    m = 0
+    for y in range(h):
+        for x in range(w):
+            if not known[y, x] and coverage[y, x] > 0.0:
+                far, _ = _farthest(known, ring, z, y, x)
+                if far > 0.0:
+                    py[m] = y
+                    px[m] = x
+                    m += 1
+    fills = np.zeros((m, 4))
+    for i in range(m):
+        far, _ = _farthest(known, ring, z, py[i], px[i])
+        n = _far_mean(color, known, ring, z, py[i], px[i], 1, far, tolerance, mean)
+        fills[i, 0] = mean[0] / n
+        fills[i, 1] = mean[1] / n
+        fills[i, 2] = mean[2] / n
+        fills[i, 3] = far
+    for i in range(m):
+        y, x = py[i], px[i]
+        c = coverage[y, x]
+        for ch in range(3):
+            color[y, x, ch] = c * color[y, x, ch] + (1.0 - c) * fills[i, ch]
+        known[y, x] = True
+        z[y, x] = fills[i, 3]
+        ring[y, x] = 1
+    # The rest: priority flood from everything filled so far.
+    queued = np.full((h, w), np.inf, np.float32)  # best key queued (skip worse pushes)
     heap = [(0.0, 0, 0, 0)]
     heap.pop()
+    left = 0
     for y in range(h):
         for x in range(w):
             if known[y, x]:
                 continue
-            far = -1.0
-            for dy in range(-1, 2):
-                for dx in range(-1, 2):
-                    yy, xx = y + dy, x + dx
-                    if 0 <= yy < h and 0 <= xx < w and known[yy, xx] and z[yy, xx] > far:
-                        far = z[yy, xx]
+            left += 1
+            far, r = _farthest(known, ring, z, y, x)
             if far > 0.0:
-                heapq.heappush(heap, (-far, 1, y, x))
-    left = 0
-    for y in range(h):
-        for x in range(w):
-            if not known[y, x]:
-                left += 1
+                queued[y, x] = -far
+                heapq.heappush(heap, (-far, r + 1, y, x))
     while len(heap) > 0:
         key, r, y, x = heapq.heappop(heap)
         if known[y, x]:
             continue
-        src = -key
-        n = 0
-        acc0 = 0.0
-        acc1 = 0.0
-        acc2 = 0.0
-        for dy in range(-1, 2):
-            for dx in range(-1, 2):
-                yy, xx = y + dy, x + dx
-                if (0 <= yy < h and 0 <= xx < w and known[yy, xx] and ring[yy, xx] < r
-                        and z[yy, xx] >= src * (1.0 - tolerance)):
-                    n += 1
-                    acc0 += color[yy, xx, 0]
-                    acc1 += color[yy, xx, 1]
-                    acc2 += color[yy, xx, 2]
+        n = _far_mean(color, known, ring, z, y, x, r, -key, tolerance, mean)
         if n == 0:
             continue
         c = coverage[y, x]
-        color[y, x, 0] = c * color[y, x, 0] + (1.0 - c) * acc0 / n
-        color[y, x, 1] = c * color[y, x, 1] + (1.0 - c) * acc1 / n
-        color[y, x, 2] = c * color[y, x, 2] + (1.0 - c) * acc2 / n
+        for ch in range(3):
+            color[y, x, ch] = c * color[y, x, ch] + (1.0 - c) * mean[ch] / n
         known[y, x] = True
-        z[y, x] = src
+        z[y, x] = -key
         ring[y, x] = r
         left -= 1
         if r >= iterations:
@@ -137,7 +184,8 @@ def grow_fill_far(color, coverage, depth, iterations, tolerance):  # pragma: no 
         for dy in range(-1, 2):
             for dx in range(-1, 2):
                 yy, xx = y + dy, x + dx
-                if 0 <= yy < h and 0 <= xx < w and not known[yy, xx]:
+                if 0 <= yy < h and 0 <= xx < w and not known[yy, xx] and key < queued[yy, xx]:
+                    queued[yy, xx] = key
                     heapq.heappush(heap, (key, r + 1, yy, xx))
     return left
 
