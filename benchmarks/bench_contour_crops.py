@@ -32,6 +32,7 @@ from photo3d.eval.synthetic import synthetic_pair  # noqa: E402
 from photo3d.eval.warp import forward_warp  # noqa: E402
 from photo3d.render.renderer import RenderSettings  # noqa: E402
 
+
 def right_view(pair, grow: float, holes: str) -> np.ndarray:
     """The right view with the diffusion fill, ``grow_foreground`` and ``hole_fill``."""
     config = Config().with_(depth_kind="depth", metric=True)

@@ -661,7 +661,9 @@ def section_later_passes() -> str:
     if "--cases" in rec["command"]:
         cmd = ("`python benchmarks/bench_later_passes.py`, its last run only for some rows "
                f"({cmd}; the other rows kept from the previous full run)")
-    out += [f"Command: {cmd}. Machine: {machine_line(rec)}.", "",
+    out += [f"Command: {cmd}. Machine: {machine_line(rec)}. Measured at commit 17b0a69, "
+            "before the contour growth (section \"Contours and uncovered pixels\") moved "
+            "the depth edges.", "",
             "Motorcycle (ground-truth disparity) at 1024 px, one fresh process per row. "
             "New depth edges found per inpainting pass, without and with the merge's fill "
             "rules (`photo3d/merge.py`): inside one fill, neighbouring new pixels stay "
@@ -783,7 +785,8 @@ def main() -> None:
         "benchmark first). Every number below comes from the command named in its section.",
         "",
         section_make(), section_render(), section_speed(), section_quality(),
-        section_fill(), section_contours(), section_learned(), section_learned_shared(), section_edge_crops(),
+        section_fill(), section_contours(), section_learned(), section_learned_shared(),
+        section_edge_crops(),
         section_later_passes(),
         section_compact_quality(),
         section_stereo(), section_viewer(),

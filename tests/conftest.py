@@ -31,7 +31,8 @@ def exact_config(**regions) -> Config:
     depth edges where the depth map puts them (no foreground growth)."""
     base = dict(synthesis_iterations=6, context_iterations=10, edge_dilation=0, border=0)
     base.update(regions)
-    return Config(size=None, spatial_scale=1.0, preprocess=PreprocessConfig(min_edge_length=5, grow_foreground=0.0),
+    return Config(size=None, spatial_scale=1.0,
+                  preprocess=PreprocessConfig(min_edge_length=5, grow_foreground=0.0),
                   regions=RegionConfig(**base))
 
 
