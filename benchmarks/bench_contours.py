@@ -23,25 +23,20 @@ Writes ``results/contours.json``. Usage: python benchmarks/bench_contours.py
 
 from __future__ import annotations
 
-import argparse
-import json
 import sys
 from dataclasses import replace
-from functools import partial
 from pathlib import Path
 
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).parent))
-from _machine import machine_info  # noqa: E402
+from _pairs import score_all_pairs  # noqa: E402
 
 import photo3d  # noqa: E402
 from photo3d.camera import Camera  # noqa: E402
 from photo3d.config import Config  # noqa: E402
 from photo3d.eval.lpips import lpips  # noqa: E402
 from photo3d.eval.metrics import psnr  # noqa: E402
-from photo3d.eval.stereo_pair import motorcycle_pair  # noqa: E402
-from photo3d.eval.synthetic import synthetic_pair  # noqa: E402
 from photo3d.eval.warp import forward_warp  # noqa: E402
 from photo3d.render.renderer import RenderSettings  # noqa: E402
 
@@ -74,19 +69,7 @@ def score_pair(pair) -> dict[str, dict[str, float]]:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--synthetic", type=int, default=5)
-    parser.add_argument("--out", type=Path, default=Path(__file__).parent / "results")
-    args = parser.parse_args()
-    pairs = {"motorcycle": motorcycle_pair} | {f"synthetic{i}": partial(synthetic_pair, i)
-                                               for i in range(args.synthetic)}
-    scores = {}
-    for name, make_pair in pairs.items():
-        scores[name] = score_pair(make_pair())
-        print(name, {k: round(v["lpips"], 4) for k, v in scores[name].items()}, flush=True)
-    record = {"benchmark": "contours", "machine": machine_info(), "scores": scores,
-              "command": " ".join(["python", "benchmarks/bench_contours.py", *sys.argv[1:]])}
-    (args.out / "contours.json").write_text(json.dumps(record, indent=2))
+    score_all_pairs(score_pair, "contours", "bench_contours.py", __doc__)
 
 
 if __name__ == "__main__":

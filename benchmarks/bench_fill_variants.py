@@ -17,24 +17,19 @@ Writes ``results/fill_variants.json``. Usage: python benchmarks/bench_fill_varia
 
 from __future__ import annotations
 
-import argparse
-import json
 import sys
-from functools import partial
 from pathlib import Path
 
 import numpy as np
 from scipy import ndimage
 
 sys.path.insert(0, str(Path(__file__).parent))
-from _machine import machine_info  # noqa: E402
+from _pairs import score_all_pairs  # noqa: E402
 
 from photo3d.config import Config  # noqa: E402
 from photo3d.eval.evaluate import _photo3d_view  # noqa: E402
 from photo3d.eval.lpips import lpips  # noqa: E402
 from photo3d.eval.metrics import psnr  # noqa: E402
-from photo3d.eval.stereo_pair import motorcycle_pair  # noqa: E402
-from photo3d.eval.synthetic import synthetic_pair  # noqa: E402
 from photo3d.eval.warp import forward_warp  # noqa: E402
 from photo3d.inpaint import get_inpainter  # noqa: E402
 from photo3d.inpaint.structured import StructuredInpainter  # noqa: E402
@@ -62,20 +57,7 @@ def score_pair(pair) -> dict[str, dict[str, float]]:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--synthetic", type=int, default=5)
-    parser.add_argument("--out", type=Path, default=Path(__file__).parent / "results")
-    args = parser.parse_args()
-    pairs = {"motorcycle": motorcycle_pair} | {f"synthetic{i}": partial(synthetic_pair, i)
-                                               for i in range(args.synthetic)}
-    scores = {}
-    for name, make_pair in pairs.items():
-        scores[name] = score_pair(make_pair())
-        print(name, {k: round(v["lpips"], 4) for k, v in scores[name].items()}, flush=True)
-    record = {"benchmark": "fill_variants", "machine": machine_info(), "scores": scores,
-              "command": " ".join(["python", "benchmarks/bench_fill_variants.py",
-                                   *sys.argv[1:]])}
-    (args.out / "fill_variants.json").write_text(json.dumps(record, indent=2))
+    score_all_pairs(score_pair, "fill_variants", "bench_fill_variants.py", __doc__)
 
 
 if __name__ == "__main__":
