@@ -83,3 +83,35 @@ def test_an_interrupt_at_shutdown_when_no_thread_can_start_is_dropped_quietly(
         restore()
     assert rearmed == [1]
     assert capfd.readouterr().err == ""
+
+
+def test_an_interrupt_while_the_redelivery_thread_starts_is_sent_again(monkeypatch, capfd):
+    """The handler, re-armed, can raise inside the hook while ``Timer.start`` waits for
+    its thread: that must not print a traceback, and the signal is armed again."""
+    import threading
+    from types import SimpleNamespace
+
+    from photo3d.io.signals import redeliver_swallowed
+
+    started = []
+    real_start = threading.Timer.start
+
+    def interrupted_once(self):
+        if not started:
+            started.append("interrupted")
+            raise KeyboardInterrupt
+        started.append(self.args[1])
+        self.cancel()  # the test process must not receive the signal
+        real_start(self)
+
+    monkeypatch.setattr(threading.Timer, "start", interrupted_once)
+    rearmed = []
+    restore = redeliver_swallowed((KeyboardInterrupt,),
+                                  lambda: rearmed.append(1) or signal.SIGTERM)
+    try:
+        sys.unraisablehook(SimpleNamespace(exc_value=KeyboardInterrupt(), exc_type=None,
+                                           exc_traceback=None, err_msg=None, object=None))
+    finally:
+        restore()
+    assert rearmed == [1, 1] and started == ["interrupted", signal.SIGTERM]
+    assert capfd.readouterr().err == ""

@@ -38,7 +38,8 @@ def redeliver_swallowed(kinds: tuple[type[BaseException], ...],
     and sends that signal to this process again 50 ms later from a helper thread, so
     that the handler runs once the C code has returned (if it lands in a callback
     again, the same happens again; during interpreter shutdown, when no thread can
-    start, the process is exiting anyway and nothing is sent). Other unraisable
+    start, the process is exiting anyway and nothing is sent; a signal that arrives
+while the helper thread starts is re-armed and sent again). Other unraisable
     exceptions go to the previous hook. Returns a function that restores the previous hook.
 
     Example:
@@ -51,14 +52,20 @@ def redeliver_swallowed(kinds: tuple[type[BaseException], ...],
         if not isinstance(unraisable.exc_value, kinds):
             previous(unraisable)
             return
-        signum = rearm()
-        if signum is not None:  # later, so that it does not land in this hook again
+        for _ in range(_REDELIVER_TRIES):
+            signum = rearm()
+            if signum is None:
+                return
+            # later, so that it does not land in this hook again
             timer = threading.Timer(_REDELIVER_S, os.kill, (os.getpid(), signum))
             timer.daemon = True
             try:
                 timer.start()
+                return
             except RuntimeError:  # "can't create new thread at interpreter shutdown":
-                pass  # the process is exiting already, there is nothing left to stop
+                return  # the process is exiting already, there is nothing left to stop
+            except kinds:  # a signal landed while the helper thread started (its
+                continue  # handler raised here, where nothing can catch it): again
 
     sys.unraisablehook = hook
 
@@ -69,6 +76,7 @@ def redeliver_swallowed(kinds: tuple[type[BaseException], ...],
 
 
 _REDELIVER_S = 0.05
+_REDELIVER_TRIES = 3
 
 
 class SignalGuard:
