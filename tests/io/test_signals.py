@@ -62,17 +62,13 @@ def test_other_unraisable_exceptions_still_reach_the_previous_hook():
     assert [type(u.exc_value) for u in seen] == [ValueError]
 
 
-def test_an_interrupt_at_shutdown_when_no_thread_can_start_is_dropped_quietly(
-        monkeypatch, capfd):
-    import threading
+def swallow_an_interrupt() -> list[int]:
+    """A KeyboardInterrupt through the redelivery hook (re-arming gives SIGTERM);
+    returns one entry per re-arm."""
     from types import SimpleNamespace
 
     from photo3d.io.signals import redeliver_swallowed
 
-    def refuse(self):
-        raise RuntimeError("can't create new thread at interpreter shutdown")
-
-    monkeypatch.setattr(threading.Timer, "start", refuse)
     rearmed = []
     restore = redeliver_swallowed((KeyboardInterrupt,),
                                   lambda: rearmed.append(1) or signal.SIGTERM)
@@ -81,7 +77,19 @@ def test_an_interrupt_at_shutdown_when_no_thread_can_start_is_dropped_quietly(
                                            exc_traceback=None, err_msg=None, object=None))
     finally:
         restore()
-    assert rearmed == [1]
+    return rearmed
+
+
+def test_an_interrupt_at_shutdown_when_no_thread_can_start_is_dropped_quietly(
+        monkeypatch, capfd):
+    import threading
+
+
+    def refuse(self):
+        raise RuntimeError("can't create new thread at interpreter shutdown")
+
+    monkeypatch.setattr(threading.Timer, "start", refuse)
+    assert swallow_an_interrupt() == [1]
     assert capfd.readouterr().err == ""
 
 
@@ -89,9 +97,7 @@ def test_an_interrupt_while_the_redelivery_thread_starts_is_sent_again(monkeypat
     """The handler, re-armed, can raise inside the hook while ``Timer.start`` waits for
     its thread: that must not print a traceback, and the signal is armed again."""
     import threading
-    from types import SimpleNamespace
 
-    from photo3d.io.signals import redeliver_swallowed
 
     started = []
     real_start = threading.Timer.start
@@ -105,13 +111,5 @@ def test_an_interrupt_while_the_redelivery_thread_starts_is_sent_again(monkeypat
         real_start(self)
 
     monkeypatch.setattr(threading.Timer, "start", interrupted_once)
-    rearmed = []
-    restore = redeliver_swallowed((KeyboardInterrupt,),
-                                  lambda: rearmed.append(1) or signal.SIGTERM)
-    try:
-        sys.unraisablehook(SimpleNamespace(exc_value=KeyboardInterrupt(), exc_type=None,
-                                           exc_traceback=None, err_msg=None, object=None))
-    finally:
-        restore()
-    assert rearmed == [1, 1] and started == ["interrupted", signal.SIGTERM]
+    assert swallow_an_interrupt() == [1, 1] and started == ["interrupted", signal.SIGTERM]
     assert capfd.readouterr().err == ""
