@@ -84,7 +84,6 @@ def test_an_interrupt_at_shutdown_when_no_thread_can_start_is_dropped_quietly(
         monkeypatch, capfd):
     import threading
 
-
     def refuse(self):
         raise RuntimeError("can't create new thread at interpreter shutdown")
 
@@ -97,7 +96,6 @@ def test_an_interrupt_while_the_redelivery_thread_starts_is_sent_again(monkeypat
     """The handler, re-armed, can raise inside the hook while ``Timer.start`` waits for
     its thread: that must not print a traceback, and the signal is armed again."""
     import threading
-
 
     started = []
     real_start = threading.Timer.start
