@@ -16,6 +16,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
+
 HERE = Path(__file__).parent
 sys.path.insert(0, str(HERE))
 from results_light import section_light  # noqa: E402
@@ -661,9 +663,7 @@ def section_later_passes() -> str:
     if "--cases" in rec["command"]:
         cmd = ("`python benchmarks/bench_later_passes.py`, its last run only for some rows "
                f"({cmd}; the other rows kept from the previous full run)")
-    out += [f"Command: {cmd}. Machine: {machine_line(rec)}. Measured at commit 17b0a69, "
-            "before the contour growth (section \"Contours and uncovered pixels\") moved "
-            "the depth edges.", "",
+    out += [f"Command: {cmd}. Machine: {machine_line(rec)}.", "",
             "Motorcycle (ground-truth disparity) at 1024 px, one fresh process per row. "
             "New depth edges found per inpainting pass, without and with the merge's fill "
             "rules (`photo3d/merge.py`): inside one fill, neighbouring new pixels stay "
@@ -678,12 +678,17 @@ def section_later_passes() -> str:
         off, on = r["off"], r["on"]
         out.append(f"| {names.get(case, case)} | {off['edges']} | {on['edges']} | "
                    f"{off['inpaint_s']:.1f} | {on['inpaint_s']:.1f} |")
+    growing = [names.get(c, c) for c, r in rec["results"].items()
+               if any(np.diff(r["on"]["edges"]) > 0)]
+    after = ("every fill's later passes find fewer edges than the pass before" if not growing
+             else "later passes find far fewer edges, though not always fewer than the pass "
+             "before (" + ", ".join(growing) + ")")
     out += ["", "Without the rules every depth step a net leaves inside its fill became an "
             "edge of the next pass (the compact edge net fires in blobs, and the depth net "
-            "steps around them). With them, every fill's later passes find fewer edges "
-            "than the pass before; the edges that remain come from seams between the fills "
-            "of different edges, which diffusion has too. Scores with the rules: the "
-            "compact-nets section below (`new-shared-fill-rules`)."]
+            f"steps around them). With them, {after}; the edges that remain come from seams "
+            "between the fills of different edges, which diffusion has too. Scores with the "
+            "rules: the compact-nets section below (`new-shared-fill-rules`, measured "
+            "before the contour growth)."]
     scores = rec.get("scores")
     if scores:
         out += ["", "Disoccluded scores of the interpolating fills without and with the "
