@@ -24,8 +24,8 @@ from scipy import ndimage
 sys.path.insert(0, str(Path(__file__).parent))
 from _machine import save_record  # noqa: E402
 
-import photo3d  # noqa: E402
 from photo3d.config import Config  # noqa: E402
+from photo3d.eval.evaluate import photo3d_of_pair  # noqa: E402
 from photo3d.eval.lpips import lpips_map  # noqa: E402
 from photo3d.eval.stereo_pair import motorcycle_pair  # noqa: E402
 from photo3d.eval.synthetic import synthetic_pair  # noqa: E402
@@ -35,12 +35,9 @@ from photo3d.render.renderer import RenderSettings  # noqa: E402
 
 def right_view(pair, grow: float, holes: str) -> np.ndarray:
     """The right view with the diffusion fill, ``grow_foreground`` and ``hole_fill``."""
-    config = Config().with_(depth_kind="depth", metric=True)
+    config = Config()
     config = config.with_(preprocess=replace(config.preprocess, grow_foreground=grow))
-    z = pair.depth()
-    photo = photo3d.make(pair.left, depth=np.where(np.isfinite(z), z, np.nan),
-                         intrinsics=pair.left_camera, config=config)
-    return photo.render(pair.right_camera,
+    return photo3d_of_pair(pair, config).render(pair.right_camera,
                         settings=RenderSettings(ssaa=2, hole_fill=holes)).color
 
 

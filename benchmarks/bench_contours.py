@@ -32,9 +32,9 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).parent))
 from _pairs import score_all_pairs  # noqa: E402
 
-import photo3d  # noqa: E402
 from photo3d.camera import Camera  # noqa: E402
 from photo3d.config import Config  # noqa: E402
+from photo3d.eval.evaluate import photo3d_of_pair  # noqa: E402
 from photo3d.eval.lpips import lpips  # noqa: E402
 from photo3d.eval.metrics import psnr  # noqa: E402
 from photo3d.eval.warp import forward_warp  # noqa: E402
@@ -47,15 +47,13 @@ SETTINGS = ((0.0, "both"), (1.0, "both"), (1.0, "far"))  # (grow_foreground, hol
 def score_pair(pair) -> dict[str, dict[str, float]]:
     """Scores of every fill and setting on one pair (keys ``"<fill> grow=<px> <hole_fill>"``)."""
     mask = forward_warp(pair.left, pair.disparity).disoccluded
-    z = pair.depth()
     out = {}
     for fill in FILLS:
         for grow, holes in SETTINGS:
             settings = RenderSettings(ssaa=2, hole_fill=holes)
-            config = Config().with_(depth_kind="depth", metric=True, inpainter=fill)
+            config = Config().with_(inpainter=fill)
             config = config.with_(preprocess=replace(config.preprocess, grow_foreground=grow))
-            photo = photo3d.make(pair.left, depth=np.where(np.isfinite(z), z, np.nan),
-                                 intrinsics=pair.left_camera, config=config)
+            photo = photo3d_of_pair(pair, config)
             view = photo.render(pair.right_camera, settings=settings)
             same = photo.render(Camera(pair.left_camera, np.eye(4)), settings=settings)
             out[f"{fill} grow={grow:g} {holes}"] = {

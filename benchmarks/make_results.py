@@ -333,7 +333,7 @@ def section_contours() -> str:
         return "\n".join(out) + "\n" + missing("python benchmarks/bench_contours.py")
     scores = rec["scores"]
     synth = [p for p in scores if p.startswith("synthetic")]
-    rows = [(p, scores[p]) for p in scores if not p.startswith("synthetic")]
+    rows = list(scores.items())
     if synth:
         keys = scores[synth[0]]
         rows.append((f"mean of {len(synth)} synthetic scenes", {

@@ -51,15 +51,29 @@ class Evaluation:
     notes: dict[str, str] = field(default_factory=dict)
 
 
-def _photo3d_view(pair: StereoPair, config: Config, inpainter=None) -> np.ndarray:
+def photo3d_of_pair(pair: StereoPair, config: Config, inpainter=None):
+    """The 3D photo of ``pair``'s left view with its ground-truth metric depth and camera
+    (``config`` plus ``depth_kind="depth", metric=True``).
+
+    Example:
+        >>> from photo3d.eval.synthetic import synthetic_pair
+        >>> photo = photo3d_of_pair(synthetic_pair(0, width=64, height=48), Config(size=None))
+        >>> photo.ldi.intrinsics.width, photo.stats["passes"] >= 1
+        (64, True)
+    """
     import photo3d
-    from photo3d.render.renderer import RenderSettings
 
     z = pair.depth()
-    photo = photo3d.make(pair.left, depth=np.where(np.isfinite(z), z, np.nan),
-                         intrinsics=pair.left_camera,
-                         config=config.with_(depth_kind="depth", metric=True),
-                         inpainter=inpainter)
+    return photo3d.make(pair.left, depth=np.where(np.isfinite(z), z, np.nan),
+                        intrinsics=pair.left_camera,
+                        config=config.with_(depth_kind="depth", metric=True),
+                        inpainter=inpainter)
+
+
+def _photo3d_view(pair: StereoPair, config: Config, inpainter=None) -> np.ndarray:
+    from photo3d.render.renderer import RenderSettings
+
+    photo = photo3d_of_pair(pair, config, inpainter)
     return photo.render(pair.right_camera, settings=RenderSettings(ssaa=2)).color
 
 

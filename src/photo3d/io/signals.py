@@ -39,7 +39,7 @@ def redeliver_swallowed(kinds: tuple[type[BaseException], ...],
     that the handler runs once the C code has returned (if it lands in a callback
     again, the same happens again; during interpreter shutdown, when no thread can
     start, the process is exiting anyway and nothing is sent; a signal that arrives
-while the helper thread starts is re-armed and sent again). Other unraisable
+    while the helper thread starts is re-armed and sent again). Other unraisable
     exceptions go to the previous hook. Returns a function that restores the previous hook.
 
     Example:

@@ -90,15 +90,17 @@ def _far_mean(color, known, ring, z, y, x, r, src, tolerance, out):  # pragma: n
 
 
 @numba.njit(cache=True, nogil=True)
-def _farthest(known, ring, z, y, x):  # pragma: no cover - jit
-    """Depth and ring of ``(y, x)``'s farthest filled 8-neighbour (-1 if none)."""
+def _farthest(known, ring, z, y, x, before):  # pragma: no cover - jit
+    """Depth and ring of ``(y, x)``'s farthest 8-neighbour filled before ring
+    ``before`` (-1 if none)."""
     h, w = known.shape
     far = -1.0
     r = 0
     for dy in range(-1, 2):
         for dx in range(-1, 2):
             yy, xx = y + dy, x + dx
-            if 0 <= yy < h and 0 <= xx < w and known[yy, xx] and z[yy, xx] > far:
+            if (0 <= yy < h and 0 <= xx < w and known[yy, xx] and ring[yy, xx] < before
+                    and z[yy, xx] > far):
                 far = z[yy, xx]
                 r = ring[yy, xx]
     return far, r
@@ -123,34 +125,20 @@ def grow_fill_far(color, coverage, depth, iterations, tolerance):  # pragma: no 
     z = depth.copy()
     ring = np.zeros((h, w), np.int32)
     mean = np.zeros(3)
-    # Ring 1: partly covered pixels from their fully covered neighbours (order-free).
-    py = np.empty(h * w, np.int64)
-    px = np.empty(h * w, np.int64)
-    m = 0
+    # Ring 1: partly covered pixels from their fully covered neighbours (in place: a
+    # pixel written here has ring 1, which no other ring-1 pixel reads).
     for y in range(h):
         for x in range(w):
             if not known[y, x] and coverage[y, x] > 0.0:
-                far, _ = _farthest(known, ring, z, y, x)
+                far, _ = _farthest(known, ring, z, y, x, 1)
                 if far > 0.0:
-                    py[m] = y
-                    px[m] = x
-                    m += 1
-    fills = np.zeros((m, 4))
-    for i in range(m):
-        far, _ = _farthest(known, ring, z, py[i], px[i])
-        n = _far_mean(color, known, ring, z, py[i], px[i], 1, far, tolerance, mean)
-        fills[i, 0] = mean[0] / n
-        fills[i, 1] = mean[1] / n
-        fills[i, 2] = mean[2] / n
-        fills[i, 3] = far
-    for i in range(m):
-        y, x = py[i], px[i]
-        c = coverage[y, x]
-        for ch in range(3):
-            color[y, x, ch] = c * color[y, x, ch] + (1.0 - c) * fills[i, ch]
-        known[y, x] = True
-        z[y, x] = fills[i, 3]
-        ring[y, x] = 1
+                    n = _far_mean(color, known, ring, z, y, x, 1, far, tolerance, mean)
+                    c = coverage[y, x]
+                    for ch in range(3):
+                        color[y, x, ch] = c * color[y, x, ch] + (1.0 - c) * mean[ch] / n
+                    known[y, x] = True
+                    z[y, x] = far
+                    ring[y, x] = 1
     # The rest: priority flood from everything filled so far.
     queued = np.full((h, w), np.inf, np.float32)  # best key queued (skip worse pushes)
     heap = [(0.0, 0, 0, 0)]
@@ -161,7 +149,7 @@ def grow_fill_far(color, coverage, depth, iterations, tolerance):  # pragma: no 
             if known[y, x]:
                 continue
             left += 1
-            far, r = _farthest(known, ring, z, y, x)
+            far, r = _farthest(known, ring, z, y, x, 2)
             if far > 0.0:
                 queued[y, x] = -far
                 heapq.heappush(heap, (-far, r + 1, y, x))

@@ -108,7 +108,6 @@ def output_intrinsics(k: Intrinsics, width: int, height: int) -> Intrinsics:
                       k.cy * s + (height - k.height * s) / 2.0, int(width), int(height))
 
 
-
 def fill_holes(color: np.ndarray, known: np.ndarray) -> np.ndarray:
     """Push-pull fill: unknown pixels get a smooth average of nearby known ones.
 
