@@ -309,8 +309,8 @@ def section_fill() -> str:
         out.append(missing("python benchmarks/bench_fill.py"))
     else:
         out += [f"Speed command: `{speed['command']}` ({len(next(iter(speed['runs'].values())))} "
-                f"runs of each, alternating, fresh process each; machine shared with other "
-                f"jobs: {machine_line(speed)}). Motorcycle at {speed['size']} px:", "",
+                f"runs of each, alternating, fresh process each; "
+                f"{machine_line(speed)}). Motorcycle at {speed['size']} px:", "",
                 "| inpainter | make (median) | inpaint stage | CPU time | ratio to "
                 f"{speed['ratio_to']} | peak memory |", "| --- | --- | --- | --- | --- | --- |"]
         for name, m in speed["median"].items():
