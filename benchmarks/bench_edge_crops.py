@@ -36,9 +36,9 @@ def first_pass_patches():
     import torch
 
     import photo3d
-    from photo3d.data import motorcycle
     from photo3d.inpaint.learned import LearnedInpainter
     from photo3d.nets import InpaintingNets, build_net
+    from photo3d.sample import motorcycle
 
     class Capture(LearnedInpainter):
         def inpaint(self, patches, *, progress=None, pass_index=0):

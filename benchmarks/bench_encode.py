@@ -23,7 +23,7 @@ import json, os, sys, tempfile, time
 import av
 import numpy as np
 import photo3d
-from photo3d.data import motorcycle
+from photo3d.sample import motorcycle
 from photo3d.io._yuv import rgb_to_yuv420
 from photo3d.render.animate import VideoSpec, path_cameras, render_frames
 from photo3d.render.renderer import AUTHORS_CROP, Renderer, RenderSettings

@@ -32,8 +32,8 @@ CHILD = r"""
 import json, resource, sys, time
 import numpy as np
 import photo3d
-import photo3d.merge as M
-from photo3d.data import motorcycle
+import photo3d.stages.merge as M
+from photo3d.sample import motorcycle
 
 case, rules = sys.argv[1], sys.argv[2] == "on"
 if not rules:
@@ -61,7 +61,7 @@ print(json.dumps({"make_s": time.perf_counter() - t, "inpaint_s": photo.timings[
 SCORES = r"""
 import json, sys
 from functools import partial
-import photo3d.merge as M
+import photo3d.stages.merge as M
 from photo3d.eval.evaluate import evaluate
 from photo3d.eval.stereo_pair import motorcycle_pair
 from photo3d.eval.synthetic import synthetic_pair

@@ -37,7 +37,7 @@ import json, os, resource, sys, time
 from collections import Counter
 import numpy as np, torch
 import photo3d
-from photo3d.data import motorcycle
+from photo3d.sample import motorcycle
 from photo3d.inpaint.learned import LearnedInpainter, padded_shape
 from photo3d.nets import InpaintingNets, build_net
 
@@ -159,7 +159,7 @@ DIFFUSION = r"""
 import json, resource, sys, time
 import numpy as np
 import photo3d
-from photo3d.data import motorcycle
+from photo3d.sample import motorcycle
 s = motorcycle()
 t = time.perf_counter()
 photo = photo3d.make(s.left, depth=np.asarray(s.disparity),

@@ -35,8 +35,8 @@ import json, sys, time
 from pathlib import Path
 import numpy as np
 import photo3d
-from photo3d.data import motorcycle
-from photo3d.light import build_light_mesh
+from photo3d.sample import motorcycle
+from photo3d.mesh.light import build_light_mesh
 from photo3d.render.animate import VideoSpec, path_cameras
 from photo3d.render.paths import PRESETS
 from photo3d.render.renderer import AUTHORS_CROP, Renderer, RenderSettings
@@ -45,7 +45,7 @@ frames, width, height, max_error = (int(sys.argv[1]), int(sys.argv[2]),
 s = motorcycle()
 photo = photo3d.make(s.left, depth=np.asarray(s.disparity))
 full = photo.mesh()
-import photo3d.light as light_module
+import photo3d.mesh.light as light_module
 seen = {}
 simplify = light_module._simplify
 def spy(points, faces, error):  # how many triangles reach meshoptimizer
@@ -106,7 +106,7 @@ import json, sys, tempfile, time
 from pathlib import Path
 import numpy as np
 import photo3d
-from photo3d.data import motorcycle
+from photo3d.sample import motorcycle
 runs = int(sys.argv[1])
 s = motorcycle()
 photo = photo3d.make(s.left, depth=np.asarray(s.disparity))

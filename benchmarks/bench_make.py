@@ -23,7 +23,7 @@ CHILD = r"""
 import json, resource, sys, time
 import numpy as np
 import photo3d
-from photo3d.data import motorcycle
+from photo3d.sample import motorcycle
 s = motorcycle()
 cfg = photo3d.Config(size=int(sys.argv[1]), inpainter=sys.argv[2])
 t = time.perf_counter()

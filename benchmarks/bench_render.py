@@ -24,7 +24,7 @@ import json, sys, tempfile, time
 from pathlib import Path
 import numpy as np
 import photo3d
-from photo3d.data import motorcycle
+from photo3d.sample import motorcycle
 from photo3d.output import write_videos
 from photo3d.render.animate import VideoSpec
 from photo3d.render.paths import PRESETS

@@ -24,7 +24,7 @@ import json, sys, tempfile, time
 from pathlib import Path
 import numpy as np
 import photo3d
-from photo3d.data import motorcycle
+from photo3d.sample import motorcycle
 from photo3d.io import video
 from photo3d.render import animate, raster, renderer
 from photo3d.render.animate import VideoSpec, render_video

@@ -31,7 +31,7 @@ CHILD = r"""
 import json, resource, sys, time
 import numpy as np
 import photo3d
-from photo3d.data import motorcycle
+from photo3d.sample import motorcycle
 size, backend, weights = int(sys.argv[1]), sys.argv[2], sys.argv[3]
 s = motorcycle()
 inpainter = None

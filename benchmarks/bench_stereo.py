@@ -42,7 +42,7 @@ from _machine import machine_info  # noqa: E402
 CHILD = r"""
 import json, time
 import cv2  # imported before timing: a one-time cost per process, not per pair
-from photo3d.data import motorcycle
+from photo3d.sample import motorcycle
 from photo3d.depth.stereo import stereo_disparity
 s = motorcycle()
 t = time.perf_counter()
@@ -126,8 +126,8 @@ def main() -> None:
                         default=Path(__file__).parent / "results" / "stereo.json")
     args = parser.parse_args()
 
-    from photo3d.data import motorcycle
     from photo3d.depth.stereo import stereo_disparity
+    from photo3d.sample import motorcycle
 
     sample = motorcycle()
     res = stereo_disparity(sample.left, sample.right)

@@ -47,7 +47,7 @@ RENDERER_JS = """() => {
 
 def make_photo(size: int):
     import photo3d
-    from photo3d.data import motorcycle
+    from photo3d.sample import motorcycle
 
     sample = motorcycle()
     return photo3d.make(sample.left, depth=np.asarray(sample.disparity),
@@ -113,7 +113,8 @@ def main() -> None:
         sys.exit("bench_viewer needs playwright: pip install playwright (and apt chromium)")
     if not Path(CHROMIUM).is_file():
         sys.exit(f"bench_viewer needs Chromium at {CHROMIUM} (apt-get install chromium)")
-    from photo3d.io.gltf import write_glb, write_textured_glb
+    from photo3d.io.gltf import write_glb
+    from photo3d.io.gltf_textured import write_textured_glb
     from photo3d.viewer import write_viewer
 
     photo = make_photo(args.size)

@@ -666,7 +666,7 @@ def section_later_passes() -> str:
     out += [f"Command: {cmd}. Machine: {machine_line(rec)}.", "",
             "Motorcycle (ground-truth disparity) at 1024 px, one fresh process per row. "
             "New depth edges found per inpainting pass, without and with the merge's fill "
-            "rules (`photo3d/merge.py`): inside one fill, neighbouring new pixels stay "
+            "rules (`photo3d/stages/merge.py`): inside one fill, neighbouring new pixels stay "
             "joined across a depth step unless the backend reported an edge there (the "
             "learned backend reports the edge net's new pixels as one-pixel paths that "
             "continue a context edge, `photo3d/inpaint/edgepaths.py`), and a fill's "

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from photo3d.config import Config, PreprocessConfig, RegionConfig
-from photo3d.mesh import Mesh
+from photo3d.mesh.types import Mesh
 
 
 def texture(h: int, w: int, seed: int = 0) -> np.ndarray:

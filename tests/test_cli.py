@@ -215,8 +215,9 @@ def test_learned_only_flags_are_refused_for_diffusion(files, capsys):
 
 
 def test_mesh_glb_is_light_and_textured_unless_full_glb(files):
-    from photo3d.io.gltf import read_glb, read_textured_glb
-    from photo3d.ldi import load_npz
+    from photo3d.io.gltf import read_glb
+    from photo3d.io.gltf_textured import read_textured_glb
+    from photo3d.io.npz import load_npz
 
     base = ["make", str(files / "photo.png"), "--depth", str(files / "depth.png"), "--size",
             "96", "--no-video", "-q"]

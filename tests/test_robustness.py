@@ -23,7 +23,7 @@ from PIL import Image
 import photo3d
 from photo3d.cli import main
 from photo3d.errors import OutputError
-from photo3d.io.safeout import stage_output
+from photo3d.files.staging import stage_output
 from photo3d.pipeline import make as make_photo  # before any test patches it
 
 SRC = str(Path(photo3d.__file__).parents[1])
@@ -350,7 +350,7 @@ def _rewrite_npz(path: Path, **changes) -> None:
     """Rewrite ``photo3d.npz`` with some arrays or header fields replaced."""
     import json
 
-    from photo3d.ldi import load_npz
+    from photo3d.io.npz import load_npz
 
     ldi, meta = load_npz(path)
     arrays = {k: getattr(ldi, k) for k in ("y", "x", "color", "disparity", "links", "label")}
@@ -382,7 +382,7 @@ def test_broken_saved_photos(photos, capsys):
     check("not a photo3d file", "view", saved, "--no-browser")
     (photos.parent / "text.npz").write_text("hello")
     check("not a photo3d file", "view", photos.parent / "text.npz", "--no-browser")
-    from photo3d.ldi import load_npz
+    from photo3d.io.npz import load_npz
 
     n = np.load(npz)["links"].shape[0]
     for changes, message in [

@@ -6,8 +6,7 @@ import numpy as np
 import pytest
 
 import photo3d
-from photo3d.light import TexturedMesh
-from photo3d.mesh import Mesh
+from photo3d.mesh.types import Mesh, TexturedMesh
 from photo3d.output import _video_mesh
 from photo3d.render.renderer import RenderSettings
 

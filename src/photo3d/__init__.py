@@ -18,8 +18,8 @@ from photo3d.errors import ConfigError, InputError, OutputError, Photo3DError
 
 __version__ = "0.1.0"
 
-_LAZY = {"load": ("photo3d.output", "load_photo"), "make": ("photo3d.pipeline", "make"),
-         "Photo3D": ("photo3d.pipeline", "Photo3D")}
+_LAZY = {"load": ("photo3d.photo", "load"), "make": ("photo3d.pipeline", "make"),
+         "Photo3D": ("photo3d.photo", "Photo3D")}
 
 
 def __getattr__(name: str):

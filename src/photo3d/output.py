@@ -2,13 +2,13 @@
 
 A 3D photo folder holds ``photo3d.npz`` (the LDI, lossless), ``mesh.ply``
 (binary by default, the authors' header; one vertex per LDI pixel), ``mesh.glb``
-(the light textured mesh of :mod:`photo3d.light`, or the full vertex-coloured mesh
+(the light textured mesh of :mod:`photo3d.mesh.light`, or the full vertex-coloured mesh
 with ``full_glb``), ``viewer.html`` (interactive, self-contained) and ``config.json``
 (the resolved configuration plus stats and timings), and videos in ``video/``
 (rendered from the full mesh with the numba backend, where the light one is not
 faster, and from the light mesh with OpenGL, where it is; see benchmarks/RESULTS.md).
 Everything is written into a temporary sibling folder first and moved into place at
-the end (:mod:`photo3d.io.safeout`), so an interrupted or failed run never leaves a
+the end (:mod:`photo3d.files.staging`), so an interrupted or failed run never leaves a
 half-written output folder, and ``overwrite`` only ever replaces a folder holding
 nothing but these files.
 """
@@ -19,23 +19,33 @@ import json
 from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Protocol
 
 from photo3d.config import Config
 from photo3d.errors import InputError, OutputError
+from photo3d.files.staging import Staging, owned_by_names, stage_output
 from photo3d.io.gltf import write_glb
 from photo3d.io.gltf_textured import write_textured_glb
+from photo3d.io.npz import load_npz, save_npz
 from photo3d.io.ply import write_ply
-from photo3d.io.safeout import Staging, owned_by_names, stage_output
-from photo3d.ldi import load_npz, save_npz
-from photo3d.light import LIGHT_ERROR, build_light_mesh
+from photo3d.mesh.light import LIGHT_ERROR, build_light_mesh
+from photo3d.stages.ldi import LDI
 
 if TYPE_CHECKING:
-    from photo3d.light import TexturedMesh
-    from photo3d.mesh import Mesh
-    from photo3d.pipeline import Photo3D
+    from photo3d.mesh.types import Mesh, TexturedMesh
     from photo3d.render.animate import VideoSpec
     from photo3d.render.renderer import RenderSettings
+
+class SavedPhoto(Protocol):
+    """What is saved of a 3D photo (a :class:`photo3d.Photo3D`)."""
+
+    ldi: LDI
+    config: Config
+    stats: dict
+    timings: dict
+
+    def mesh(self) -> Mesh: ...
+
 
 LDI_FILE = "photo3d.npz"
 PHOTO_FILES = (LDI_FILE, "config.json", "mesh.ply", "mesh.glb", "viewer.html", "video",
@@ -68,7 +78,7 @@ def stage_photo(out: str | Path, *, overwrite: bool, inputs: Sequence[str | Path
                 need_bytes: int = 0) -> Staging:
     """Check ``out`` before the work and create the temporary folder to write it in.
 
-    See :func:`photo3d.io.safeout.stage_output` (``inputs``: files the run reads,
+    See :func:`photo3d.files.staging.stage_output` (``inputs``: files the run reads,
     which the output may not hold; ``overwrite`` only replaces a 3D photo folder).
     Use the result in a ``with`` block and pass it to :func:`save_photo` as ``out``.
 
@@ -82,7 +92,7 @@ def stage_photo(out: str | Path, *, overwrite: bool, inputs: Sequence[str | Path
                         need_bytes=need_bytes)
 
 
-def save_photo(photo: Photo3D, out: str | Path | Staging, *, overwrite: bool = False,
+def save_photo(photo: SavedPhoto, out: str | Path | Staging, *, overwrite: bool = False,
                ply: str | None = "binary", glb: bool = True, viewer: bool = True,
                videos: Sequence[VideoSpec] = (), render_settings: RenderSettings | None = None,
                progress: Callable[[str, float], None] | None = None, full_glb: bool = False,
@@ -96,7 +106,7 @@ def save_photo(photo: Photo3D, out: str | Path | Staging, *, overwrite: bool = F
             :func:`stage_photo` returned before the work.
         ply: ``"binary"``, ``"ascii"`` or None (no PLY).
         glb: also write ``mesh.glb``: the light textured mesh
-            (:func:`~photo3d.light.build_light_mesh`) unless ``full_glb``.
+            (:func:`~photo3d.mesh.light.build_light_mesh`) unless ``full_glb``.
         viewer: also write ``viewer.html`` (the interactive, self-contained viewer).
         videos: videos to render into ``out/video/`` (see
             :class:`~photo3d.render.animate.VideoSpec`).
@@ -105,7 +115,7 @@ def save_photo(photo: Photo3D, out: str | Path | Staging, *, overwrite: bool = F
         full_glb: write the full vertex-coloured mesh (one vertex per LDI pixel) as
             ``mesh.glb`` instead of the light one.
         light_error: error bound in pixels of the light mesh (see
-            :func:`~photo3d.light.build_light_mesh`).
+            :func:`~photo3d.mesh.light.build_light_mesh`).
 
     Returns:
         ``out`` as a :class:`~pathlib.Path`.
@@ -132,7 +142,7 @@ def save_photo(photo: Photo3D, out: str | Path | Staging, *, overwrite: bool = F
     return Path(staging.out)
 
 
-def _write_photo(photo: Photo3D, tmp: Path, *, title: str, ply, glb, viewer, videos,
+def _write_photo(photo: SavedPhoto, tmp: Path, *, title: str, ply, glb, viewer, videos,
                  render_settings, progress, full_glb, light_error) -> None:
     """Write the files of a 3D photo folder into ``tmp``.
 
@@ -155,7 +165,7 @@ def _write_photo(photo: Photo3D, tmp: Path, *, title: str, ply, glb, viewer, vid
                      videos, settings=render_settings, progress=progress)
 
 
-def _video_mesh(photo: Photo3D, mesh, light, settings: RenderSettings | None, light_error):
+def _video_mesh(photo: SavedPhoto, mesh, light, settings: RenderSettings | None, light_error):
     """The mesh videos are drawn from: the light one with the OpenGL backend (about
     3 times faster per frame there at the same look), the full one with numba (the
     light one is not faster there); benchmarks/RESULTS.md, light mesh."""
@@ -167,7 +177,7 @@ def _video_mesh(photo: Photo3D, mesh, light, settings: RenderSettings | None, li
                                                             max_error=light_error)
 
 
-def _write_meshes(photo: Photo3D, tmp: Path, pool: ThreadPoolExecutor, jobs: list, *,
+def _write_meshes(photo: SavedPhoto, tmp: Path, pool: ThreadPoolExecutor, jobs: list, *,
                   title: str, ply, glb, viewer, full_glb,
                   light_error) -> tuple[Mesh | None, TexturedMesh | None]:
     """Build the meshes and have ``pool`` write ``mesh.ply``, ``mesh.glb`` and
@@ -190,13 +200,13 @@ def _write_meshes(photo: Photo3D, tmp: Path, pool: ThreadPoolExecutor, jobs: lis
     return mesh, light
 
 
-def write_videos(photo: Photo3D, mesh, folder: Path, videos: Sequence[VideoSpec], *,
+def write_videos(photo: SavedPhoto, mesh, folder: Path, videos: Sequence[VideoSpec], *,
                  settings: RenderSettings | None = None,
                  progress: Callable[[str, float], None] | None = None) -> list[Path]:
     """Render ``videos`` of ``photo`` into ``folder/video/`` (one renderer for all).
 
-    ``mesh``: the mesh to draw, a full :class:`~photo3d.mesh.Mesh` or a light
-    :class:`~photo3d.light.TexturedMesh`; None: the light one with the OpenGL
+    ``mesh``: the mesh to draw, a full :class:`~photo3d.mesh.types.Mesh` or a light
+    :class:`~photo3d.mesh.types.TexturedMesh`; None: the light one with the OpenGL
     backend, else the full one (built here)."""
     from photo3d.render.animate import render_video
     from photo3d.render.renderer import Renderer
@@ -220,25 +230,16 @@ def write_videos(photo: Photo3D, mesh, folder: Path, videos: Sequence[VideoSpec]
     return written
 
 
-def load_photo(path: str | Path) -> Photo3D:
-    """Reload a 3D photo from its folder or its ``photo3d.npz``.
+def read_folder(path: str | Path) -> tuple[LDI, dict]:
+    """The LDI and the metadata (``config``, ``stats``, ``timings``) of a 3D photo
+    folder or of its ``photo3d.npz``; :func:`photo3d.load` makes a Photo3D of them.
 
-    Example:
-        >>> import photo3d, numpy as np, tempfile, pathlib
-        >>> photo = photo3d.make(np.zeros((16, 16, 3)), depth=np.ones((16, 16)),
-        ...                      config=photo3d.Config(size=None))
-        >>> tmp = photo.save(pathlib.Path(tempfile.mkdtemp()) / "out", glb=False, ply=None)
-        >>> photo3d.load(tmp).ldi.size == photo.ldi.size
-        True
+    Raises:
+        InputError: there is no 3D photo at ``path``.
     """
-    from photo3d.pipeline import Photo3D
-
     path = Path(path)
     if path.is_dir():
         path = path / LDI_FILE
     if not path.exists():
         raise InputError(f"no 3D photo at {path}")
-    ldi, meta = load_npz(path)
-    config = Config.from_dict(meta.get("config", {}))
-    return Photo3D(ldi=ldi, config=config, timings=meta.get("timings", {}),
-                   stats=meta.get("stats", {}))
+    return load_npz(path)

@@ -4,150 +4,30 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
 
-from photo3d.border import extend_border
-from photo3d.camera import Camera, DepthMapping, Intrinsics
+from photo3d.camera import DepthMapping, Intrinsics
 from photo3d.config import Config
 from photo3d.depth.normalize import prepare_depth
 from photo3d.errors import InputError
 from photo3d.inpaint import get_inpainter
 from photo3d.inpaint.base import Inpainter
-from photo3d.inpaint.patches import extract_patches
 from photo3d.io.depth import read_depth
 from photo3d.io.images import MIN_SIDE, read_image, to_float_image
-from photo3d.ldi import LDI, cut, from_image
-from photo3d.merge import merge
-from photo3d.mesh import Mesh, build_mesh
-from photo3d.preprocess import preprocess
-from photo3d.regions import find_regions
+from photo3d.photo import Photo3D
 from photo3d.resources import check_memory
-
-if TYPE_CHECKING:
-    from photo3d.light import TexturedMesh
-    from photo3d.render.renderer import RenderSettings, View
+from photo3d.stages.border import extend_border
+from photo3d.stages.edges import edges_csr
+from photo3d.stages.ldi import cut, from_image
+from photo3d.stages.merge import merge
+from photo3d.stages.patches import extract_patches
+from photo3d.stages.preprocess import preprocess
+from photo3d.stages.regions import find_regions
 
 Progress = Callable[[str, float], None]
 """``progress(stage, fraction)``; ``fraction`` in [0, 1] within the stage."""
-
-STAGES = ("load", "preprocess", "ldi", "inpaint", "mesh")
-
-
-@dataclass
-class Photo3D:
-    """A 3D photo: the inpainted LDI plus how it was made.
-
-    Attributes:
-        ldi: the layered depth image.
-        config: the configuration that produced it.
-        timings: seconds per stage.
-        stats: counts (edges per pass, pixels added, ...).
-    """
-
-    ldi: LDI
-    config: Config
-    timings: dict[str, float] = field(default_factory=dict)
-    stats: dict[str, object] = field(default_factory=dict)
-
-    def mesh(self) -> Mesh:
-        """The triangle mesh of the LDI (see :func:`photo3d.mesh.build_mesh`)."""
-        return build_mesh(self.ldi)
-
-    def light_mesh(self, *, max_error: float | None = None) -> TexturedMesh:
-        """The light textured mesh (see :func:`photo3d.light.build_light_mesh`).
-
-        Example:
-            >>> import photo3d
-            >>> photo = photo3d.make(np.full((32, 32, 3), 0.5), depth=np.ones((32, 32)),
-            ...                      config=photo3d.Config(size=None))
-            >>> len(photo.light_mesh().faces) < len(photo.mesh().faces)
-            True
-        """
-        from photo3d.light import LIGHT_ERROR, build_light_mesh
-
-        return build_light_mesh(self.ldi, max_error=LIGHT_ERROR if max_error is None
-                                else max_error)
-
-    def render(self, camera: Camera, *, settings: RenderSettings | None = None) -> View:
-        """Render a novel view.
-
-        Args:
-            camera: intrinsics (output size) and camera-from-world pose; the input
-                view is ``Camera(photo.ldi.intrinsics, np.eye(4))``.
-            settings: :class:`~photo3d.render.renderer.RenderSettings` (default:
-                2x supersampling, holes filled, automatic backend).
-
-        Returns:
-            :class:`~photo3d.render.renderer.View` with ``color (H, W, 3)``,
-            ``depth (H, W)`` and the coverage ``mask (H, W)``.
-
-        For many views of one photo use :class:`~photo3d.render.renderer.Renderer`
-        directly: it prepares the mesh once.
-
-        Example:
-            >>> import photo3d
-            >>> photo = photo3d.make(np.full((16, 16, 3), 0.5), depth=np.ones((16, 16)),
-            ...                      config=photo3d.Config(size=None))
-            >>> cam = Camera.translated(photo.ldi.intrinsics, (0.01, 0.0, 0.0))
-            >>> photo.render(cam).color.shape
-            (16, 16, 3)
-        """
-        from photo3d.render.renderer import Renderer
-
-        with Renderer(self.mesh(), settings) as renderer:
-            return renderer.render(camera)
-
-    def save(self, out: str | Path, *, overwrite: bool = False, ply: str | None = "binary",
-             glb: bool = True, viewer: bool = True, videos=(), render_settings=None,
-             progress=None, full_glb: bool = False, light_error: float | None = None) -> Path:
-        """Write ``photo3d.npz``, ``mesh.ply``, ``mesh.glb``, ``viewer.html``,
-        ``config.json`` and the requested videos (``video/NAME.mp4``) to ``out``,
-        atomically.
-
-        See :func:`photo3d.output.save_photo`.
-        """
-        from photo3d.light import LIGHT_ERROR
-        from photo3d.output import save_photo
-
-        return save_photo(self, out, overwrite=overwrite, ply=ply, glb=glb, viewer=viewer,
-                          videos=videos, render_settings=render_settings, progress=progress,
-                          full_glb=full_glb,
-                          light_error=LIGHT_ERROR if light_error is None else light_error)
-
-    @classmethod
-    def load(cls, path: str | Path) -> Photo3D:
-        """Reload a saved 3D photo (a folder or its ``photo3d.npz``)."""
-        from photo3d.output import load_photo
-
-        return load_photo(path)
-
-
-def edges_csr(labels: np.ndarray, count: int) -> tuple[np.ndarray, np.ndarray]:
-    """Pixels of each labelled edge, as CSR arrays (also used by the training data).
-
-    Args:
-        labels: ``(H, W) int`` edge label per pixel, 0 = none, 1..count = edges.
-        count: number of edges.
-
-    Returns:
-        ``(edge_ptr (count + 1,) int64, pixels (K,) int64)``: edge ``e`` (0-based) owns
-        the flat pixel indices ``pixels[edge_ptr[e]:edge_ptr[e + 1]]``.
-
-    Example:
-        >>> ptr, pix = edges_csr(np.array([[0, 2], [1, 2]]), 2)
-        >>> ptr.tolist(), pix.tolist()
-        ([0, 1, 3], [2, 1, 3])
-    """
-    flat = labels.reshape(-1)
-    pix = np.nonzero(flat)[0]
-    order = np.argsort(flat[pix], kind="stable")
-    counts = np.bincount(flat[pix], minlength=count + 1)[1:]
-    return np.concatenate([[0], np.cumsum(counts)]).astype(np.int64), pix[order].astype(np.int64)
-
 
 def make(
     image: np.ndarray | str | Path,

@@ -18,7 +18,7 @@ import os
 
 from photo3d.config import Config
 from photo3d.errors import ConfigError
-from photo3d.preprocess import working_shape
+from photo3d.stages.preprocess import working_shape
 
 BASE_BYTES = 200e6
 """Interpreter, numpy, numba and the nets' code, resident before any pixel."""

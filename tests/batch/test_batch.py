@@ -20,7 +20,7 @@ from photo3d.cli import main
 from photo3d.config import Config
 from photo3d.errors import InputError
 from photo3d.io.images import write_image
-from photo3d.ldi import load_npz
+from photo3d.io.npz import load_npz
 from photo3d.output import stage_photo
 
 FAST = ["--size", "64", "--no-video", "--no-glb", "--no-viewer"]

@@ -10,10 +10,10 @@ cv2 = pytest.importorskip("cv2")
 if not hasattr(cv2, "ximgproc"):
     pytest.skip("stereo needs opencv-contrib-python-headless", allow_module_level=True)
 
-from photo3d.data import motorcycle  # noqa: E402
 from photo3d.depth import stereo  # noqa: E402
 from photo3d.depth.stereo import check_pair, stereo_disparity  # noqa: E402
 from photo3d.errors import InputError  # noqa: E402
+from photo3d.sample import motorcycle  # noqa: E402
 
 BG, FG = 4, 14  # disparities in pixels
 BOX = (40, 100, 70, 150)  # y0, y1, x0, x1 of the foreground square (left view)

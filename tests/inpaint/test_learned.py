@@ -544,14 +544,14 @@ def test_random_nets_do_not_make_later_passes_explode(seed, monkeypatch):
     merge's fill rules every pass finds fewer new edges than the one before; without
     them the second pass found about three times the first's."""
     pytest.importorskip("skimage")
-    import photo3d.merge
-    from photo3d.data import motorcycle
+    import photo3d.stages.merge
+    from photo3d.sample import motorcycle
 
     s = motorcycle()
     cfg = photo3d.Config(size=256, inpainter="learned")
 
     def edges(rules: bool) -> list[int]:
-        kw = photo3d.merge.merge.__kwdefaults__
+        kw = photo3d.stages.merge.merge.__kwdefaults__
         monkeypatch.setitem(kw, "link_fills", rules)
         monkeypatch.setitem(kw, "clamp", rules)
         backend = LearnedInpainter(nets=random_nets(seed), paths=rules)

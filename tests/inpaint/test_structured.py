@@ -4,8 +4,8 @@ from conftest import exact_config
 
 import photo3d
 from photo3d.inpaint import Patch, get_inpainter
+from photo3d.inpaint.continuation import continue_edges
 from photo3d.inpaint.exemplar import exemplar_fill
-from photo3d.inpaint.structure import continue_edges
 from photo3d.inpaint.structured import piecewise_diffuse
 
 H, W = 96, 128

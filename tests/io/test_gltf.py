@@ -190,7 +190,7 @@ def test_textured_glb_round_trip_and_independent_reader(tmp_path):
     from conftest import exact_config, texture
 
     import photo3d
-    from photo3d.io.gltf import read_textured_glb, write_textured_glb
+    from photo3d.io.gltf_textured import read_textured_glb, write_textured_glb
 
     disp = np.ones((32, 40), np.float32)
     disp[8:24, 10:30] = 2.0
@@ -232,7 +232,7 @@ def test_textured_reader_rejects_hostile_files(tmp_path, keys, message):
     """Indices past the vertices, or attributes of different lengths, raise InputError
     instead of building a mesh whose faces point outside its vertex arrays."""
     from photo3d.io.gltf_textured import read_textured_glb, write_textured_glb
-    from photo3d.light import TexturedMesh
+    from photo3d.mesh.types import TexturedMesh
 
     n = 9
     mesh = TexturedMesh(np.random.default_rng(0).random((n, 3), np.float32) + [0, 0, 1],

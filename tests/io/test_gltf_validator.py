@@ -19,7 +19,8 @@ import pytest
 from conftest import exact_config, texture
 
 import photo3d
-from photo3d.io.gltf import write_glb, write_textured_glb
+from photo3d.io.gltf import write_glb
+from photo3d.io.gltf_textured import write_textured_glb
 
 NODE_DIR = os.environ.get("PHOTO3D_NODE_MODULES", "")
 if not (shutil.which("node") and NODE_DIR and

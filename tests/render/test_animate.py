@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 
 from photo3d.errors import OutputError
-from photo3d.ldi import from_image
-from photo3d.mesh import build_mesh
+from photo3d.mesh.full import build_mesh
 from photo3d.render.animate import VideoSpec, path_cameras, render_frames, render_video
 from photo3d.render.renderer import Renderer, RenderSettings
+from photo3d.stages.ldi import from_image
 
 pytest.importorskip("av")
 from videoprobe import decode  # noqa: E402

@@ -264,7 +264,7 @@ def test_fallback_message_without_webgl2(browser, page_file):
 
 def test_textured_page_matches_photo3d_renderer(browser, tmp_path):
     """The light textured mesh in the page looks like photo3d's own render of it."""
-    from photo3d.light import build_light_mesh
+    from photo3d.mesh.light import build_light_mesh
 
     light = build_light_mesh(box_photo().ldi)
     path = write_viewer(light, tmp_path / "viewer.html")

@@ -14,7 +14,7 @@ from pathlib import Path
 from photo3d.config import Config
 from photo3d.depth.sources import HEIF_SUFFIXES
 from photo3d.errors import InputError
-from photo3d.io.folders import IMAGE_SUFFIXES, depth_by_key, file_key, files_in
+from photo3d.files.folders import IMAGE_SUFFIXES, depth_by_key, file_key, files_in
 
 PHOTO_SUFFIXES = IMAGE_SUFFIXES + HEIF_SUFFIXES
 """Files a batch takes as photos."""
@@ -76,7 +76,7 @@ def find_photos(folder: str | Path, *, depth: str | Path | None = None,
     Args:
         folder: the input folder.
         depth: a folder of depth maps named like the photos (the rule of
-            :mod:`photo3d.io.folders`, shared with ``photo3d train --depth``).
+            :mod:`photo3d.files.folders`, shared with ``photo3d train --depth``).
         recursive: also take the photos of subfolders (hidden ones are left out).
         skip: a subfolder never entered (the batch's own output folder).
 

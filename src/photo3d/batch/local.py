@@ -30,7 +30,7 @@ from pathlib import Path
 from photo3d.batch.jobs import MakeOptions, PhotoJob
 from photo3d.batch.manifest import PhotoResult
 from photo3d.batch.worker import PhotoMaker, discard_partial, one_line
-from photo3d.io.signals import redeliver_swallowed
+from photo3d.files.signals import redeliver_swallowed
 
 _maker: PhotoMaker | None = None
 _init_error: str | None = None

@@ -32,7 +32,7 @@ _MARKERS = (LDI_FILE, "config.json")
 def write_output(photo, out, options: MakeOptions) -> Path:
     """Write one photo's output folder atomically (what ``photo3d make`` writes).
 
-    ``out`` is a folder or the :class:`~photo3d.io.safeout.Staging` of one. Nothing
+    ``out`` is a folder or the :class:`~photo3d.files.staging.Staging` of one. Nothing
     appears at the output until everything (meshes, viewer, videos) is written.
     """
     return photo.save(out, overwrite=options.overwrite, ply=options.ply, glb=options.glb,
@@ -58,7 +58,7 @@ def discard_partial(out: Path) -> None:
     (The temporary sibling folders ``.NAME.XXXXXXXX.tmp`` of a writer that was
     killed; only call this when no other process is writing ``out``.)
     """
-    from photo3d.io.safeout import remove_leftovers
+    from photo3d.files.staging import remove_leftovers
 
     remove_leftovers(out)
 

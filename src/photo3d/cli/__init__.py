@@ -21,7 +21,7 @@ import warnings
 
 from photo3d.cli import batch, demo, depth, evaluate, make, render, train, view
 from photo3d.errors import Photo3DError
-from photo3d.io.signals import handle_signals
+from photo3d.files.signals import handle_signals
 
 COMMANDS = (make, batch, depth, demo, render, view, evaluate, train)
 """Subcommand modules, in the order ``photo3d --help`` lists them."""

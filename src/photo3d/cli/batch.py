@@ -97,7 +97,7 @@ def run_batch_command(args: argparse.Namespace) -> int:
     check_out_dir(args.out)
     _prefetch(jobs, args.out, options, args.quiet)
     bar = PhotoBar(len(jobs), quiet=args.quiet)
-    try:  # SIGTERM and SIGHUP arrive as KeyboardInterrupt too (photo3d.io.signals, main)
+    try:  # SIGTERM and SIGHUP arrive as KeyboardInterrupt too (photo3d.files.signals, main)
         summary = run_batch(jobs, args.out, options, engine=args.engine, workers=args.workers,
                             ray_address=args.ray_address, progress=bar)
     except KeyboardInterrupt:

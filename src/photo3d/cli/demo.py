@@ -20,7 +20,7 @@ def run(args: argparse.Namespace) -> int:
     """Run ``photo3d demo``; returns the exit status."""
     import numpy as np
 
-    from photo3d.data import motorcycle
+    from photo3d.sample import motorcycle
 
     sample = motorcycle()
     if not args.quiet:

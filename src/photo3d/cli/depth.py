@@ -21,7 +21,7 @@ def add_parser(sub) -> None:
 def run(args: argparse.Namespace) -> int:
     """Run ``photo3d depth``; returns the exit status."""
     from photo3d.depth.export import export_depth
-    from photo3d.io.safeout import check_writable
+    from photo3d.files.staging import check_writable
 
     check_writable(args.out)  # before a possibly slow depth estimate
     est = resolve_depth(args)

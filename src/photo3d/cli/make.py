@@ -89,7 +89,7 @@ def run_make(args: argparse.Namespace, image, depth, config: Config) -> int:
 
 def _say_if_upscaled(shape: tuple[int, int], config: Config) -> None:
     """A small photo is enlarged to the working size (the parameters are tuned at 1024 px)."""
-    from photo3d.preprocess import working_shape
+    from photo3d.stages.preprocess import working_shape
 
     if config.size is not None and max(shape) < config.size:
         h, w = working_shape(shape, config.size)

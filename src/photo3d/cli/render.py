@@ -24,9 +24,10 @@ def add_parser(sub) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run ``photo3d render``; returns the exit status."""
-    from photo3d.output import load_photo, write_videos
+    from photo3d.output import write_videos
+    from photo3d.photo import load
 
-    photo = load_photo(args.photo)
+    photo = load(args.photo)
     videos = videos_from(args)
     if args.still:
         return _still(args, photo, videos[0])

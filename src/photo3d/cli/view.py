@@ -17,12 +17,12 @@ def add_parser(sub) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run ``photo3d view`` until Ctrl-C; returns the exit status."""
-    from photo3d.output import load_photo
+    from photo3d.photo import load
     from photo3d.viewer import VIEWER_FILE, serve, write_viewer
 
     page = args.photo / VIEWER_FILE
     if not page.is_file():  # made with --no-viewer: write it now
-        write_viewer(load_photo(args.photo).mesh(), page, title=args.photo.name)
+        write_viewer(load(args.photo).mesh(), page, title=args.photo.name)
 
     def ready(url: str, opened: bool) -> None:
         print(f"serving {args.photo}/ at {url}" + ("" if opened else "  (open it in a browser)"),

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from photo3d.depth.portrait import EmbeddedDepth
+from photo3d.depth.embedded import EmbeddedDepth
 from photo3d.errors import InputError
 from photo3d.io.images import to_float_image
 

@@ -33,12 +33,12 @@ import base64
 import io
 import os
 import xml.etree.ElementTree as ET
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 from PIL import Image, UnidentifiedImageError
 
+from photo3d.depth.embedded import EmbeddedDepth
 from photo3d.errors import InputError
 from photo3d.io.images import to_float_image
 
@@ -59,28 +59,6 @@ _TRANSPOSE = {2: Image.Transpose.FLIP_LEFT_RIGHT, 3: Image.Transpose.ROTATE_180,
               4: Image.Transpose.FLIP_TOP_BOTTOM, 5: Image.Transpose.TRANSPOSE,
               6: Image.Transpose.ROTATE_270, 7: Image.Transpose.TRANSVERSE,
               8: Image.Transpose.ROTATE_90}
-
-
-@dataclass(frozen=True, eq=False)
-class EmbeddedDepth:
-    """A depth map found inside a photo file.
-
-    Attributes:
-        depth: ``(h, w) float32`` at the stored resolution (often smaller than the
-            photo), upright: depth in the file's units for ``kind="depth"``, else
-            normalised disparity in [0, 1].
-        kind: ``"depth"`` (camera z, near = small) or ``"disparity"``.
-        source: one line saying where the map came from and how it was decoded.
-        warnings: notes about doubtful decoding.
-        image: ``(H, W, 3) float32`` the unblurred original photo carried by a
-            Google lens-blur JPEG (``GImage:Data``), else None.
-    """
-
-    depth: np.ndarray
-    kind: str
-    source: str
-    warnings: tuple[str, ...] = ()
-    image: np.ndarray | None = None
 
 
 def decode_range(v: np.ndarray, *, near: float, far: float, fmt: str) -> np.ndarray:

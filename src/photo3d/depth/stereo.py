@@ -2,7 +2,7 @@
 
 The left image is the reference view (the photo that becomes the 3D photo); a left
 pixel ``(y, x)`` with disparity ``d`` appears at ``(y, x - d)`` in the right view
-(Middlebury convention, see :class:`photo3d.data.StereoSample`). Disparity is in
+(Middlebury convention, see :class:`photo3d.sample.StereoSample`). Disparity is in
 pixels of the left view: larger = nearer, which is what ``kind="disparity"`` means
 everywhere in photo3d.
 

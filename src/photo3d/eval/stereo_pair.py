@@ -112,7 +112,7 @@ def load_pair(left: str | Path, right: str | Path, disparity: str | Path,
 
 def motorcycle_pair() -> StereoPair:
     """The Middlebury 2014 *Motorcycle* pair shipped in scikit-image, calibrated."""
-    from photo3d.data import motorcycle
+    from photo3d.sample import motorcycle
 
     s = motorcycle()
     h, w = s.disparity.shape

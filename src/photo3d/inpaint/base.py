@@ -4,8 +4,8 @@ A :class:`Patch` is a local image-like window of one LDI layer around one depth 
 (paper, Sec. 3.2-3.3). Only pixels under ``context`` carry information; colour and
 disparity are zero under ``synthesis`` and everywhere else, so a backend cannot draw
 from the foreground or from anything outside the context even by mistake.
-Backends implement :class:`Inpainter` and are registered by name; the pipeline never
-needs to know which one runs.
+Backends implement :class:`Inpainter`; :mod:`photo3d.inpaint` finds them by name, so
+the pipeline never needs to know which one runs.
 """
 
 from __future__ import annotations
@@ -15,8 +15,6 @@ from dataclasses import dataclass
 from typing import Protocol
 
 import numpy as np
-
-from photo3d.errors import ConfigError
 
 
 @dataclass(frozen=True)
@@ -58,7 +56,7 @@ class InpaintResult:
         edges: ``(h, w) float32`` inpainted depth edges in [0, 1] (zeros if the
             backend does not predict edges). Inside one result's synthesis region
             the merge tears the new surface only along these (where its disparity
-            steps), see :mod:`photo3d.merge`.
+            steps), see :mod:`photo3d.stages.merge`.
     """
 
     color: np.ndarray
@@ -91,37 +89,3 @@ class Inpainter(Protocol):
         only, as the authors do).
         """
         ...
-
-
-_REGISTRY: dict[str, Callable[..., Inpainter]] = {}
-
-
-def register(name: str, factory: Callable[..., Inpainter]) -> None:
-    """Make a backend available under ``name`` (``factory(**options)`` builds it)."""
-    _REGISTRY[name] = factory
-
-
-def available() -> list[str]:
-    """Names of the registered backends."""
-    _load_builtin()
-    return sorted(_REGISTRY)
-
-
-def get_inpainter(name: str, **options) -> Inpainter:
-    """Build the backend ``name`` with backend-specific ``options``.
-
-    Raises :class:`ConfigError` for an unknown name.
-    """
-    _load_builtin()
-    if name not in _REGISTRY:
-        raise ConfigError(f"unknown inpainter {name!r}; available: {', '.join(available())}")
-    return _REGISTRY[name](**options)
-
-
-def _load_builtin() -> None:
-    if "diffusion" not in _REGISTRY:
-        from photo3d.inpaint import diffusion  # noqa: F401  (registers itself)
-    if "structured" not in _REGISTRY:
-        from photo3d.inpaint import structured  # noqa: F401  (registers itself)
-    if "learned" not in _REGISTRY:
-        from photo3d.inpaint import learned  # noqa: F401  (registers itself; torch lazily)

@@ -18,7 +18,7 @@ from concurrent.futures import ThreadPoolExecutor
 import numba
 import numpy as np
 
-from photo3d.inpaint.base import InpaintResult, Patch, Progress, register
+from photo3d.inpaint.base import InpaintResult, Patch, Progress
 
 
 @numba.njit(cache=True, nogil=True)
@@ -192,5 +192,3 @@ class DiffusionInpainter:
                     progress(i + 1, len(patches))
         return results
 
-
-register("diffusion", DiffusionInpainter)

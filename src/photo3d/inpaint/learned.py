@@ -70,7 +70,7 @@ import numpy as np
 
 from photo3d.camera import DepthMapping
 from photo3d.errors import ConfigError
-from photo3d.inpaint.base import InpaintResult, Patch, Progress, register
+from photo3d.inpaint.base import InpaintResult, Patch, Progress
 from photo3d.inpaint.canvas import edges_in, joint_patch, share_canvases, trim, window
 from photo3d.inpaint.crops import Box, cover, grow
 from photo3d.inpaint.edgepaths import reported_edges
@@ -396,5 +396,3 @@ class LearnedInpainter:
                 progress(min(s + step, len(order)), len(patches))
         return results  # type: ignore[return-value]
 
-
-register("learned", LearnedInpainter)

@@ -3,7 +3,7 @@
 The classical counterpart of the paper's edge-then-colour order. Per patch:
 
 1. the context's colour and depth edges are continued into the synthesis region as
-   straight lines (the structure map, :mod:`photo3d.inpaint.structure`);
+   straight lines (the structure map, :mod:`photo3d.inpaint.continuation`);
 2. colour and disparity are diffused from the context without crossing those lines,
    so each side of a continued edge takes the colours of its own side and the
    boundary stays sharp; the line pixels themselves are filled last, from both sides;
@@ -13,7 +13,7 @@ The classical counterpart of the paper's edge-then-colour order. Per patch:
 
 Disparity is the step-2 result (no texture is added to depth). The continued lines
 are the result's ``edges``: where the disparity steps across one, the merge tears the
-fill and the next pass fills behind it (:mod:`photo3d.merge`). Every value read comes
+fill and the next pass fills behind it (:mod:`photo3d.stages.merge`). Every value read comes
 from the patch's context: nothing from the foreground or outside the context.
 """
 
@@ -25,10 +25,10 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
-from photo3d.inpaint.base import InpaintResult, Patch, Progress, register
+from photo3d.inpaint.base import InpaintResult, Patch, Progress
+from photo3d.inpaint.continuation import continue_edges
 from photo3d.inpaint.diffusion import _diffuse
 from photo3d.inpaint.exemplar import exemplar_fill
-from photo3d.inpaint.structure import continue_edges
 
 
 def piecewise_diffuse(values: np.ndarray, context: np.ndarray, synthesis: np.ndarray,
@@ -81,7 +81,7 @@ class StructuredInpainter:
     lattice pixels), ``pm_iterations``, ``em_steps``, ``guide_weight``, ``copy``
     (:func:`~photo3d.inpaint.exemplar.exemplar_fill`); ``support_factor``,
     ``coherence`` and any other keyword of
-    :func:`~photo3d.inpaint.structure.continue_edges`; ``workers`` (threads; the
+    :func:`~photo3d.inpaint.continuation.continue_edges`; ``workers`` (threads; the
     kernels release the GIL).
 
     Example:
@@ -156,5 +156,3 @@ class StructuredInpainter:
                     progress(i + 1, len(patches))
         return results
 
-
-register("structured", StructuredInpainter)

@@ -15,19 +15,19 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from photo3d.errors import InputError
-from photo3d.io.gltf import (
-    _ARRAY_BUFFER,
-    _TO_GLTF,
-    _TRIANGLES,
-    _UNLIT,
-    _WHITE,
-    _accessor,
-    _read_chunks,
-    _write,
+from photo3d.io.glb import (
+    ARRAY_BUFFER,
+    TO_GLTF,
+    TRIANGLES,
+    UNLIT,
+    WHITE,
+    accessor,
+    read_chunks,
+    write_glb_file,
 )
 
 if TYPE_CHECKING:
-    from photo3d.light import TexturedMesh
+    from photo3d.mesh.types import TexturedMesh
 
 PathLike = str | os.PathLike[str]
 
@@ -42,7 +42,7 @@ def write_textured_glb(path: PathLike, mesh: TexturedMesh, *, quality: int = 90)
 
     Args:
         path: file to create (overwritten if it exists).
-        mesh: :class:`~photo3d.light.TexturedMesh` with ``N >= 1``, ``M >= 1``.
+        mesh: :class:`~photo3d.mesh.types.TexturedMesh` with ``N >= 1``, ``M >= 1``.
         quality: JPEG quality of the texture (1-95).
 
     Raises:
@@ -51,7 +51,7 @@ def write_textured_glb(path: PathLike, mesh: TexturedMesh, *, quality: int = 90)
 
     Example:
         >>> import numpy as np, tempfile, pathlib
-        >>> from photo3d.light import TexturedMesh
+        >>> from photo3d.mesh.light import TexturedMesh
         >>> mesh = TexturedMesh(np.eye(3, dtype=np.float32) + [0, 0, 1],
         ...                     np.array([[0, 0], [1, 0], [0, 1]], np.float32),
         ...                     np.zeros((4, 4, 3), np.uint8), np.ones(3, np.uint8),
@@ -67,39 +67,39 @@ def write_textured_glb(path: PathLike, mesh: TexturedMesh, *, quality: int = 90)
     if not np.isfinite(vertices).all() or not np.isfinite(uv).all():
         raise InputError("mesh.vertices or mesh.uv has NaN or infinite values")
     image = encode_jpeg(np.asarray(mesh.texture), quality=quality)
-    arrays = [(uv, "VEC2", _ARRAY_BUFFER, None)]
+    arrays = [(uv, "VEC2", ARRAY_BUFFER, None)]
     primitive = {"attributes": {"POSITION": 0, "TEXCOORD_0": 1, "_LABEL": 2}, "indices": 3,
-                 "material": 0, "mode": _TRIANGLES}
+                 "material": 0, "mode": TRIANGLES}
     material = {
         "name": "unlit photo texture",
-        "pbrMetallicRoughness": {"baseColorFactor": _WHITE, "baseColorTexture": {"index": 0},
+        "pbrMetallicRoughness": {"baseColorFactor": WHITE, "baseColorTexture": {"index": 0},
                                  "metallicFactor": 0.0, "roughnessFactor": 1.0},
-        "extensions": {_UNLIT: {}},
+        "extensions": {UNLIT: {}},
         "doubleSided": False,
     }
-    _write(path, mesh, vertices, labels, faces, arrays, primitive, material, image=image)
+    write_glb_file(path, mesh, vertices, labels, faces, arrays, primitive, material, image=image)
 
 
 def read_textured_glb(path: PathLike) -> TexturedMesh:
     """Read a ``.glb`` written by :func:`write_textured_glb` (tests, tools).
 
     Returns:
-        :class:`~photo3d.light.TexturedMesh` (texture decoded from its JPEG).
+        :class:`~photo3d.mesh.types.TexturedMesh` (texture decoded from its JPEG).
 
     Raises:
         InputError: the file is not such a GLB (or is inconsistent: attribute
             lengths, indices out of range).
     """
-    from photo3d.light import TexturedMesh
+    from photo3d.mesh.types import TexturedMesh
 
-    document, binary = _read_chunks(path)
+    document, binary = read_chunks(path)
     try:
         primitive = document["meshes"][0]["primitives"][0]
         attributes = primitive["attributes"]
-        positions = _accessor(document, binary, attributes["POSITION"], path)
-        uv = _accessor(document, binary, attributes["TEXCOORD_0"], path)
-        faces = _accessor(document, binary, primitive["indices"], path).reshape(-1, 3)
-        labels = _accessor(document, binary, attributes["_LABEL"], path)[:, 0]
+        positions = accessor(document, binary, attributes["POSITION"], path)
+        uv = accessor(document, binary, attributes["TEXCOORD_0"], path)
+        faces = accessor(document, binary, primitive["indices"], path).reshape(-1, 3)
+        labels = accessor(document, binary, attributes["_LABEL"], path)[:, 0]
         view = document["bufferViews"][document["images"][0]["bufferView"]]
         start = view.get("byteOffset", 0)
         texture = decode_jpeg(binary[start:start + view["byteLength"]])
@@ -112,7 +112,7 @@ def read_textured_glb(path: PathLike) -> TexturedMesh:
     if faces.size and faces.max() >= count:
         raise InputError(f"glTF {path} has indices outside [0, {count})")
     return TexturedMesh(
-        vertices=(positions * _TO_GLTF).astype(np.float32), uv=uv.astype(np.float32),
+        vertices=(positions * TO_GLTF).astype(np.float32), uv=uv.astype(np.float32),
         texture=texture, labels=labels.astype(np.uint8), faces=faces.astype(np.int32),
         n_input=0, width=int(extras.get("width", 0)), height=int(extras.get("height", 0)),
         hfov=float(extras.get("hfov", 0.0)), vfov=float(extras.get("vfov", 0.0)),

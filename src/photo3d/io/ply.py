@@ -34,7 +34,7 @@ from typing import BinaryIO
 import numpy as np
 
 from photo3d.errors import InputError, OutputError
-from photo3d.mesh import Mesh
+from photo3d.mesh.types import Mesh
 
 PathLike = str | os.PathLike[str]
 
@@ -73,7 +73,7 @@ def write_ply(path: PathLike, mesh: Mesh, *, binary: bool = True) -> None:
 
     Example:
         >>> import numpy as np, tempfile, pathlib
-        >>> from photo3d.mesh import Mesh
+        >>> from photo3d.mesh.full import Mesh
         >>> mesh = Mesh(np.zeros((3, 3), np.float32), np.zeros((3, 3), np.uint8),
         ...             np.ones(3, np.uint8), np.array([[0, 2, 1]], np.int32),
         ...             4, 3, 0.5, 0.4)
@@ -130,7 +130,7 @@ def read_ply(path: PathLike) -> Mesh:
 
     Example:
         >>> import numpy as np, tempfile, pathlib
-        >>> from photo3d.mesh import Mesh
+        >>> from photo3d.mesh.full import Mesh
         >>> mesh = Mesh(np.eye(3, dtype=np.float32), np.zeros((3, 3), np.uint8),
         ...             np.full(3, 5, np.uint8), np.array([[0, 2, 1]], np.int32),
         ...             4, 3, 0.5, 0.4)

@@ -11,11 +11,11 @@ import numpy as np
 
 from photo3d.camera import Camera, Intrinsics
 from photo3d.errors import ConfigError
-from photo3d.ldi import LDI
 from photo3d.render._resolve import to_rgb8
 from photo3d.render.paths import PRESETS, load_path, preset_path
 from photo3d.render.renderer import Renderer, output_intrinsics
 from photo3d.render.stereo import compose, eye_cameras
+from photo3d.stages.ldi import LDI
 
 Progress = Callable[[int, int], None]
 
@@ -76,7 +76,7 @@ def path_cameras(ldi: LDI, spec: VideoSpec) -> list[Camera]:
     """The cameras of ``spec`` for a photo, at the output size.
 
     Example:
-        >>> from photo3d.ldi import from_image
+        >>> from photo3d.stages.ldi import from_image
         >>> ldi = from_image(np.zeros((10, 16, 3), np.float32), np.ones((10, 16), np.float32))
         >>> cams = path_cameras(ldi, VideoSpec(path="zoom-in", frames=3, size=(32, 20)))
         >>> len(cams), cams[0].intrinsics.width
@@ -95,8 +95,8 @@ def render_frames(renderer: Renderer, cameras: Sequence[Camera], *, stereo: str 
     """Yield ``(H, W, 3) uint8`` frames, one per camera (stereo frames composed).
 
     Example:
-        >>> from photo3d.ldi import from_image
-        >>> from photo3d.mesh import build_mesh
+        >>> from photo3d.stages.ldi import from_image
+        >>> from photo3d.mesh.full import build_mesh
         >>> from photo3d.render.renderer import RenderSettings
         >>> mesh = build_mesh(from_image(np.ones((8, 8, 3), np.float32),
         ...                              np.ones((8, 8), np.float32)))
@@ -120,8 +120,8 @@ def render_still(renderer: Renderer, ldi: LDI, spec: VideoSpec) -> np.ndarray:
     """The input view (or the stereo pair around it) at ``spec``'s size, ``uint8``.
 
     Example:
-        >>> from photo3d.ldi import from_image
-        >>> from photo3d.mesh import build_mesh
+        >>> from photo3d.stages.ldi import from_image
+        >>> from photo3d.mesh.full import build_mesh
         >>> from photo3d.render.renderer import RenderSettings
         >>> ldi = from_image(np.ones((8, 8, 3), np.float32), np.ones((8, 8), np.float32))
         >>> r = Renderer(build_mesh(ldi), RenderSettings(backend="numba"))

@@ -21,8 +21,8 @@ import numpy as np
 
 from photo3d.camera import Camera, Intrinsics
 from photo3d.errors import ConfigError
-from photo3d.light import TexturedMesh
-from photo3d.mesh import Mesh
+from photo3d.holes import fill_holes
+from photo3d.mesh.types import Mesh, TexturedMesh
 from photo3d.render._resolve import grow_fill, grow_fill_far
 
 AUTHORS_CROP = (0.03, 0.03, 0.05, 0.03)
@@ -108,46 +108,12 @@ def output_intrinsics(k: Intrinsics, width: int, height: int) -> Intrinsics:
                       k.cy * s + (height - k.height * s) / 2.0, int(width), int(height))
 
 
-def fill_holes(color: np.ndarray, known: np.ndarray) -> np.ndarray:
-    """Push-pull fill: unknown pixels get a smooth average of nearby known ones.
-
-    Args:
-        color: ``(H, W, C) float32``.
-        known: ``(H, W)`` weights in [0, 1] (1 = fully known).
-
-    Example:
-        >>> c = np.zeros((4, 4, 1), np.float32); c[0, 0] = 1.0
-        >>> k = np.zeros((4, 4)); k[0, 0] = 1
-        >>> float(fill_holes(c, k)[3, 3, 0])
-        1.0
-    """
-    w = np.clip(known, 0.0, 1.0).astype(np.float32)
-    if w.min() >= 1.0 or w.max() <= 0.0:
-        return color
-    levels = [(color * w[..., None], w)]
-    while min(levels[-1][1].shape) > 1:
-        c, k = levels[-1]
-        h2, w2 = (c.shape[0] + 1) // 2, (c.shape[1] + 1) // 2
-        pc = np.zeros((h2 * 2, w2 * 2, c.shape[2]), np.float32)
-        pk = np.zeros((h2 * 2, w2 * 2), np.float32)
-        pc[: c.shape[0], : c.shape[1]], pk[: k.shape[0], : k.shape[1]] = c, k
-        c2 = pc.reshape(h2, 2, w2, 2, -1).sum((1, 3))
-        k2 = pk.reshape(h2, 2, w2, 2).sum((1, 3))
-        norm = np.maximum(k2, 1e-12)[..., None]
-        levels.append((c2 / norm * np.minimum(k2, 1.0)[..., None], np.minimum(k2, 1.0)))
-    filled = levels[-1][0] / np.maximum(levels[-1][1], 1e-12)[..., None]
-    for c, k in reversed(levels[:-1]):
-        up = np.repeat(np.repeat(filled, 2, 0), 2, 1)[: c.shape[0], : c.shape[1]]
-        filled = c + (1.0 - k)[..., None] * up
-    return filled.astype(np.float32)
-
-
 class Renderer:
     """Render views of one mesh with one backend (uploads the mesh once).
 
     Example:
-        >>> from photo3d.ldi import from_image
-        >>> from photo3d.mesh import build_mesh
+        >>> from photo3d.stages.ldi import from_image
+        >>> from photo3d.mesh.full import build_mesh
         >>> mesh = build_mesh(from_image(np.full((8, 8, 3), 0.5, np.float32),
         ...                              np.ones((8, 8), np.float32)))
         >>> view = Renderer(mesh, RenderSettings(backend="numba")).render(
@@ -158,8 +124,8 @@ class Renderer:
 
     def __init__(self, mesh: Mesh | TexturedMesh, settings: RenderSettings | None = None
                  ) -> None:
-        """``mesh``: a vertex-coloured :class:`~photo3d.mesh.Mesh` or a
-        :class:`~photo3d.light.TexturedMesh` (drawn with its texture)."""
+        """``mesh``: a vertex-coloured :class:`~photo3d.mesh.types.Mesh` or a
+        :class:`~photo3d.mesh.types.TexturedMesh` (drawn with its texture)."""
         self.settings = settings or RenderSettings()
         self.mesh = mesh
         texture = None

@@ -3,7 +3,7 @@
 
 - :mod:`photo3d.train.pairs`: context/synthesis region pairs from an image's depth,
   found by the pipeline's own stages.
-- :mod:`photo3d.train.data`: training folders (photos, depth by stem, shape-only
+- :mod:`photo3d.train.dataset`: training folders (photos, depth by stem, shape-only
   maps), preparation and its cache.
 - :mod:`photo3d.train.samples`: a pair pasted onto a *different* photo, resized,
   flipped, swapped; net inputs built by the learned backend's own code.
@@ -25,7 +25,7 @@ except ImportError as err:  # pragma: no cover - depends on the environment
     raise ImportError("photo3d.train needs PyTorch: pip install 'photo3d[learned]'") from err
 
 from photo3d.train.builtin import write_builtin
-from photo3d.train.data import (
+from photo3d.train.dataset import (
     Target,
     TrainingData,
     TrainingFile,

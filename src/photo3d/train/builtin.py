@@ -11,7 +11,7 @@
 
 :func:`scene_disparity` gives a scene's disparity alone (no colour: cheap): the region
 shapes of a colour-net training on photos without depth (see
-:func:`photo3d.train.data.prepare_data`).
+:func:`photo3d.train.dataset.prepare_data`).
 
 The synthetic scenes' textures are four of the photos, so colour statistics overlap;
 real training wants a large photo collection with estimated depth (the paper: COCO
@@ -85,7 +85,7 @@ def write_builtin(folder: str | Path, *, scenes: int = 48, width: int = 512, hei
         write_pfm(folder / "depth" / f"scene{FIRST_SEED + i}.pfm", (1.0 / z).astype(np.float32))
         report("builtin data", (len(photos) + i + 1) / total)
     if motorcycle_shapes:
-        from photo3d.data import motorcycle
+        from photo3d.sample import motorcycle
 
         write_pfm(folder / "shapes" / "motorcycle.pfm", np.asarray(motorcycle().disparity))
     report("builtin data", 1.0)

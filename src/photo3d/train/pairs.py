@@ -2,11 +2,11 @@
 data generation").
 
 The pipeline's own stages find them, so training regions have exactly the shapes
-inference produces: :func:`photo3d.preprocess.preprocess` (working size, normalised
+inference produces: :func:`photo3d.stages.preprocess.preprocess` (working size, normalised
 and sharpened disparity, linked depth edges), the LDI with links cut along the
-edges, :func:`photo3d.regions.find_regions` (first pass: 40 / 100 px synthesis /
+edges, :func:`photo3d.stages.regions.find_regions` (first pass: 40 / 100 px synthesis /
 context flood fills and the 5 px dilation, scaled to the working size) and
-:func:`photo3d.inpaint.patches.extract_patches` (bounding box + the learned
+:func:`photo3d.stages.patches.extract_patches` (bounding box + the learned
 backend's 20 px margin). No border is extrapolated: it would only add shapes that
 hug the image frame. At most ``max_pairs`` pairs per image are kept (paper: 3).
 """
@@ -19,11 +19,11 @@ import numpy as np
 
 from photo3d.config import Config
 from photo3d.inpaint.learned import LearnedInpainter
-from photo3d.inpaint.patches import extract_patches
-from photo3d.ldi import cut, from_image
-from photo3d.pipeline import edges_csr
-from photo3d.preprocess import Preprocessed
-from photo3d.regions import find_regions
+from photo3d.stages.edges import edges_csr
+from photo3d.stages.ldi import cut, from_image
+from photo3d.stages.patches import extract_patches
+from photo3d.stages.preprocess import Preprocessed
+from photo3d.stages.regions import find_regions
 
 
 @dataclass(frozen=True)
@@ -59,7 +59,7 @@ def extract_region_pairs(pre: Preprocessed, *, config: Config, source: int = 0,
         Up to ``max_pairs`` :class:`RegionPair`, in the pipeline's edge order.
 
     Example:
-        >>> from photo3d.preprocess import preprocess
+        >>> from photo3d.stages.preprocess import preprocess
         >>> cfg = Config(size=None)
         >>> d = np.ones((64, 64), np.float32); d[16:48, 16:48] = 3.0  # a near square
         >>> pre = preprocess(np.zeros((64, 64, 3), np.float32), d, config=cfg)

@@ -25,7 +25,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from photo3d.errors import ConfigError
-from photo3d.train.data import TrainingData
+from photo3d.train.dataset import TrainingData
 from photo3d.train.grid import sample_grid
 from photo3d.train.samples import make_batch
 from photo3d.train.trainer import ARCHITECTURE, TrainConfig, Trainer, to_tensors
@@ -128,7 +128,7 @@ def train(data: TrainingData, run_dir: str | Path, config: TrainConfig, *,
     """Train ``config.kind`` on ``data`` in ``run_dir`` (resuming if it holds a run).
 
     Args:
-        data: prepared training data (:func:`photo3d.train.data.prepare_data`).
+        data: prepared training data (:func:`photo3d.train.dataset.prepare_data`).
         run_dir: the run folder (created).
         config: :class:`TrainConfig`.
         device: torch device (default CUDA when available, else CPU).
@@ -145,7 +145,7 @@ def train(data: TrainingData, run_dir: str | Path, config: TrainConfig, *,
     Example:
         >>> import tempfile
         >>> import numpy as np
-        >>> from photo3d.train.data import Target
+        >>> from photo3d.train.dataset import Target
         >>> from photo3d.train.pairs import RegionPair
         >>> ctx = np.zeros((24, 24), bool); ctx[:, :10] = True
         >>> photo = Target(np.full((32, 32, 3), 0.5, np.float32), np.full((32, 32), 0.5,

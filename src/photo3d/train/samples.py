@@ -32,7 +32,7 @@ from photo3d.camera import DepthMapping
 from photo3d.errors import InputError
 from photo3d.inpaint.base import Patch
 from photo3d.inpaint.learned import NetInputs
-from photo3d.train.data import TrainingData
+from photo3d.train.dataset import TrainingData
 from photo3d.train.pairs import RegionPair
 
 SCALE_RANGE = (1.0, 1.3)
@@ -147,7 +147,7 @@ def make_sample(data: TrainingData, kind: str, *, size: int, rng: np.random.Gene
         tries: placements drawn until the window holds ``MIN_PIXELS`` of both regions.
 
     Example:
-        >>> from photo3d.train.data import Target
+        >>> from photo3d.train.dataset import Target
         >>> rng = np.random.default_rng(0)
         >>> ctx = np.zeros((24, 24), bool); ctx[:, :10] = True
         >>> pair = RegionPair(ctx, ~ctx, source=1)
@@ -205,7 +205,7 @@ def make_batch(data: TrainingData, kind: str, *, size: int, batch: int, seed: in
     ``numpy.random.default_rng([seed, step, i])``, so a resumed run sees the same data.
 
     Example:
-        >>> from photo3d.train.data import Target
+        >>> from photo3d.train.dataset import Target
         >>> ctx = np.zeros((24, 24), bool); ctx[:, :10] = True
         >>> photo = Target(np.full((32, 32, 3), 0.5, np.float32), None, None)
         >>> data = TrainingData(["a"], np.array([False]), [RegionPair(ctx, ~ctx, 1)], [photo])

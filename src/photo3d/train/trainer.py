@@ -31,7 +31,7 @@ from photo3d.nets.weights import (
     save_safetensors,
 )
 from photo3d.train import losses
-from photo3d.train.data import KINDS
+from photo3d.train.dataset import KINDS
 from photo3d.train.samples import Sample
 
 ARCHITECTURE = ("kind", "width", "levels", "blocks", "gan", "center")

@@ -1,0 +1,145 @@
+"""SIGINT, SIGTERM and SIGHUP as exceptions, so that cleanup code always runs.
+
+Used by the command line around every command: a temporary output folder
+(:mod:`photo3d.files.staging`) is removed on Ctrl-C and on termination alike.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import signal
+import sys
+import threading
+from collections.abc import Callable, Iterator
+
+
+class Interrupted(KeyboardInterrupt):
+    """Raised inside :func:`handle_signals` when a termination signal arrives.
+
+    Attributes:
+        signum: the signal number (``signal.SIGTERM``, ``signal.SIGHUP``, ...).
+    """
+
+    def __init__(self, signum: int) -> None:
+        super().__init__(signal.Signals(signum).name)
+        self.signum = signum
+
+
+def redeliver_swallowed(kinds: tuple[type[BaseException], ...],
+                        rearm: Callable[[], int | None]) -> Callable[[], None]:
+    """Keep an interrupt that lands inside a C callback from getting lost.
+
+    A signal handler's exception raised while Python code runs as a callback of C
+    code (numba compiling through LLVM, ctypes) cannot propagate: Python prints
+    "Exception ignored in ..." with a traceback and carries on. This installs a
+    ``sys.unraisablehook`` that, for exceptions of ``kinds``, prints nothing, calls
+    ``rearm()`` (which restores the handler and returns the signal to send, or None)
+    and sends that signal to this process again 50 ms later from a helper thread, so
+    that the handler runs once the C code has returned (if it lands in a callback
+    again, the same happens again; during interpreter shutdown, when no thread can
+    start, the process is exiting anyway and nothing is sent; a signal that arrives
+    while the helper thread starts is re-armed and sent again). Other unraisable
+    exceptions go to the previous hook. Returns a function that restores the previous hook.
+
+    Example:
+        >>> restore = redeliver_swallowed((KeyboardInterrupt,), lambda: None)
+        >>> restore()
+    """
+    previous = sys.unraisablehook
+
+    def hook(unraisable) -> None:
+        if not isinstance(unraisable.exc_value, kinds):
+            previous(unraisable)
+            return
+        for _ in range(_REDELIVER_TRIES):
+            signum = rearm()
+            if signum is None:
+                return
+            # later, so that it does not land in this hook again
+            timer = threading.Timer(_REDELIVER_S, os.kill, (os.getpid(), signum))
+            timer.daemon = True
+            try:
+                timer.start()
+                return
+            except RuntimeError:  # "can't create new thread at interpreter shutdown":
+                return  # the process is exiting already, there is nothing left to stop
+            except kinds:  # a signal landed while the helper thread started (its
+                continue  # handler raised here, where nothing can catch it): again
+
+    sys.unraisablehook = hook
+
+    def restore() -> None:
+        sys.unraisablehook = previous
+
+    return restore
+
+
+_REDELIVER_S = 0.05
+_REDELIVER_TRIES = 3
+
+
+class SignalGuard:
+    """What :func:`handle_signals` saw: ``signum`` is the first signal received, or None."""
+
+    signum: int | None = None
+
+
+@contextlib.contextmanager
+def handle_signals() -> Iterator[SignalGuard]:
+    """Turn SIGINT, SIGTERM and SIGHUP into exceptions, so cleanup code runs.
+
+    SIGINT raises :class:`KeyboardInterrupt` (as Python does), SIGTERM and SIGHUP
+    raise :class:`Interrupted`; either unwinds through ``with stage_output(...)``,
+    which removes its temporary folder. The guard remembers the signal, because an
+    interrupt that lands inside compiled code (numba) can surface as another
+    exception (``SystemError``): callers should treat any exception raised after
+    ``guard.signum`` was set as the interruption; one raised inside a C callback
+    (numba's compiler), which Python would print and drop, is raised again once the
+    C code returns (:func:`redeliver_swallowed`). Signals ignored when the process
+started stay ignored (``nohup``, background jobs). Does nothing outside the main
+thread.
+
+    Example:
+        >>> import os, signal
+        >>> with handle_signals() as guard:
+        ...     try:
+        ...         os.kill(os.getpid(), signal.SIGTERM)
+        ...     except Interrupted as err:
+        ...         print(err.signum == signal.SIGTERM, guard.signum == signal.SIGTERM)
+        True True
+    """
+    guard = SignalGuard()
+
+    previous: dict = {}
+
+    def handler(signum, frame):
+        if guard.signum is not None:  # already unwinding: let the cleanup finish, and
+            for number, old in previous.items():  # a further signal act as usual
+                signal.signal(number, old)
+            return
+        guard.signum = signum
+        if signum == signal.SIGINT:
+            raise KeyboardInterrupt
+        raise Interrupted(signum)
+
+    wanted = [signal.SIGINT, signal.SIGTERM] + ([signal.SIGHUP] if hasattr(signal, "SIGHUP")
+                                                else [])
+    try:
+        for signum in wanted:
+            if signal.getsignal(signum) != signal.SIG_IGN:  # nohup, background jobs
+                previous[signum] = signal.signal(signum, handler)
+    except ValueError:  # not the main thread: leave the handlers alone
+        pass
+    def rearm() -> int | None:  # the exception was swallowed: raise it again later
+        signum, guard.signum = guard.signum, None
+        return signum
+
+    restore = redeliver_swallowed((KeyboardInterrupt,), rearm) if previous else None
+    try:
+        yield guard
+    finally:
+        for signum, old in previous.items():
+            signal.signal(signum, old)
+        if restore is not None:
+            restore()

@@ -1,0 +1,375 @@
+"""Output folders that never lose a user's files and are never left half-written.
+
+A command that writes a folder calls :func:`stage_output` *before* its work: it
+checks everything that can be checked early (the location, what is already there,
+the name's length, that the file system accepts a new folder) and creates a hidden
+temporary sibling ``.NAME.XXXXXXXX.tmp`` to write into. At the end
+:meth:`Staging.commit` moves it into place in one atomic, checked rename; on any
+error, Ctrl-C or termination signal :meth:`Staging.discard` removes it.
+
+The rules (what photo3d promises, README "Inputs"):
+
+* The output is never the current folder, one of its parents, or a folder that
+  holds an input, with or without ``overwrite``.
+* ``overwrite`` only replaces a folder photo3d wrote, recognised by its files (the
+  caller's ``owned`` check); any other file in it makes the run refuse up front.
+* A symbolic link as output is followed: the result is written into its target (a
+  link to nothing is refused).
+* Two runs writing the same output: the first to finish wins; the other fails with
+  :class:`~photo3d.errors.OutputError` (the final rename never replaces a folder
+  that appeared or changed meanwhile).
+* Signals: run the work inside :func:`photo3d.files.signals.handle_signals` so that
+  SIGTERM and SIGHUP, like Ctrl-C, unwind through the ``with`` block.
+* New folders get the usual permissions (``0o777`` minus the umask).
+
+Example:
+    >>> import pathlib, tempfile
+    >>> out = pathlib.Path(tempfile.mkdtemp()) / "result"
+    >>> with stage_output(out) as staging:
+    ...     _ = (staging.path / "a.txt").write_text("hi")
+    ...     final = staging.commit()
+    >>> sorted(p.name for p in final.iterdir()), sorted(p.name for p in final.parent.iterdir())
+    (['a.txt'], ['result'])
+"""
+
+from __future__ import annotations
+
+import atexit
+import errno
+import fnmatch
+import os
+import secrets
+import shutil
+from collections.abc import Callable, Iterable, Sequence
+from pathlib import Path
+
+from photo3d.errors import OutputError
+from photo3d.files.rename import claim, identity, swap
+
+PathLike = str | os.PathLike[str]
+
+_LIVE: set[Path] = set()
+"""Temporary folders not yet committed or discarded (removed at exit as a last resort)."""
+
+
+def owned_by_names(required: str, allowed: Sequence[str]) -> Callable[[Path], list[str]]:
+    """An ``owned`` check: the folder holds ``required`` and only entries matching ``allowed``.
+
+    Args:
+        required: a file name every folder the tool wrote holds.
+        allowed: glob patterns of the top-level names the tool writes.
+
+    Returns:
+        ``owned(folder) -> list[str]``: the reasons the folder may not be replaced
+        (empty when it may be).
+
+    Example:
+        >>> import pathlib, tempfile
+        >>> folder = pathlib.Path(tempfile.mkdtemp())
+        >>> _ = (folder / "notes.txt").write_text("mine")
+        >>> owned_by_names("photo3d.npz", ["photo3d.npz", "*.ply"])(folder)
+        ['holds notes.txt', 'has no photo3d.npz']
+    """
+
+    def owned(folder: Path) -> list[str]:
+        names = sorted(p.name for p in folder.iterdir())
+        foreign = [n for n in names if not any(fnmatch.fnmatchcase(n, a) for a in allowed)]
+        reasons = [f"holds {', '.join(foreign[:3])}{', ...' if len(foreign) > 3 else ''}"]
+        return (reasons if foreign else []) + ([] if required in names
+                                               else [f"has no {required}"])
+
+    return owned
+
+
+class Staging:
+    """A hidden temporary folder that becomes ``final`` on :meth:`commit`.
+
+    Use as a context manager: leaving the block without a commit (an error, Ctrl-C)
+    discards the temporary folder.
+
+    Attributes:
+        path: the temporary folder to write into.
+        final: the absolute output folder (symbolic links resolved).
+        out: the output as the user gave it (for messages).
+    """
+
+    def __init__(self, path: Path, final: Path, out: Path, *, seen: tuple | None,
+                 owned: Callable[[Path], list[str]] | None, made: list[Path],
+                 overwrite: bool) -> None:
+        self.path, self.final, self.out = path, final, out
+        self._seen, self._owned, self._made = seen, owned, made
+        self._overwrite = overwrite
+        self._done = False
+
+    def __enter__(self) -> Staging:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        if not self._done:
+            self.discard()
+
+    def commit(self) -> Path:
+        """Move the temporary folder into place atomically; return the output path.
+
+        Raises:
+            OutputError: the output appeared or changed since :func:`stage_output`
+                (another run wrote it), or the rename failed. The temporary folder
+                is removed and nothing already there is touched.
+        """
+        try:
+            now = identity(self.final)
+            if now != self._seen and not (self._seen is None and _is_empty_dir(self.final)):
+                raise OutputError(f"output {self.out} changed while photo3d was working "
+                                  "(another run?); this run's result was discarded")
+            if now is None:
+                claim(self.path, self.final, self.out)
+            elif _is_empty_dir(self.final):
+                os.rmdir(self.final)
+                claim(self.path, self.final, self.out)
+            else:
+                foreign = self._owned(self.final) if self._owned else ["is not empty"]
+                if not self._overwrite:
+                    foreign = ["is not empty (use --overwrite)"]
+                if foreign:
+                    raise OutputError(f"output {self.out} changed meanwhile and "
+                                      f"{' and '.join(foreign)}; nothing replaced")
+                old = swap(self.path, self.final, self.out, expected=now)
+                shutil.rmtree(old, ignore_errors=True)  # the replaced photo3d folder
+        except OSError as err:
+            raise OutputError(f"cannot move the result to {self.out}: "
+                              f"{err.strerror or err}") from None
+        self._done = True
+        _LIVE.discard(self.path)
+        return self.final
+
+    def discard(self) -> None:
+        """Remove the temporary folder (and the parents :func:`stage_output` created)."""
+        self._done = True
+        shutil.rmtree(self.path, ignore_errors=True)
+        _LIVE.discard(self.path)
+        for parent in reversed(self._made):
+            try:
+                parent.rmdir()
+            except OSError:
+                break
+
+
+def stage_output(out: PathLike, *, overwrite: bool = False, inputs: Iterable[PathLike] = (),
+                 owned: Callable[[Path], list[str]] | None = None,
+                 need_bytes: int = 0) -> Staging:
+    """Check where ``out`` will go and create its temporary folder, before any work.
+
+    Args:
+        out: the output folder the user asked for (may be a symbolic link to a folder).
+        overwrite: replace an existing, non-empty folder if ``owned`` accepts it.
+        inputs: files the run reads; the output may not be a folder holding one.
+        owned: ``owned(folder) -> list[str]``, the reasons a folder is not one photo3d
+            wrote (see :func:`owned_by_names`); None: never replace a non-empty folder.
+        need_bytes: refuse if the file system has less free space than this.
+
+    Returns:
+        A :class:`Staging` whose ``path`` exists and is empty.
+
+    Raises:
+        OutputError: one line naming the problem: the output is (or holds) the
+            current folder or an input, exists and is not a folder, is not empty
+            (without ``overwrite``) or holds files photo3d did not write, is a
+            dangling link, has a name too long, or its parent cannot be written
+            (permissions, read-only or full file system).
+
+    Example:
+        >>> import os
+        >>> try:
+        ...     stage_output(".", overwrite=True)
+        ... except OutputError as err:
+        ...     print(err)
+        output . is the current folder or one of its parents; choose a new folder
+    """
+    out = Path(out)
+    try:
+        return _stage(out, overwrite=overwrite, inputs=inputs, owned=owned,
+                      need_bytes=need_bytes)
+    except OSError as err:  # e.g. a name too long for the file system
+        raise OutputError(f"cannot write {out}: {err.strerror or err}") from None
+
+
+def _stage(out: Path, *, overwrite, inputs, owned, need_bytes) -> Staging:
+    if out.is_symlink() and not out.exists():
+        raise OutputError(f"output {out} is a symbolic link to {os.readlink(out)}, "
+                          "which does not exist")
+    final = Path(os.path.realpath(out))
+    if final.parent == final:
+        raise OutputError(f"output {out} is the root of the file system")
+    cwd = Path(os.path.realpath(os.getcwd()))
+    if final == cwd or final in cwd.parents:
+        raise OutputError(f"output {out} is the current folder or one of its parents; "
+                          "choose a new folder")
+    for given in inputs:
+        source = Path(os.path.realpath(given))
+        if final == source or final in source.parents:
+            raise OutputError(f"output {out} holds the input {given}; choose a new folder")
+    seen = identity(final)
+    if seen is not None:
+        _check_existing(final, out, overwrite=overwrite, owned=owned)
+    parent = final.parent
+    made = _make_parents(parent, out)
+    try:
+        name_max = os.pathconf(parent, "PC_NAME_MAX")
+    except (OSError, ValueError):
+        name_max = 255
+    if len(os.fsencode(final.name)) > name_max:
+        _remove_empty(made)
+        raise OutputError(f"output name {final.name[:40]}... is {len(os.fsencode(final.name))} "
+                          f"bytes long; this file system allows {name_max}")
+    try:
+        tmp = _make_temp(parent, final.name)
+    except OSError as err:
+        _remove_empty(made)
+        raise OutputError(f"cannot write in {parent}: {err.strerror or err}") from None
+    free = shutil.disk_usage(parent).free if need_bytes else 0
+    if free < need_bytes:
+        shutil.rmtree(tmp, ignore_errors=True)
+        _LIVE.discard(tmp)
+        _remove_empty(made)
+        raise OutputError(f"only {_mb(free)} free in {parent}; this output needs about "
+                          f"{_mb(need_bytes)}")
+    return Staging(tmp, final, out, seen=seen, owned=owned, made=made, overwrite=overwrite)
+
+
+def _mb(size: int) -> str:
+    return f"{size / 1e6:.1f} MB" if size < 1e9 else f"{size / 1e9:.1f} GB"
+
+
+def _check_existing(final: Path, out: Path, *, overwrite: bool,
+                    owned: Callable[[Path], list[str]] | None) -> None:
+    if not final.is_dir():
+        raise OutputError(f"output {out} exists and is not a folder")
+    if _is_empty_dir(final):
+        return
+    if not overwrite:
+        raise OutputError(f"output folder {out} exists and is not empty (use --overwrite)")
+    foreign = owned(final) if owned else ["is not empty"]
+    if foreign:
+        raise OutputError(f"--overwrite only replaces a folder photo3d wrote, but {out} "
+                          f"{' and '.join(foreign)}: choose a new folder")
+
+
+def _is_empty_dir(path: Path) -> bool:
+    try:
+        with os.scandir(path) as entries:
+            return next(entries, None) is None
+    except OSError:
+        return False
+
+
+def _make_parents(parent: Path, out: Path) -> list[Path]:
+    """Create the missing parents of the output (outermost first); return them."""
+    missing = []
+    for p in [parent, *parent.parents]:
+        if p.exists():
+            break
+        missing.append(p)
+    made = []
+    try:
+        for p in reversed(missing):
+            p.mkdir()
+            made.append(p)
+    except OSError as err:
+        _remove_empty(made)
+        raise OutputError(f"cannot create the folder {p} for {out}: "
+                          f"{err.strerror or err}") from None
+    if not parent.is_dir():
+        raise OutputError(f"cannot write {out}: {parent} is not a folder")
+    return made
+
+
+def _remove_empty(made: list[Path]) -> None:
+    for p in reversed(made):
+        try:
+            p.rmdir()
+        except OSError:
+            return
+
+
+def _make_temp(parent: Path, name: str) -> Path:
+    """A new hidden folder beside the output, with the umask's permissions."""
+    stem = name[:64]  # the suffix must never make the name too long
+    for _ in range(100):
+        tmp = parent / f".{stem}.{secrets.token_hex(4)}.tmp"
+        try:
+            os.mkdir(tmp, 0o777)  # mkdir applies the umask (mkdtemp would force 0700)
+        except FileExistsError:
+            continue
+        _LIVE.add(tmp)
+        return tmp
+    raise OSError(errno.EEXIST, "no free temporary name")
+
+
+def remove_leftovers(out: PathLike) -> list[Path]:
+    """Remove the temporary folders a killed writer of ``out`` left beside it.
+
+    Only folders named as :func:`stage_output` names them (``.NAME.XXXXXXXX.tmp``,
+    eight hex digits) are removed; call this only when no other process is writing
+    ``out``. Returns what was removed.
+
+    Example:
+        >>> import pathlib, tempfile
+        >>> out = pathlib.Path(tempfile.mkdtemp()) / "result"
+        >>> staging = stage_output(out)  # its writer is "killed": never committed
+        >>> [p == staging.path for p in remove_leftovers(out)], staging.path.exists()
+        ([True], False)
+    """
+    final = Path(os.path.realpath(out))
+    stem = final.name[:64]
+    removed = []
+    try:
+        entries = list(final.parent.iterdir())
+    except OSError:
+        return removed
+    for tmp in entries:
+        name = tmp.name
+        middle = name[len(stem) + 2:-4]
+        if (name.startswith(f".{stem}.") and name.endswith(".tmp") and len(middle) == 8
+                and all(c in "0123456789abcdef" for c in middle)
+                and tmp.is_dir() and not tmp.is_symlink()):
+            shutil.rmtree(tmp, ignore_errors=True)
+            _LIVE.discard(tmp)
+            removed.append(tmp)
+    return removed
+
+
+def check_writable(file: PathLike) -> Path:
+    """Check early that ``file`` can be created: its folder exists and takes a new file.
+
+    A hidden probe file is created beside it and removed. Returns ``file`` as a Path.
+
+    Raises:
+        OutputError: ``file`` is a folder, its folder is missing, or the file system
+            refuses a new file there (permissions, read-only, full, name too long).
+
+    Example:
+        >>> import pathlib, tempfile
+        >>> check_writable(pathlib.Path(tempfile.mkdtemp()) / "depth.png").name
+        'depth.png'
+    """
+    file = Path(file)
+    if file.is_dir():
+        raise OutputError(f"output {file} is a folder; expected a file name")
+    parent = file.parent
+    if not parent.is_dir():
+        raise OutputError(f"cannot write {file}: the folder {parent} does not exist")
+    probe = parent / f".{file.name[:64]}.{secrets.token_hex(4)}.tmp"
+    try:
+        if len(os.fsencode(file.name)) > 255:
+            raise OSError(errno.ENAMETOOLONG, os.strerror(errno.ENAMETOOLONG))
+        probe.touch(exist_ok=False)
+        probe.unlink()
+    except OSError as err:
+        raise OutputError(f"cannot write {file}: {err.strerror or err}") from None
+    return file
+
+
+@atexit.register
+def _remove_leftovers() -> None:
+    for tmp in list(_LIVE):
+        shutil.rmtree(tmp, ignore_errors=True)

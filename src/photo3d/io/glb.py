@@ -1,0 +1,152 @@
+"""The GLB container (glTF 2.0 binary): chunks, accessors, the unlit material and the
+input camera, shared by the vertex-coloured (:mod:`photo3d.io.gltf`) and textured
+(:mod:`photo3d.io.gltf_textured`) meshes.
+
+Example:
+    >>> TO_GLTF.tolist()  # OpenCV (x, y, z) -> glTF (x, -y, -z)
+    [1.0, -1.0, -1.0]
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import struct
+
+import numpy as np
+
+from photo3d.errors import InputError, OutputError
+
+PathLike = str | os.PathLike[str]
+
+MAGIC, JSON_CHUNK, BIN_CHUNK = 0x46546C67, 0x4E4F534A, 0x004E4942
+ARRAY_BUFFER, ELEMENT_ARRAY_BUFFER = 34962, 34963
+COMPONENTS = {5120: "i1", 5121: "u1", 5122: "<i2", 5123: "<u2", 5125: "<u4", 5126: "<f4"}
+CODES = {np.dtype(kind).type: code for code, kind in COMPONENTS.items()}
+WIDTHS = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4}
+TO_GLTF = np.array([1, -1, -1], np.float32)  # OpenCV (x, y, z) -> glTF (x, -y, -z)
+TRIANGLES = 4
+UNLIT = "KHR_materials_unlit"
+WHITE = [1.0, 1.0, 1.0, 1.0]
+
+
+def write_glb_file(path: PathLike, mesh, vertices: np.ndarray, labels: np.ndarray,
+                   faces: np.ndarray, attributes: list, primitive: dict, material: dict, *,
+                   image: bytes | None = None) -> None:
+    """Assemble and write a GLB: POSITION, ``attributes`` (accessor 1), _LABEL,
+    indices, one material, optionally one embedded JPEG texture, the camera node."""
+    positions = vertices * TO_GLTF
+    strided_labels = np.zeros((len(labels), 4), np.uint8)  # attributes are 4-byte aligned
+    strided_labels[:, 0] = labels
+    indices = faces.ravel().astype(np.uint16 if len(vertices) <= 0xFFFF else np.uint32)
+    arrays = [  # (data, accessor type, bufferView target, byteStride)
+        (positions, "VEC3", ARRAY_BUFFER, None),
+        *attributes,
+        (strided_labels, "SCALAR", ARRAY_BUFFER, 4),
+        (indices, "SCALAR", ELEMENT_ARRAY_BUFFER, None),
+    ]
+    views, accessors, chunks, offset = [], [], [], 0
+    for index, (data, kind, target, stride) in enumerate(arrays):
+        raw = data.tobytes()
+        view = {"buffer": 0, "byteOffset": offset, "byteLength": len(raw), "target": target}
+        views.append(view | ({"byteStride": stride} if stride else {}))
+        code = CODES[data.dtype.type]
+        accessors.append(
+            {"bufferView": index, "componentType": code, "count": len(data), "type": kind}
+        )
+        chunks.append(raw + bytes(-len(raw) % 4))
+        offset += len(chunks[-1])
+    accessors[0].update(min=positions.min(axis=0).tolist(), max=positions.max(axis=0).tolist())
+    document = {
+        "asset": {"version": "2.0", "generator": "photo3d"},
+        "extensionsUsed": [UNLIT],
+        "scene": 0,
+        "scenes": [{"nodes": [0]}],
+        "nodes": [{"name": "photo3d", "mesh": 0}],
+        "meshes": [{"name": "photo3d", "extras": view_extras(mesh), "primitives": [primitive]}],
+        "materials": [material],
+        "accessors": accessors,
+        "bufferViews": views,
+    }
+    if image is not None:
+        views.append({"buffer": 0, "byteOffset": offset, "byteLength": len(image)})
+        chunks.append(image + bytes(-len(image) % 4))
+        offset += len(chunks[-1])
+        document["images"] = [{"bufferView": len(views) - 1, "mimeType": "image/jpeg"}]
+        document["samplers"] = [{"magFilter": 9729, "minFilter": 9729,  # LINEAR
+                                 "wrapS": 33071, "wrapT": 33071}]  # CLAMP_TO_EDGE
+        document["textures"] = [{"sampler": 0, "source": 0}]
+    document["buffers"] = [{"byteLength": offset}]
+    if mesh.vfov > 0 and mesh.width > 0 and mesh.height > 0:
+        aspect = mesh.width / mesh.height
+        perspective = {"yfov": float(mesh.vfov), "aspectRatio": aspect, "znear": 0.01}
+        document["cameras"] = [{"type": "perspective", "perspective": perspective}]
+        document["nodes"].append({"name": "input view", "camera": 0})
+        document["scenes"][0]["nodes"].append(1)
+    text = json.dumps(document, separators=(",", ":"), allow_nan=False).encode("utf-8")
+    text += b" " * (-len(text) % 4)
+    total = 12 + 8 + len(text) + 8 + offset
+    try:
+        with open(path, "wb") as file:
+            file.write(struct.pack("<III", MAGIC, 2, total))
+            file.write(struct.pack("<II", len(text), JSON_CHUNK) + text)
+            file.write(struct.pack("<II", offset, BIN_CHUNK))
+            for chunk in chunks:
+                file.write(chunk)
+    except OSError as err:
+        raise OutputError(f"cannot write glTF {path}: {err.strerror or err}") from err
+
+
+def view_extras(mesh) -> dict:
+    """The input view's size and field of view, stored exactly in the mesh extras."""
+    return {
+        "width": int(mesh.width),
+        "height": int(mesh.height),
+        "hfov": float(mesh.hfov),
+        "vfov": float(mesh.vfov),
+    }
+
+
+def read_chunks(path: PathLike) -> tuple[dict, bytes]:
+    """The parsed JSON chunk and the BIN chunk (empty when absent) of the GLB file ``path``."""
+    try:
+        with open(path, "rb") as file:
+            data = file.read()
+    except OSError as err:
+        raise InputError(f"cannot read glTF {path}: {err.strerror or err}") from err
+    if len(data) < 20 or struct.unpack_from("<II", data) != (MAGIC, 2):
+        raise InputError(f"{path} is not a binary glTF 2.0 file")
+    length, kind = struct.unpack_from("<II", data, 12)
+    if kind != JSON_CHUNK or 20 + length > len(data):
+        raise InputError(f"glTF {path} has no complete JSON chunk")
+    try:
+        document = json.loads(data[20 : 20 + length])
+    except ValueError as err:
+        raise InputError(f"glTF {path} has invalid JSON ({err})") from err
+    start = 20 + length
+    binary = b""
+    if start + 8 <= len(data):
+        size, kind = struct.unpack_from("<II", data, start)
+        if kind != BIN_CHUNK or start + 8 + size > len(data):
+            raise InputError(f"glTF {path} has a truncated BIN chunk")
+        binary = data[start + 8 : start + 8 + size]
+    return document, binary
+
+
+def accessor(document: dict, binary: bytes, index: int, path: PathLike) -> np.ndarray:
+    """Accessor ``index`` as a ``(count, components)`` array (normalised -> float)."""
+    accessor = document["accessors"][index]
+    view = document["bufferViews"][accessor["bufferView"]]
+    if view.get("buffer", 0) != 0 or "sparse" in accessor:
+        raise InputError(f"glTF {path} accessor {index} uses external or sparse data")
+    dtype = np.dtype(COMPONENTS[accessor["componentType"]])
+    count, width = accessor["count"], WIDTHS[accessor["type"]]
+    stride = view.get("byteStride", dtype.itemsize * width)
+    start = view.get("byteOffset", 0) + accessor.get("byteOffset", 0)
+    end = start + stride * (count - 1) + dtype.itemsize * width if count else start
+    if end > min(len(binary), view.get("byteOffset", 0) + view["byteLength"]):
+        raise InputError(f"glTF {path} accessor {index} reads past its buffer view")
+    array = np.ndarray((count, width), dtype, binary, start, (stride, dtype.itemsize)).copy()
+    if accessor.get("normalized", False):
+        return array / float(np.iinfo(dtype).max)
+    return array

@@ -1,0 +1,203 @@
+"""The LDI file format, ``photo3d.npz``: a zip of ``.npy`` arrays read without pickle.
+
+:func:`save_npz` writes an :class:`~photo3d.stages.ldi.LDI` with its metadata,
+:func:`load_npz` reads one back and checks it (sizes, links, labels) so a hostile
+file gives an :class:`~photo3d.errors.InputError`, never a crash.
+"""
+
+from __future__ import annotations
+
+import json
+import zipfile
+import zlib
+from pathlib import Path
+
+import numpy as np
+
+from photo3d.camera import DepthMapping, Intrinsics
+from photo3d.errors import InputError
+from photo3d.io.npy import read_npy
+from photo3d.stages.ldi import LDI
+
+FORMAT_VERSION = 2
+"""Version 2 stores ``links`` relative to the pixel (``links[i] - i``, 0 = none):
+mostly the same few offsets, so deflate packs them 7 times smaller and 3.5 times
+faster than absolute indices (version 1, still read)."""
+
+
+def save_npz(ldi: LDI, path: str | Path, *, meta: dict | None = None) -> None:
+    """Save losslessly as a NumPy ``.npz`` (no pickle inside).
+
+    ``meta`` is any JSON-able dictionary stored beside the arrays.
+    """
+    header = {
+        "format": "photo3d-ldi",
+        "version": FORMAT_VERSION,
+        "intrinsics": [ldi.intrinsics.fx, ldi.intrinsics.fy, ldi.intrinsics.cx,
+                       ldi.intrinsics.cy, ldi.intrinsics.width, ldi.intrinsics.height],
+        "mapping": [ldi.mapping.scale, ldi.mapping.offset, ldi.mapping.floor],
+        "border": ldi.border,
+        "meta": meta or {},
+    }
+    arrays = {
+        "y": ldi.y, "x": ldi.x, "color": ldi.color, "disparity": ldi.disparity,
+        "links": _relative_links(ldi.links), "label": ldi.label,
+        "header": np.frombuffer(json.dumps(header).encode(), np.uint8),
+    }
+    # A regular .npz (np.load reads it) with fast deflate: np.savez_compressed's
+    # default level is several times slower for a few percent smaller files. The
+    # colours are stored: deflate shrinks float32 colours by only a quarter (18.7 to
+    # 14 MB for a 1024 px photo) in half the time of the whole file.
+    with zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED, compresslevel=1) as zf:
+        for name, array in arrays.items():
+            zf.compression = zipfile.ZIP_STORED if name == "color" else zipfile.ZIP_DEFLATED
+            with zf.open(f"{name}.npy", "w", force_zip64=True) as f:
+                np.lib.format.write_array(f, np.ascontiguousarray(array), allow_pickle=False)
+
+
+def load_npz(path: str | Path) -> tuple[LDI, dict]:
+    """Inverse of :func:`save_npz`: returns ``(ldi, meta)``.
+
+    Everything read is checked before use (the file may come from anywhere): a zip
+    holding the six arrays and the header, sizes within limits before allocating,
+    dtypes and shapes, link indices in range and symmetric, lattice positions inside
+    the image plus border, finite and plausible intrinsics.
+
+    Raises:
+        InputError: one line; the file is missing, not a photo3d file (any other zip,
+            a text file, pickled data: nothing is unpickled), truncated or inconsistent.
+
+    Example:
+        >>> import tempfile
+        >>> path = Path(tempfile.mkdtemp()) / "notes.npz"
+        >>> _ = path.write_text("not an LDI")
+        >>> try:
+        ...     load_npz(path)
+        ... except InputError as err:
+        ...     print(str(err).split(": ")[1])
+        not a photo3d file (a photo3d.npz written by photo3d make)
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"3D photo file not found: {path}")
+    if not zipfile.is_zipfile(path):
+        raise InputError(f"cannot read 3D photo {path}: not a photo3d file "
+                         "(a photo3d.npz written by photo3d make)")
+    try:
+        arrays = _read_arrays(path)
+        header = json.loads(arrays.pop("header").tobytes().decode())
+        if not isinstance(header, dict) or header.get("format") != "photo3d-ldi":
+            raise InputError("not a photo3d file (its header is not a photo3d LDI header)")
+        ldi = _checked_ldi(arrays, header)
+        meta = header.get("meta", {})
+    except (OSError, ValueError, KeyError, TypeError, EOFError, RuntimeError,
+            NotImplementedError, zipfile.BadZipFile, zlib.error) as err:
+        raise InputError(f"cannot read 3D photo {path}: {_reason(err)}") from None
+    return ldi, meta if isinstance(meta, dict) else {}
+
+
+_ARRAYS = ("y", "x", "color", "disparity", "links", "label")
+_LIMIT = 1 << 26  # LDI pixels (a 1024 px photo has ~1.5M)
+
+
+def _relative_links(links: np.ndarray) -> np.ndarray:
+    """``links`` as offsets from their own pixel, 0 where there is no link (a pixel
+    never links to itself).
+
+    Example:
+        >>> _relative_links(np.array([[-1, 1], [0, -1]], np.int32)).tolist()
+        [[0, 1], [-1, 0]]
+    """
+    own = np.arange(len(links), dtype=links.dtype)[:, None]
+    return np.where(links >= 0, links - own, 0).astype(np.int32)
+
+
+def _absolute_links(relative: np.ndarray) -> np.ndarray:
+    """Inverse of :func:`_relative_links`, in int64 (a hostile file's offsets may
+    overflow int32; the caller checks the range).
+
+    Example:
+        >>> _absolute_links(np.array([[0, 1], [-1, 0]])).tolist()
+        [[-1, 1], [0, -1]]
+    """
+    rel = relative.astype(np.int64)
+    return np.where(rel != 0, rel + np.arange(len(rel), dtype=np.int64)[:, None], -1)
+
+
+def _reason(err: BaseException) -> str:
+    if isinstance(err, InputError):
+        return str(err)
+    if isinstance(err, KeyError):
+        return f"not a photo3d file (no {err.args[0]})"
+    if isinstance(err, zipfile.BadZipFile | zlib.error | EOFError):
+        return f"damaged or truncated file ({err})"
+    return f"not a valid photo3d file ({type(err).__name__}: {err})"
+
+
+def _read_arrays(path: Path) -> dict[str, np.ndarray]:
+
+    arrays = {}
+    with zipfile.ZipFile(path) as zf:
+        for name in (*_ARRAYS, "header"):
+            info = zf.getinfo(f"{name}.npy")
+            with zf.open(info) as f:
+                try:
+                    arrays[name] = read_npy(f, max_items=4 * _LIMIT, size=info.file_size)
+                except InputError as err:
+                    raise InputError(f"{name}: {err}") from None
+    return arrays
+
+
+def _checked_ldi(arrays: dict[str, np.ndarray], header: dict) -> LDI:
+    """An LDI from untrusted arrays and header, or InputError naming what is wrong."""
+    values = [float(v) for v in header["intrinsics"]]
+    mapping = [float(v) for v in header["mapping"]]
+    if len(values) != 6 or len(mapping) != 3 or not np.all(np.isfinite(values + mapping)):
+        raise InputError("intrinsics or depth mapping are not finite numbers")
+    fx, fy, cx, cy, w, h = values
+    border = header["border"]
+    if not (w == int(w) and h == int(h) and 1 <= w <= 65536 and 1 <= h <= 65536):
+        raise InputError(f"image size {w}x{h} is not between 1 and 65536 pixels")
+    w, h = int(w), int(h)
+    if not (0 < fx < 1e6 * max(w, h) and 0 < fy < 1e6 * max(w, h)):
+        raise InputError(f"focal lengths fx={fx:g}, fy={fy:g} are not plausible")
+    if not (abs(cx) < 100 * w and abs(cy) < 100 * h):
+        raise InputError(f"principal point ({cx:g}, {cy:g}) lies far outside the image")
+    if not (isinstance(border, int) and 0 <= border <= max(w, h)):
+        raise InputError(f"border {border!r} is not between 0 and the image size")
+    n = arrays["y"].shape[0] if arrays["y"].ndim == 1 else -1
+    shapes = {"y": (n,), "x": (n,), "color": (n, 3), "disparity": (n,), "links": (n, 4),
+              "label": (n,)}
+    for name, shape in shapes.items():
+        a = arrays[name]
+        kind = "f" if name in ("color", "disparity") else "iu"
+        if a.shape != shape or a.dtype.kind not in kind:
+            raise InputError(f"{name} has shape {a.shape} and dtype {a.dtype}; expected "
+                             f"{shape} {'float' if kind == 'f' else 'integer'}")
+    if n < w * h:
+        raise InputError(f"{n} pixels for a {w}x{h} image (the first H * W are the image)")
+    y, x, links = arrays["y"], arrays["x"], arrays["links"]
+    version = header.get("version", 1)
+    if version not in (1, FORMAT_VERSION):
+        raise InputError(f"format version {version!r} is not one this photo3d reads "
+                         f"(1 to {FORMAT_VERSION}); a newer photo3d wrote it")
+    if version >= 2:
+        links = _absolute_links(links)
+    if n and (y.min() < -border or y.max() >= h + border or x.min() < -border
+              or x.max() >= w + border):
+        raise InputError("pixel positions lie outside the image and its border")
+    if n and (links.min() < -1 or links.max() >= n):
+        raise InputError(f"links point outside the {n} pixels")
+    if not (np.isfinite(arrays["color"]).all() and np.isfinite(arrays["disparity"]).all()):
+        raise InputError("colours or disparities are not finite")
+    ldi = LDI(y=y.astype(np.int32), x=x.astype(np.int32),
+              color=arrays["color"].astype(np.float32),
+              disparity=arrays["disparity"].astype(np.float32),
+              links=links.astype(np.int32), label=arrays["label"].astype(np.uint8),
+              intrinsics=Intrinsics(fx, fy, cx, cy, w, h), mapping=DepthMapping(*mapping),
+              border=border)
+    try:
+        ldi.check()
+    except AssertionError as err:
+        raise InputError(f"inconsistent links ({err})") from None
+    return ldi

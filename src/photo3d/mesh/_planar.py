@@ -1,0 +1,179 @@
+"""Numba kernels of :mod:`photo3d.mesh.light`: merge planar blocks before meshoptimizer.
+
+meshoptimizer's cost grows with the triangles it is given (3 million for a 1024 px
+photo, most of the save time). Most of them lie in blocks of the lattice whose
+surface is a plane to well within the light mesh's error bound; such a block's
+``2 b^2`` triangles are replaced by a fan of at most ``4 b`` triangles from its centre pixel
+to the pixels on its border that its neighbours also use (corners of blocks,
+vertices of kept faces), so the block still meets its neighbours (merged or not) at
+the same vertices: no cracks, no T-junctions. Blocks are tried in a quadtree
+(``b`` = 32 down to 2) per layer image.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+
+@njit(cache=True, nogil=True)
+def quad_counts(faces, face_layer, py, px, n_layers, rows, cols):
+    """``(L, rows * cols) uint8`` faces of layer image ``l`` in the lattice quad whose
+    top-left corner is at each position (2: the quad is whole)."""
+    cnt = np.zeros((n_layers, rows * cols), np.uint8)
+    for f in range(len(faces)):
+        y0 = min(py[faces[f, 0]], py[faces[f, 1]], py[faces[f, 2]])
+        y1 = max(py[faces[f, 0]], py[faces[f, 1]], py[faces[f, 2]])
+        x0 = min(px[faces[f, 0]], px[faces[f, 1]], px[faces[f, 2]])
+        x1 = max(px[faces[f, 0]], px[faces[f, 1]], px[faces[f, 2]])
+        if y1 - y0 == 1 and x1 - x0 == 1:
+            cnt[face_layer[f], y0 * cols + x0] += 1
+    return cnt
+
+
+@njit(cache=True, nogil=True)
+def _planar(images, k, value, y0, x0, b, cols, eps):
+    """Whether ``value`` at the ``(b+1)^2`` pixels of block ``(y0, x0, b)`` of layer
+    image ``k`` is a plane in (x, y) to within ``eps`` (least squares)."""
+    n = (b + 1) * (b + 1)
+    c = b / 2.0
+    mean = 0.0
+    sx = 0.0
+    sy = 0.0
+    for y in range(b + 1):
+        for x in range(b + 1):
+            v = value[images[k, (y0 + y) * cols + x0 + x]]
+            mean += v
+            sx += (x - c) * v
+            sy += (y - c) * v
+    s2 = 0.0
+    for x in range(b + 1):
+        s2 += (x - c) * (x - c)
+    s2 *= b + 1
+    mean /= n
+    gx = sx / s2
+    gy = sy / s2
+    for y in range(b + 1):
+        for x in range(b + 1):
+            v = value[images[k, (y0 + y) * cols + x0 + x]]
+            if abs(v - mean - gx * (x - c) - gy * (y - c)) > eps:
+                return False
+    return True
+
+
+@njit(cache=True, nogil=True)
+def _whole(cnt, k, y0, x0, b, cols):
+    """Whether every quad of the block has both its triangles in layer image ``k``."""
+    for y in range(y0, y0 + b):
+        for x in range(x0, x0 + b):
+            if cnt[k, y * cols + x] != 2:
+                return False
+    return True
+
+
+@njit(cache=True, nogil=True)
+def planar_blocks(cnt, images, value, rows, cols, eps, big, small):
+    """Quadtree of blocks (sides ``big`` .. ``small``, powers of two) whose quads are
+    whole and whose ``value`` is planar within ``eps``.
+
+    Returns:
+        ``(B, 4) int64`` rows ``(layer image, y0, x0, side)``; ``cnt`` is set to 255
+        at every quad of a block.
+    """
+    out = []
+    for k in range(images.shape[0]):
+        for by in range(0, rows - 1, big):
+            for bx in range(0, cols - 1, big):
+                stack = [(by, bx, big)]
+                while len(stack):
+                    y0, x0, b = stack.pop()
+                    if y0 + b > rows - 1 or x0 + b > cols - 1 or not _whole(cnt, k, y0, x0,
+                                                                            b, cols):
+                        ok = False
+                    else:
+                        ok = _planar(images, k, value, y0, x0, b, cols, eps)
+                    if ok:
+                        out.append((k, y0, x0, b))
+                        for y in range(y0, y0 + b):
+                            for x in range(x0, x0 + b):
+                                cnt[k, y * cols + x] = 255
+                    elif b > small:
+                        h = b // 2
+                        for dy in (0, h):
+                            for dx in (0, h):
+                                if y0 + dy < rows - 1 and x0 + dx < cols - 1:
+                                    stack.append((y0 + dy, x0 + dx, h))
+    result = np.empty((len(out), 4), np.int64)
+    for i in range(len(out)):
+        result[i, 0], result[i, 1], result[i, 2], result[i, 3] = out[i]
+    return result
+
+
+@njit(cache=True, nogil=True)
+def merged_faces(faces, face_layer, py, px, cnt, cols, blocks, images, sign):
+    """Faces outside the blocks, then each block's fan; and their layer images.
+
+    A block's fan runs from its centre to the pixels of its border that something
+    else needs: its corners, every other block's corners and the vertices of the
+    faces kept. Where two blocks meet, the pixels between those are dropped from
+    both, so they share one straight edge (no crack, no T-junction) and a plane of
+    ``4 b`` border pixels becomes as few as 4 triangles. ``sign`` is the sign of
+    ``cross(v1 - v0, v2 - v0)`` in (x, y) of the input faces; the fans are wound the
+    same way.
+    """
+    keep = np.zeros(len(faces), np.bool_)
+    needed = np.zeros(len(py), np.bool_)
+    n_keep = 0
+    for f in range(len(faces)):
+        y0 = min(py[faces[f, 0]], py[faces[f, 1]], py[faces[f, 2]])
+        x0 = min(px[faces[f, 0]], px[faces[f, 1]], px[faces[f, 2]])
+        if cnt[face_layer[f], y0 * cols + x0] != 255:
+            keep[f] = True
+            n_keep += 1
+            for c in range(3):
+                needed[faces[f, c]] = True
+    for i in range(len(blocks)):
+        k, y0, x0, b = blocks[i, 0], blocks[i, 1], blocks[i, 2], blocks[i, 3]
+        for y, x in ((y0, x0), (y0, x0 + b), (y0 + b, x0 + b), (y0 + b, x0)):
+            needed[images[k, y * cols + x]] = True
+    rings = np.empty((len(blocks), 2), np.int64)  # start and length in `ring`
+    ring = np.empty(4 * int(blocks[:, 3].sum()) if len(blocks) else 0, np.int64)
+    n = 0
+    for i in range(len(blocks)):
+        k, y0, x0, b = blocks[i, 0], blocks[i, 1], blocks[i, 2], blocks[i, 3]
+        rings[i, 0] = n
+        # the border clockwise on screen (y down): top, right, bottom, left edges
+        for t in range(4 * b):
+            if t < b:
+                q = images[k, y0 * cols + x0 + t]
+            elif t < 2 * b:
+                q = images[k, (y0 + t - b) * cols + x0 + b]
+            elif t < 3 * b:
+                q = images[k, (y0 + b) * cols + x0 + 3 * b - t]
+            else:
+                q = images[k, (y0 + 4 * b - t) * cols + x0]
+            if needed[q]:
+                ring[n] = q
+                n += 1
+        rings[i, 1] = n - rings[i, 0]
+    out = np.empty((n_keep + n, 3), np.int64)
+    layer = np.empty(n_keep + n, np.int64)
+    j = 0
+    for f in range(len(faces)):
+        if keep[f]:
+            out[j] = faces[f]
+            layer[j] = face_layer[f]
+            j += 1
+    for i in range(len(blocks)):
+        k, y0, x0, b = blocks[i, 0], blocks[i, 1], blocks[i, 2], blocks[i, 3]
+        centre = images[k, (y0 + b // 2) * cols + x0 + b // 2]
+        s, m = rings[i, 0], rings[i, 1]
+        for t in range(m):
+            u, v = ring[s + t], ring[s + (t + 1) % m]
+            if sign > 0:  # the ring is clockwise on screen: cross > 0 as (c, u, v)
+                out[j, 0], out[j, 1], out[j, 2] = centre, u, v
+            else:
+                out[j, 0], out[j, 1], out[j, 2] = centre, v, u
+            layer[j] = k
+            j += 1
+    return out, layer

@@ -1,0 +1,124 @@
+"""The result of :func:`photo3d.make`: a :class:`Photo3D` (the inpainted LDI and how it
+was made), with the views of it a user asks for (meshes, renders) and its folder on
+disk (:mod:`photo3d.output`)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from photo3d.camera import Camera
+from photo3d.config import Config
+from photo3d.mesh.full import build_mesh
+from photo3d.mesh.types import Mesh
+from photo3d.stages.ldi import LDI
+
+if TYPE_CHECKING:
+    from photo3d.mesh.types import TexturedMesh
+    from photo3d.render.renderer import RenderSettings, View
+
+
+@dataclass
+class Photo3D:
+    """A 3D photo: the inpainted LDI plus how it was made.
+
+    Attributes:
+        ldi: the layered depth image.
+        config: the configuration that produced it.
+        timings: seconds per stage.
+        stats: counts (edges per pass, pixels added, ...).
+    """
+
+    ldi: LDI
+    config: Config
+    timings: dict[str, float] = field(default_factory=dict)
+    stats: dict[str, object] = field(default_factory=dict)
+
+    def mesh(self) -> Mesh:
+        """The triangle mesh of the LDI (see :func:`photo3d.mesh.full.build_mesh`)."""
+        return build_mesh(self.ldi)
+
+    def light_mesh(self, *, max_error: float | None = None) -> TexturedMesh:
+        """The light textured mesh (see :func:`photo3d.mesh.light.build_light_mesh`).
+
+        Example:
+            >>> import numpy as np, photo3d
+            >>> photo = photo3d.make(np.full((32, 32, 3), 0.5), depth=np.ones((32, 32)),
+            ...                      config=photo3d.Config(size=None))
+            >>> len(photo.light_mesh().faces) < len(photo.mesh().faces)
+            True
+        """
+        from photo3d.mesh.light import LIGHT_ERROR, build_light_mesh
+
+        return build_light_mesh(self.ldi, max_error=LIGHT_ERROR if max_error is None
+                                else max_error)
+
+    def render(self, camera: Camera, *, settings: RenderSettings | None = None) -> View:
+        """Render a novel view.
+
+        Args:
+            camera: intrinsics (output size) and camera-from-world pose; the input
+                view is ``Camera(photo.ldi.intrinsics, np.eye(4))``.
+            settings: :class:`~photo3d.render.renderer.RenderSettings` (default:
+                2x supersampling, holes filled, automatic backend).
+
+        Returns:
+            :class:`~photo3d.render.renderer.View` with ``color (H, W, 3)``,
+            ``depth (H, W)`` and the coverage ``mask (H, W)``.
+
+        For many views of one photo use :class:`~photo3d.render.renderer.Renderer`
+        directly: it prepares the mesh once.
+
+        Example:
+            >>> import numpy as np, photo3d
+            >>> photo = photo3d.make(np.full((16, 16, 3), 0.5), depth=np.ones((16, 16)),
+            ...                      config=photo3d.Config(size=None))
+            >>> cam = Camera.translated(photo.ldi.intrinsics, (0.01, 0.0, 0.0))
+            >>> photo.render(cam).color.shape
+            (16, 16, 3)
+        """
+        from photo3d.render.renderer import Renderer
+
+        with Renderer(self.mesh(), settings) as renderer:
+            return renderer.render(camera)
+
+    def save(self, out: str | Path, *, overwrite: bool = False, ply: str | None = "binary",
+             glb: bool = True, viewer: bool = True, videos=(), render_settings=None,
+             progress=None, full_glb: bool = False, light_error: float | None = None) -> Path:
+        """Write ``photo3d.npz``, ``mesh.ply``, ``mesh.glb``, ``viewer.html``,
+        ``config.json`` and the requested videos (``video/NAME.mp4``) to ``out``,
+        atomically.
+
+        See :func:`photo3d.output.save_photo`.
+        """
+        from photo3d.mesh.light import LIGHT_ERROR
+        from photo3d.output import save_photo
+
+        return save_photo(self, out, overwrite=overwrite, ply=ply, glb=glb, viewer=viewer,
+                          videos=videos, render_settings=render_settings, progress=progress,
+                          full_glb=full_glb,
+                          light_error=LIGHT_ERROR if light_error is None else light_error)
+
+    @classmethod
+    def load(cls, path: str | Path) -> Photo3D:
+        """Reload a saved 3D photo (a folder or its ``photo3d.npz``)."""
+        return load(path)
+
+
+def load(path: str | Path) -> Photo3D:
+    """Reload a 3D photo from its folder or its ``photo3d.npz``.
+
+    Example:
+        >>> import photo3d, numpy as np, tempfile, pathlib
+        >>> photo = photo3d.make(np.zeros((16, 16, 3)), depth=np.ones((16, 16)),
+        ...                      config=photo3d.Config(size=None))
+        >>> tmp = photo.save(pathlib.Path(tempfile.mkdtemp()) / "out", glb=False, ply=None)
+        >>> photo3d.load(tmp).ldi.size == photo.ldi.size
+        True
+    """
+    from photo3d.output import read_folder
+
+    ldi, meta = read_folder(path)
+    return Photo3D(ldi=ldi, config=Config.from_dict(meta.get("config", {})),
+                   timings=meta.get("timings", {}), stats=meta.get("stats", {}))

@@ -1,0 +1,117 @@
+import numpy as np
+import pytest
+from conftest import two_planes
+
+from photo3d.errors import InputError
+from photo3d.io.npz import load_npz, save_npz
+from photo3d.stages.border import extend_border
+from photo3d.stages.edges import link_edges
+from photo3d.stages.ldi import LABEL_BORDER, cut, from_image
+from photo3d.stages.regions import find_regions
+
+
+def planes_ldi(border=0):
+    img, disp = two_planes()  # background x < 48, foreground x >= 48
+    d = (disp - 1.0).astype(np.float32)
+    edges = link_edges(d, threshold=0.04, min_length=5)
+    ldi = extend_border(cut(from_image(img, d), edges.cuts), border)
+    pix = np.nonzero(edges.labels.reshape(-1))[0]
+    return ldi, edges, pix
+
+
+def test_initial_ldi_is_fully_connected_and_cut_is_symmetric():
+    ldi, edges, pix = planes_ldi()
+    ldi.check()
+    assert edges.count == 1 and np.all(ldi.x[pix] == 47)
+    assert np.all(ldi.links[pix, 1] == -1)  # lost the right neighbour
+    assert np.all(ldi.links[pix + 1, 0] == -1)  # and the foreground lost its left one
+    inner = (ldi.x > 0) & (ldi.x < 95) & (ldi.y > 0) & (ldi.y < 63) & (ldi.x != 47) & (
+        ldi.x != 48)
+    assert np.all(ldi.links[inner] >= 0)
+
+
+def test_regions_of_two_planes_have_the_known_extent():
+    ldi, _, pix = planes_ldi()
+    r = find_regions(ldi, np.array([0, pix.size]), pix, synthesis_iterations=6,
+                     context_iterations=10, dilation=2, threshold=0.04)
+    assert sorted(set(r.synthesis_x.tolist())) == list(range(48, 54))
+    assert r.synthesis_x.size == 6 * 64  # every row, no duplicates
+    ctx_x = ldi.x[r.context]
+    assert sorted(set(ctx_x.tolist())) == list(range(38, 48))
+    assert np.array_equal(np.unique(ldi.x[r.context[r.context_step < 2]]), [46, 47])
+    # disjoint: no synthesis position holds a context pixel
+    ctx_pos = set(zip(ldi.y[r.context].tolist(), ctx_x.tolist(), strict=True))
+    syn_pos = set(zip(r.synthesis_y.tolist(), r.synthesis_x.tolist(), strict=True))
+    assert not ctx_pos & syn_pos
+
+
+def test_synthesis_never_enters_positions_in_front_of_it():
+    # foreground square on a background: synthesis of the background edge grows
+    # under the square only, never onto background positions around it.
+    d = np.zeros((40, 40), np.float32)
+    d[10:30, 10:30] = 1.0
+    edges = link_edges(d, threshold=0.04, min_length=5)
+    ldi = cut(from_image(np.zeros((40, 40, 3), np.float32), d), edges.cuts)
+    pix = np.nonzero(edges.labels.reshape(-1))[0]
+    order = np.argsort(edges.labels.reshape(-1)[pix], kind="stable")
+    ptr = np.concatenate([[0], np.cumsum(np.bincount(edges.labels.reshape(-1)[pix])[1:])])
+    r = find_regions(ldi, ptr, pix[order], synthesis_iterations=30, context_iterations=5,
+                     dilation=0, threshold=0.04)
+    assert r.synthesis_y.size > 0
+    assert np.all(d[r.synthesis_y, r.synthesis_x] == 1.0)
+
+
+def test_border_extension_replicates_pixels_and_cuts():
+    ldi, _, _ = planes_ldi(border=4)
+    ldi.check()
+    assert ldi.size == 72 * 104
+    assert ldi.layers().max() == 1 and ldi.layers().min() == 1
+    out = ldi.label == LABEL_BORDER
+    assert out.sum() == 72 * 104 - 64 * 96
+    # top border pixel above (0, 47) copies it, and the cut continues into the border
+    k = np.nonzero((ldi.y == -3) & (ldi.x == 47))[0][0]
+    assert ldi.disparity[k] == ldi.disparity[47]
+    assert ldi.links[k, 1] == -1 and ldi.links[k, 0] >= 0
+
+
+def test_npz_round_trip_is_exact(tmp_path):
+    ldi, _, _ = planes_ldi(border=2)
+    save_npz(ldi, tmp_path / "a.npz", meta={"hello": [1, 2]})
+    back, meta = load_npz(tmp_path / "a.npz")
+    assert meta == {"hello": [1, 2]}
+    for name in ("y", "x", "color", "disparity", "links", "label"):
+        np.testing.assert_array_equal(getattr(back, name), getattr(ldi, name))
+    assert back.intrinsics == ldi.intrinsics and back.border == 2
+
+
+def test_npz_stores_links_relative_and_checks_them(tmp_path):
+    """Version 2 keeps links as offsets from their pixel (0 = none); hostile offsets
+    pointing outside the pixels are refused like absolute ones."""
+    import zipfile
+
+    ldi, _, _ = planes_ldi(border=2)
+    save_npz(ldi, tmp_path / "a.npz")
+    with np.load(tmp_path / "a.npz") as f:
+        stored = f["links"]
+        arrays = {k: f[k] for k in f.files}
+    own = np.arange(ldi.size)[:, None]
+    np.testing.assert_array_equal(np.where(stored != 0, stored + own, -1), ldi.links)
+    _, counts = np.unique(stored, return_counts=True)
+    assert np.sort(counts)[-5:].sum() > 0.9 * stored.size  # a few offsets: deflate packs them
+    arrays["links"] = stored.copy()
+    arrays["links"][5, 1] = ldi.size  # 5 + size: outside
+    np.savez(tmp_path / "b.npz", **arrays)
+    with pytest.raises(InputError, match="links point outside"):
+        load_npz(tmp_path / "b.npz")
+    assert zipfile.ZipFile(tmp_path / "a.npz").getinfo("color.npy").compress_type == 0
+
+
+def test_npz_loader_refuses_foreign_and_pickled_files(tmp_path):
+    np.savez(tmp_path / "other.npz", a=np.zeros(3))
+    with pytest.raises(InputError, match="cannot read 3D photo"):
+        load_npz(tmp_path / "other.npz")
+    np.savez(tmp_path / "evil.npz", header=np.array([{"x": 1}], dtype=object))
+    with pytest.raises(InputError, match="cannot read 3D photo"):
+        load_npz(tmp_path / "evil.npz")
+    with pytest.raises(InputError, match="not found"):
+        load_npz(tmp_path / "missing.npz")
