@@ -1,4 +1,4 @@
-"""Shared canvases: the patches of one pass that the nets may fill together (issue 18).
+"""Shared canvases: the patches of one pass that the nets may fill together (docs/learned.md).
 
 Each depth edge has its own patch (context + synthesis, bounding box + margin), and
 on a cluttered photo the patches of neighbouring edges overlap many times over, so

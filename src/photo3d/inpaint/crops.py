@@ -1,5 +1,5 @@
 """Edge-net crops: a few rectangles of a pass's joint canvas that cover its synthesis
-pixels (issue 18).
+pixels (docs/learned.md, shared work).
 
 The edge net's output matters only inside synthesis regions, but a pass's joint canvas
 (:func:`~photo3d.inpaint.canvas.joint_patch`) is the union bounding box of all

@@ -5,7 +5,7 @@ synthesis region; the authors' inference then keeps, for each context edge that
 reaches the region, one path through the predicted pixels and drops the rest. An
 edge net that is poorly trained or random fires in blobs instead of thin lines, and
 a blob is not an edge: fed to the depth net it yields depth steps all around it, and
-every step becomes a new occlusion edge of the next pass (issue 18). Here the
+every step becomes a new occlusion edge of the next pass (docs/fills.md). Here the
 predicted pixels are thinned to their one-pixel skeleton (Zhang-Suen thinning, in
 numba: scikit-image has one but is only an optional extra of photo3d) and only the
 skeleton pieces that touch a context edge are kept.

@@ -4,7 +4,7 @@ A path is a list of :class:`~photo3d.camera.Camera`, one per frame, in the world
 frame of the input view (OpenCV axes; depth units of the 3D photo, so the authors'
 shifts give the authors' parallax, see :mod:`photo3d.camera`).
 
-Presets (the authors' ``video_postfix`` list, DESIGN.md section 6), with the
+Presets (the authors' ``video_postfix`` list, docs/outputs.md), with the
 translation ``t = (x, y, z)`` of the camera-from-world pose:
 
 * ``dolly-zoom-in``, ``zoom-in``: *double straight line*: a quadratic spline

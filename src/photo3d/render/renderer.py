@@ -10,7 +10,7 @@ reached) filled from their surroundings or shown in a neutral colour.
 
 ``backend="auto"`` takes OpenGL only when it runs on real GPU hardware; on a
 software OpenGL driver (Mesa llvmpipe / softpipe) the numba rasterizer is faster
-here (DESIGN.md section 8), so it is used instead.
+here (benchmarks/RESULTS.md, rendering), so it is used instead.
 """
 
 from __future__ import annotations

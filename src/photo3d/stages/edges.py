@@ -24,9 +24,6 @@ from scipy import ndimage
 
 from photo3d.stages._lattice import find_root, union
 
-DY = np.array([0, 0, -1, 1], np.int64)
-DX = np.array([-1, 1, 0, 0], np.int64)
-
 
 @dataclass(frozen=True)
 class DepthEdges:

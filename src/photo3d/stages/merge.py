@@ -14,8 +14,8 @@ pixels of this pass across a discontinuity: the farther ones form the background
 silhouettes of the next pass's depth edges.
 
 Two rules keep a poor or random net from flooding the later passes with edges
-(issue 18): with a compact depth net the 1024 px sample went from 208 edges in the
-first pass to 932 in the second, against 177 with diffusion.
+(docs/fills.md): with a compact depth net the 1024 px sample went from 208 edges
+in the first pass to 932 in the second, against 177 with diffusion.
 
 * **One fill is one surface unless its edges say otherwise.** Neighbouring new
   pixels of the same job are linked even across a step of more than the threshold,
@@ -181,7 +181,7 @@ def merge(
             inpainted values (else the input view stays exactly the photo).
         link_fills: link neighbouring new pixels of one job across steps unless
             either is on an edge of its result (False: every step above
-            ``threshold`` is a new edge, as before issue 18).
+            ``threshold`` is a new edge, the rule before the fill rules).
         clamp: clip new disparities to the range of their job's context.
 
     Returns:

@@ -9,7 +9,7 @@ Under the pasted context the target's pixels are known; under the synthesis regi
 they are the ground truth of the simulated occlusion. For the colour net the crop's
 colour channels are also put in a random order (photo3d's addition: a small photo set
 has a colour cast, orange-brown and grey for the built-in one, that a briefly trained
-net otherwise learns as the colour of every hole; issue 14).
+net otherwise learns as the colour of every hole; docs/learned.md).
 
 Net inputs are built by the learned backend's own code
 (:class:`photo3d.inpaint.learned.NetInputs` on a :class:`~photo3d.inpaint.base.Patch`
