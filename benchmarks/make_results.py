@@ -800,6 +800,7 @@ def main() -> None:
         section_json("batch.json", "Many photos: `photo3d batch` against a shell loop of `make`",
                      "python benchmarks/bench_batch.py"),
         section_light(load, machine_line, missing),
+        (HERE / "history.md").read_text(),  # measurement history, written by hand
     ]
     (HERE / "RESULTS.md").write_text("\n".join(parts).rstrip() + "\n")
     print(f"wrote {HERE / 'RESULTS.md'}")
