@@ -51,7 +51,8 @@ def snapshot(root: Path) -> dict[str, bytes]:
 
 def leftovers(root: Path) -> list[str]:
     """Temporary files or folders of photo3d anywhere under ``root``."""
-    return [str(p) for p in root.rglob(".*") if p.name.endswith((".tmp", ".old", ".part"))]
+    return [str(p) for p in root.rglob(".*")
+            if p.name.endswith((".tmp", ".old", ".part")) or ".tmp." in p.name]
 
 
 def run(capsys, *argv, status: int, message: str = "", root: Path | None = None) -> str:

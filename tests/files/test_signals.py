@@ -111,3 +111,52 @@ def test_an_interrupt_while_the_redelivery_thread_starts_is_sent_again(monkeypat
     monkeypatch.setattr(threading.Timer, "start", interrupted_once)
     assert swallow_an_interrupt() == [1, 1] and started == ["interrupted", signal.SIGTERM]
     assert capfd.readouterr().err == ""
+
+
+_WORKER = """
+import os, signal, sys, time
+from photo3d.files.signals import Interrupted, worker_signals
+
+busy = sys.argv[1] == "busy"
+guard = worker_signals(busy=lambda: busy)
+os.kill(os.getpid(), signal.SIGINT)  # ignored: the parent stops its workers itself
+try:
+    print("ready", flush=True)
+    time.sleep(30)
+except Interrupted as err:
+    os.kill(os.getpid(), signal.SIGTERM)  # a second one must not interrupt the cleanup
+    time.sleep(0.2)
+    print("cleaned up after", err, guard.signum == signal.SIGTERM, flush=True)
+    sys.exit(5)
+"""
+
+
+@pytest.mark.parametrize(("state", "status", "said"), [
+    ("busy", 5, "ready\ncleaned up after SIGTERM True\n"),
+    ("idle", 0, "ready\n"),  # idle: ends at once, nothing to clean up
+])
+def test_a_pool_worker_cleans_up_when_busy_and_exits_at_once_when_idle(state, status, said):
+    import subprocess
+
+    argv = [sys.executable, "-c", _WORKER, state]
+    with subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                          text=True) as proc:
+        try:
+            first = proc.stdout.readline()
+            proc.send_signal(signal.SIGTERM)
+            out, err = proc.communicate(timeout=20)
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+    assert (proc.returncode, first + out) == (status, said), err
+    assert "Traceback" not in err
+
+
+def test_sigint_is_ignored_only_inside_the_block():
+    from photo3d.files.signals import sigint_ignored
+
+    before = signal.getsignal(signal.SIGINT)
+    with sigint_ignored():
+        os.kill(os.getpid(), signal.SIGINT)
+        time.sleep(0.05)
+    assert signal.getsignal(signal.SIGINT) == before

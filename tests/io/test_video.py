@@ -217,6 +217,47 @@ def test_exception_inside_with_keeps_the_old_file_and_no_temp(tmp_path, suffix):
     assert target.read_bytes() == b"previous video"
 
 
+def test_the_video_is_written_to_a_hidden_part_file_and_a_failed_rename_keeps_the_old(
+        tmp_path, monkeypatch):
+    from photo3d.files.atomic import is_temp_of
+
+    target = tmp_path / "clip.mp4"
+    target.write_bytes(b"previous video")
+    with pytest.raises(OutputError, match="clip.mp4: Input/output error"):
+        with VideoWriter(target, fps=FPS, size=(W, H)) as writer:
+            for frame in moving_bar(n=4):
+                writer.write(frame)
+            hidden = [p.name for p in tmp_path.iterdir() if p != target]
+            assert len(hidden) == 1 and hidden[0].endswith(".tmp.part")
+            assert is_temp_of(hidden[0], "clip.mp4")
+
+            def refuse(src, dst):
+                raise OSError(5, "Input/output error")
+
+            monkeypatch.setattr("os.replace", refuse)
+    assert list(tmp_path.iterdir()) == [target]
+    assert target.read_bytes() == b"previous video"
+
+
+def test_an_unwritable_location_is_refused_before_any_frame():
+    with pytest.raises(OutputError, match="cannot write /proc/clip.mp4"):
+        VideoWriter("/proc/clip.mp4", size=(W, H))
+
+
+def test_a_writer_never_closed_leaves_no_temp_when_the_process_exits(tmp_path):
+    import subprocess
+
+    code = ("import sys, numpy as np\n"
+            "from photo3d.io.video import VideoWriter\n"
+            f"w = VideoWriter(sys.argv[1], size=({W}, {H}))\n"
+            f"w.write(np.zeros(({H}, {W}, 3), np.uint8))\n"
+            "sys.exit(3)")
+    done = subprocess.run([sys.executable, "-c", code, str(tmp_path / "clip.mp4")],
+                          capture_output=True, text=True, timeout=60)
+    assert done.returncode == 3, done.stderr
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_successful_close_replaces_the_old_file_and_leaves_no_temp(tmp_path):
     target = tmp_path / "clip.mp4"
     target.write_bytes(b"previous video")

@@ -115,6 +115,32 @@ def test_a_run_resumes_where_it_stopped_and_exports_loadable_weights(data, tmp_p
         train(data, run, config("depth", steps=6, levels=4), device="cpu")
 
 
+def test_an_interrupted_checkpoint_leaves_the_complete_ones_and_no_temporaries(
+        data, tmp_path, monkeypatch):
+    run = tmp_path / "run"
+    train(data, run, config("depth", steps=2, checkpoint_every=1), device="cpu")
+    real_save = Trainer.save
+
+    def interrupted(self, folder, step):
+        real_save(self, folder, step)  # written completely: Ctrl-C before the rename
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(Trainer, "save", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        train(data, run, config("depth", steps=4, checkpoint_every=1), device="cpu")
+    assert [s for s, _ in checkpoints(run)] == [1, 2]
+    assert sorted(p.name for p in (run / "checkpoints").iterdir()) == [
+        "step_0000001", "step_0000002"]
+    assert not [p for p in run.rglob(".*")], "a temporary file or folder was left"
+    monkeypatch.undo()
+    # the loss log was truncated to the checkpoint, atomically, and the run resumes
+    resumed = train(data, run, config("depth", steps=4, checkpoint_every=1), device="cpu")
+    assert (resumed.start_step, resumed.step) == (2, 4)
+    with open(run / "losses.csv", newline="") as f:
+        assert [int(r["step"]) for r in csv.DictReader(f)] == [1, 2, 3, 4]
+    assert not [p for p in run.rglob(".*")]
+
+
 def test_the_three_exported_nets_load_as_the_learned_inpainter(data, tmp_path):
     for kind in ("edge", "depth", "color"):
         r = train(data, tmp_path / kind, config(kind, steps=1, batch=2), device="cpu")

@@ -12,15 +12,15 @@ Ctrl-C: workers ignore SIGINT; the parent stops submitting, sends SIGTERM to its
 workers, and each worker busy with a photo removes its temporary output folder
 before it exits (``save`` cleans up on any exception); once they are gone the
 parent removes anything left of the photos that were in flight, so nothing
-partial is left.
+partial is left. The signal handlers are :mod:`photo3d.files.signals`'
+(:func:`~photo3d.files.signals.worker_signals`,
+:func:`~photo3d.files.signals.sigint_ignored`).
 """
 
 from __future__ import annotations
 
-import contextlib
 import multiprocessing
 import os
-import signal
 from collections import deque
 from collections.abc import Callable, Sequence
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
@@ -30,15 +30,11 @@ from pathlib import Path
 from photo3d.batch.jobs import MakeOptions, PhotoJob
 from photo3d.batch.manifest import PhotoResult
 from photo3d.batch.worker import PhotoMaker, discard_partial, one_line
-from photo3d.files.signals import redeliver_swallowed
+from photo3d.files.signals import Interrupted, sigint_ignored, worker_signals
 
 _maker: PhotoMaker | None = None
 _init_error: str | None = None
 _busy = False
-
-
-class _Stopped(BaseException):
-    """Raised in a busy worker by SIGTERM, so the photo's temporary folder is removed."""
 
 
 def cpu_count() -> int:
@@ -62,27 +58,13 @@ def set_threads(threads: int) -> None:
         os.environ["OMP_NUM_THREADS"] = str(max(1, threads))
 
 
-def _on_term(signum, frame) -> None:
-    # once is enough: a second SIGTERM (the executor also terminates the workers when
-    # another one exits) must not interrupt the clean-up this one starts
-    signal.signal(signal.SIGTERM, signal.SIG_IGN)
-    if _busy:
-        raise _Stopped
-    os._exit(0)
-
-
-def _rearm() -> int:
-    """A ``_Stopped`` raised inside a C callback (numba compiling) was dropped: arm
-    the handler again and have SIGTERM sent once more."""
-    signal.signal(signal.SIGTERM, _on_term)
-    return signal.SIGTERM
+def _is_busy() -> bool:
+    return _busy
 
 
 def _init(options: MakeOptions, threads: int) -> None:
     global _maker, _init_error
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    signal.signal(signal.SIGTERM, _on_term)
-    redeliver_swallowed((_Stopped,), _rearm)
+    worker_signals(busy=_is_busy)  # SIGTERM raises Interrupted in _run, else exits
     set_threads(threads)
     try:
         _maker = PhotoMaker(options)
@@ -97,7 +79,7 @@ def _run(job: PhotoJob, out_dir: Path) -> PhotoResult:
     _busy = True
     try:
         return _maker(job, out_dir)
-    except _Stopped:
+    except Interrupted:
         os._exit(1)  # the output's temporary folder is already gone
     finally:
         _busy = False
@@ -122,7 +104,7 @@ def run_local(jobs: Sequence[PhotoJob], out_dir: Path, options: MakeOptions, *,
             while queue or running:
                 while queue and len(running) < workers:
                     job = queue.popleft()
-                    with _sigint_ignored():  # workers start with it ignored (see below)
+                    with sigint_ignored():  # workers start with it ignored
                         running[pool.submit(_run, job, out_dir)] = job
                 done, _ = wait(running, return_when=FIRST_COMPLETED)
                 for future in done:
@@ -144,23 +126,6 @@ def run_local(jobs: Sequence[PhotoJob], out_dir: Path, options: MakeOptions, *,
             raise
         finally:
             pool.shutdown(wait=True, cancel_futures=True)
-
-
-@contextlib.contextmanager
-def _sigint_ignored():
-    """Ignore SIGINT while worker processes may be started (they are started on
-    submit): they inherit it, so a Ctrl-C at the terminal, which reaches the whole
-    process group, cannot interrupt them while they import, before their initializer
-    runs. The parent stops them itself."""
-    try:
-        previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
-    except ValueError:  # not the main thread: nothing to protect
-        yield
-        return
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGINT, previous)
 
 
 def _stop(pool: ProcessPoolExecutor) -> None:

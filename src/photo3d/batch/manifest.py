@@ -5,22 +5,22 @@ One JSON object per line and per photo: ``name``, ``status`` (``ok``, ``failed``
 null), ``seconds`` (spent in this run), ``output`` (the photo's folder),
 ``depth`` (where its depth came from), ``warnings`` and ``worker`` (``host:pid``).
 While a batch runs, each result is appended and flushed as soon as it is known (a
-crash loses nothing already done); at the end, or when interrupted, the file is rewritten atomically
-with one line per photo, the newest result of each.
+crash loses nothing already done); at the end, or when interrupted, the file is
+rewritten atomically (:mod:`photo3d.files.atomic`) with one line per photo, the
+newest result of each.
 """
 
 from __future__ import annotations
 
 import json
 import os
-import tempfile
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 from photo3d.errors import OutputError
+from photo3d.files.atomic import write_text
 
 MANIFEST = "batch.jsonl"
-STATUSES = ("ok", "failed", "skipped")
 
 
 @dataclass(frozen=True)
@@ -94,6 +94,18 @@ class ManifestWriter:
     Use as a context manager; :meth:`add` after each photo. On exit (also after
     an error or Ctrl-C) the manifest is rewritten with one line per photo: the
     records of earlier runs, updated with this run's.
+
+    Raises:
+        OutputError: the manifest cannot be opened or rewritten.
+
+    Example:
+        >>> import tempfile
+        >>> p = Path(tempfile.mkdtemp()) / "batch.jsonl"
+        >>> _ = p.write_text('{"name": "b", "status": "failed"}\\n{"name": "a", "status": "ok"}\\n')
+        >>> with ManifestWriter(p) as manifest:
+        ...     manifest.add(PhotoResult("b", "ok", None, 1.0, "out/b"))
+        >>> [(r["name"], r["status"]) for r in map(json.loads, p.read_text().splitlines())]
+        [('a', 'ok'), ('b', 'ok')]
     """
 
     def __init__(self, path: str | Path) -> None:
@@ -120,20 +132,5 @@ class ManifestWriter:
     def __exit__(self, *exc) -> None:
         self._file.close()
         merged = {**self.previous, **self.current}
-        text = "".join(json.dumps(merged[name], ensure_ascii=False) + "\n"
-                       for name in sorted(merged))
-        fd, tmp = tempfile.mkstemp(prefix=f".{self.path.name}.", dir=self.path.parent)
-        try:
-            with os.fdopen(fd, "w", encoding="utf-8") as f:
-                f.write(text)
-            os.chmod(tmp, 0o666 & ~_umask())
-            os.replace(tmp, self.path)
-        except BaseException:
-            Path(tmp).unlink(missing_ok=True)
-            raise
-
-
-def _umask() -> int:
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
+        write_text(self.path, "".join(json.dumps(merged[name], ensure_ascii=False) + "\n"
+                                      for name in sorted(merged)))

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from photo3d.cli.options import add_depth_sources, resolve_depth
+from photo3d.cli.options import add_depth_sources, depth_from_args
 
 
 def add_parser(sub) -> None:
@@ -21,10 +21,10 @@ def add_parser(sub) -> None:
 def run(args: argparse.Namespace) -> int:
     """Run ``photo3d depth``; returns the exit status."""
     from photo3d.depth.export import export_depth
-    from photo3d.files.staging import check_writable
+    from photo3d.files.atomic import check_writable
 
     check_writable(args.out)  # before a possibly slow depth estimate
-    est = resolve_depth(args)
+    est = depth_from_args(args)
     png, preview = export_depth(est, args.out)
     print(f"wrote {png} (16-bit normalised disparity, near = bright) and {preview}")
     return 0

@@ -46,14 +46,17 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _still(args: argparse.Namespace, photo, spec) -> int:
+    from photo3d.files.atomic import atomic_path, check_writable
     from photo3d.io.images import write_image
     from photo3d.render.animate import render_still
     from photo3d.render.renderer import Renderer
 
+    path = args.photo / (f"still_{spec.stereo}.png" if spec.stereo else "still.png")
+    check_writable(path)  # before rendering
     with Renderer(photo.mesh(), render_settings_from(args)) as renderer:
         image = render_still(renderer, photo.ldi, spec)
-    path = args.photo / (f"still_{spec.stereo}.png" if spec.stereo else "still.png")
-    write_image(path, image)
+    with atomic_path(path) as tmp:
+        write_image(tmp, image)
     if not args.quiet:
         print(f"wrote {path} ({image.shape[1]}x{image.shape[0]})")
     return 0

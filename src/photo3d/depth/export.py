@@ -9,6 +9,9 @@
   ``--depth-kind disparity``) reproduces the same 3D photo.
 * ``NAME_preview.png``: 8-bit RGB with the viridis colour map (near = yellow, far =
   dark purple), a perceptually uniform map built from its 9 anchor colours.
+
+Both are written atomically (:mod:`photo3d.files.atomic`) and replace earlier files
+only once both are complete.
 """
 
 from __future__ import annotations
@@ -22,6 +25,7 @@ from PIL import Image
 from photo3d.depth.normalize import normalize, prepare_depth
 from photo3d.depth.sources import DepthEstimate
 from photo3d.errors import OutputError
+from photo3d.files.atomic import atomic_path
 from photo3d.io.depth import write_depth_png16
 
 PathLike = str | os.PathLike[str]
@@ -66,7 +70,8 @@ def export_depth(estimate: DepthEstimate, out_png: PathLike) -> tuple[Path, Path
         ``(png_path, preview_path)``.
 
     Raises:
-        OutputError: ``out_png`` is not a ``.png`` or cannot be written.
+        OutputError: ``out_png`` is not a ``.png`` or cannot be written; files
+            already there are left as they were.
 
     Example:
         >>> import pathlib, tempfile
@@ -82,10 +87,9 @@ def export_depth(estimate: DepthEstimate, out_png: PathLike) -> tuple[Path, Path
     depth = np.asarray(estimate.depth)
     prepared = prepare_depth(depth, depth.shape, kind=estimate.kind)
     norm, _, _ = normalize(prepared.disparity)
-    write_depth_png16(out_png, norm, vmin=0.0, vmax=1.0)
     preview = out_png.with_name(out_png.stem + "_preview.png")
-    try:
-        Image.fromarray(colorize(norm)).save(preview, format="PNG")
-    except OSError as err:
-        raise OutputError(f"cannot write {preview}: {err.strerror or err}") from err
+    # the preview is renamed into place first, the depth last, and only when both exist
+    with atomic_path(out_png) as tmp_png, atomic_path(preview) as tmp_preview:
+        write_depth_png16(tmp_png, norm, vmin=0.0, vmax=1.0)
+        Image.fromarray(colorize(norm)).save(tmp_preview, format="PNG")
     return out_png, preview

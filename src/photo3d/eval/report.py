@@ -2,19 +2,32 @@
 
 from __future__ import annotations
 
-import json
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import numpy as np
 
+from photo3d.errors import OutputError
 from photo3d.eval.evaluate import METHODS, evaluate, grid, table
 from photo3d.eval.stereo_pair import StereoPair
+from photo3d.files.atomic import atomic_path, check_writable, write_json, write_text
 
 
 def mean_scores(per_pair: dict[str, dict]) -> dict:
-    """Average every method/region/metric over the pairs that have it."""
+    """Average every method/region/metric over the pairs that have it (NaN ignored).
+
+    Args:
+        per_pair: ``{pair: {method: {region: {metric: value}}}}``.
+
+    Returns:
+        ``{method: {region: {metric: mean}}}``.
+
+    Example:
+        >>> mean_scores({"a": {"m": {"all": {"psnr": 20.0}}},
+        ...              "b": {"m": {"all": {"psnr": 30.0}}}})
+        {'m': {'all': {'psnr': 25.0}}}
+    """
     acc: dict = {}
     for scores in per_pair.values():
         for method, regions in scores.items():
@@ -33,12 +46,31 @@ def run(pairs: dict[str, Callable[[], StereoPair]], out: str | Path, *,
 
     Writes ``results.json`` (all scores, notes, timings), ``results.md`` (one table
     per pair and the mean over pairs) and ``grid_<pair>.png`` (crops where methods
-    differ most). Returns the JSON record.
+    differ most), each atomically (:mod:`photo3d.files.atomic`). Returns the JSON
+    record.
+
+    Raises:
+        OutputError: ``out`` cannot be created or written (checked before the
+            evaluation); files already there are kept as they were.
+
+    Example:
+        >>> import tempfile
+        >>> from functools import partial
+        >>> from photo3d.eval.synthetic import synthetic_pair
+        >>> out = Path(tempfile.mkdtemp())
+        >>> record = run({"s": partial(synthetic_pair, 0, width=64, height=48)}, out,
+        ...              methods=["forward-warp"], lpips=False)
+        >>> list(record["pairs"]), sorted(p.name for p in out.iterdir())
+        (['s'], ['grid_s.png', 'results.json', 'results.md'])
     """
     from photo3d.io.images import write_image
 
     out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise OutputError(f"cannot create the folder {out}: {err.strerror or err}") from None
+    check_writable(out / "results.json")  # before the evaluation
     record: dict = {"methods": list(methods), "pairs": {}}
     md = []
     for name, build in pairs.items():
@@ -53,7 +85,8 @@ def run(pairs: dict[str, Callable[[], StereoPair]], out: str | Path, *,
             "disoccluded_fraction": float(result.regions["disoccluded"].mean()),
             "size": [pair.left.shape[1], pair.left.shape[0]],
         }
-        write_image(out / f"grid_{name}.png", grid(pair, result))
+        with atomic_path(out / f"grid_{name}.png") as tmp:
+            write_image(tmp, grid(pair, result))
         md += [f"### {name}", "", table(result), "",
                f"Disoccluded: {100 * result.regions['disoccluded'].mean():.1f} % of the view; "
                f"crops: `grid_{name}.png`.", ""]
@@ -63,6 +96,6 @@ def run(pairs: dict[str, Callable[[], StereoPair]], out: str | Path, *,
 
         md += [f"### mean over {len(record['pairs'])} pairs", "",
                table(Evaluation(scores=record["mean"])), ""]
-    (out / "results.json").write_text(json.dumps(record, indent=2))
-    (out / "results.md").write_text("\n".join(md))
+    write_json(out / "results.json", record)
+    write_text(out / "results.md", "\n".join(md))
     return record

@@ -4,8 +4,25 @@ renamed over the target in one step.
 A reader never sees a half-written file, an interrupted or failed write leaves the
 old file (or nothing) in place, and the temporary file is removed on any error,
 Ctrl-C or termination signal (run the work inside
-:func:`photo3d.files.signals.handle_signals` so SIGTERM unwinds too). Folders of
-several files are written with :mod:`photo3d.files.staging` instead.
+:func:`photo3d.files.signals.handle_signals` so SIGTERM unwinds too; the ones still
+there when the interpreter exits are removed then). The location is checked when
+the temporary file is created, before the data is produced. Folders of several
+files are written with :mod:`photo3d.files.staging` instead.
+
+* :func:`atomic_write` opens the temporary file (``.NAME.XXXXXXXX.tmp``) for code
+  that writes to a file object; :func:`write_bytes`, :func:`write_text` and
+  :func:`write_json` write one value.
+* :func:`atomic_path` yields the temporary path for a library that takes a path
+  (Pillow, numpy, PyAV, safetensors). Its name keeps the target's suffix
+  (``.NAME.XXXXXXXX.tmp.png``) for libraries that pick the format from it.
+* :class:`PendingFile` is the same for a writer that outlives one ``with`` block
+  (:class:`~photo3d.io.video.VideoWriter`): :meth:`~PendingFile.commit` or
+  :meth:`~PendingFile.discard` it.
+* :func:`check_writable` checks a target early; :func:`remove_temp_files` removes
+  what a killed writer left.
+
+A target that is a symbolic link is followed: the file it points to is replaced
+and the link stays, as ``open(path, "w")`` would do.
 
 Example:
     >>> import pathlib, tempfile
@@ -18,20 +35,31 @@ Example:
 
 from __future__ import annotations
 
+import atexit
 import contextlib
+import errno
+import json
 import os
 import secrets
 from collections.abc import Iterator
 from pathlib import Path
-from typing import IO
+from typing import IO, Any
 
 from photo3d.errors import OutputError
 
 PathLike = str | os.PathLike[str]
 
+_LIVE: set[Path] = set()
+"""Temporary files not yet committed or discarded (removed at exit as a last resort)."""
+
+_HEX = frozenset("0123456789abcdef")
+
 
 def temp_sibling(path: PathLike) -> Path:
     """A free hidden name beside ``path``: ``.NAME.XXXXXXXX.tmp`` (eight hex digits).
+
+    ``NAME`` is cut to 64 characters, so the temporary name is never too long for
+    the file system when the target's name is not.
 
     Example:
         >>> temp_sibling("out/a.png").name.startswith(".a.png.")
@@ -41,32 +69,189 @@ def temp_sibling(path: PathLike) -> Path:
     return path.with_name(f".{path.name[:64]}.{secrets.token_hex(4)}.tmp")
 
 
+def is_temp_of(name: str, target: str, *, suffixed: bool = True) -> bool:
+    """True if ``name`` is a temporary name photo3d gives to a writer of ``target``.
+
+    That is :func:`temp_sibling`'s ``.TARGET.XXXXXXXX.tmp``, followed, when
+    ``suffixed``, by at most one suffix (``.png``, ``.part``: :func:`atomic_path`).
+
+    Example:
+        >>> [is_temp_of(n, "a.png") for n in (".a.png.0123abcd.tmp", ".a.png.0123abcd.tmp.png",
+        ...                                   ".a.png.xyz.tmp", "a.png")]
+        [True, True, False, False]
+        >>> is_temp_of(".out.0123abcd.tmp.png", "out", suffixed=False)
+        False
+    """
+    head = f".{target[:64]}."
+    if not name.startswith(head):
+        return False
+    middle, dot, tail = name[len(head):].partition(".")
+    if len(middle) != 8 or not _HEX.issuperset(middle) or not dot:
+        return False
+    if tail == "tmp":
+        return True
+    return suffixed and tail.startswith("tmp.") and "." not in tail[4:] and len(tail) > 4
+
+
+class PendingFile:
+    """A hidden temporary sibling of ``path`` that replaces it on :meth:`commit`.
+
+    Creating one checks the target (not a folder, its folder exists, the name fits
+    the file system) and creates the temporary file, empty, so that a location
+    that cannot be written is refused before the data is produced. Write to
+    ``pending.path`` (any library that takes a path), then :meth:`commit`; on any
+    error :meth:`discard`. As a context manager, leaving the block without a
+    commit discards it.
+
+    Args:
+        path: the file to write; an existing file is replaced.
+        suffix: appended to the temporary name ``.NAME.XXXXXXXX.tmp`` (default
+            none), e.g. the target's own suffix for a library that infers the
+            format from it.
+
+    Attributes:
+        path: the temporary file to write into.
+        target: the file as given (for messages).
+        final: the file that :meth:`commit` replaces (``target`` with symbolic
+            links followed).
+
+    Raises:
+        OutputError: ``path`` is a folder, its folder is missing, or the file
+            system refuses a new file there (permissions, read-only, full, name
+            too long).
+
+    Example:
+        >>> import pathlib, tempfile
+        >>> pending = PendingFile(pathlib.Path(tempfile.mkdtemp()) / "a.bin")
+        >>> _ = pending.path.write_bytes(b"xy")
+        >>> pending.commit().read_bytes(), pending.path.exists()
+        (b'xy', False)
+    """
+
+    def __init__(self, path: PathLike, *, suffix: str = "") -> None:
+        self.target = Path(path)
+        self._done = False
+        try:
+            self.final = (Path(os.path.realpath(path)) if self.target.is_symlink()
+                          else self.target)
+            _check_target(self.final, self.target)
+            self.path = _create_temp(self.final, suffix)
+        except OSError as err:
+            raise OutputError(f"cannot write {self.target}: {err.strerror or err}") from None
+        _LIVE.add(self.path)
+
+    def __enter__(self) -> PendingFile:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        if not self._done:
+            self.discard()
+
+    def commit(self) -> Path:
+        """Rename the temporary file over the target; return the target as given.
+
+        Raises:
+            OutputError: the rename failed (the temporary file is removed, the old
+                file stays).
+
+        Example:
+            >>> import pathlib, tempfile
+            >>> pending = PendingFile(pathlib.Path(tempfile.mkdtemp()) / "a.bin")
+            >>> pending.commit().read_bytes()
+            b''
+        """
+        try:
+            os.replace(self.path, self.final)
+        except OSError as err:
+            self.discard()
+            raise OutputError(f"cannot write {self.target}: {err.strerror or err}") from None
+        self._done = True
+        _LIVE.discard(self.path)
+        return self.target
+
+    def discard(self) -> None:
+        """Remove the temporary file (the target is not touched). Idempotent.
+
+        Example:
+            >>> import pathlib, tempfile
+            >>> pending = PendingFile(pathlib.Path(tempfile.mkdtemp()) / "a.bin")
+            >>> pending.discard()
+            >>> list(pending.path.parent.iterdir())
+            []
+        """
+        self._done = True
+        with contextlib.suppress(FileNotFoundError):
+            os.unlink(self.path)
+        _LIVE.discard(self.path)
+
+
+@contextlib.contextmanager
+def atomic_path(path: PathLike, *, suffix: str | None = None) -> Iterator[Path]:
+    """Yield a temporary sibling of ``path`` to write to; rename it over ``path`` when
+    the block ends without an error, remove it otherwise.
+
+    For writers that take a path rather than a file object (Pillow, numpy,
+    safetensors). The temporary file exists, empty, when the block starts (see
+    :class:`PendingFile`, which also lists the checks).
+
+    Args:
+        path: the file to write; an existing file is replaced.
+        suffix: the temporary name's last suffix: ``.NAME.XXXXXXXX.tmp`` + suffix.
+            Default: ``path``'s own (``.png``), for libraries that infer the format
+            from it (``np.savez`` appends ``.npz`` to a name without it).
+
+    Raises:
+        OutputError: the file cannot be written; an ``OSError`` raised in the block,
+            or an ``OutputError`` naming the temporary file, becomes one line naming
+            ``path``. Nothing is left behind.
+
+    Example:
+        >>> import pathlib, tempfile
+        >>> import numpy as np
+        >>> target = pathlib.Path(tempfile.mkdtemp()) / "a.npy"
+        >>> with atomic_path(target) as tmp:
+        ...     np.save(tmp, np.arange(3))
+        >>> np.load(target).tolist(), [p.name for p in target.parent.iterdir()]
+        ([0, 1, 2], ['a.npy'])
+    """
+    pending = PendingFile(path, suffix=Path(path).suffix if suffix is None else suffix)
+    with pending:
+        try:
+            yield pending.path
+        except (OSError, OutputError) as err:
+            named = _naming_target(err, pending)
+            if named is None:
+                raise
+            raise named from None
+        pending.commit()
+
+
 @contextlib.contextmanager
 def atomic_write(path: PathLike, mode: str = "wb") -> Iterator[IO]:
     """Open a temporary sibling of ``path`` for writing; rename it over ``path`` when
     the block ends without an error, remove it otherwise.
 
     Args:
-        path: the file to write (its folder must exist).
+        path: the file to write; an existing file is replaced.
         mode: ``"wb"`` or ``"w"`` (text, UTF-8).
 
     Raises:
         OutputError: the file cannot be written (permissions, full disk, a folder
             in the way); nothing is left behind.
+
+    Example:
+        >>> import pathlib, tempfile
+        >>> target = pathlib.Path(tempfile.mkdtemp()) / "a.txt"
+        >>> with atomic_write(target, "w") as f:
+        ...     _ = f.write("hé")
+        >>> target.read_bytes()
+        b'h\\xc3\\xa9'
     """
     if mode not in ("wb", "w"):
         raise ValueError(f"mode must be 'wb' or 'w', got {mode!r}")
-    path = Path(path)
-    tmp = temp_sibling(path)
-    try:
-        with open(tmp, "x" + mode[1:], **({} if "b" in mode else {"encoding": "utf-8"})) as f:
+    with atomic_path(path, suffix="") as tmp:
+        with open(tmp, mode, **({} if "b" in mode else {"encoding": "utf-8"})) as f:
             yield f
-        os.replace(tmp, path)
-    except OSError as err:
-        raise OutputError(f"cannot write {path}: {err.strerror or err}") from None
-    finally:
-        with contextlib.suppress(FileNotFoundError):
-            os.unlink(tmp)
 
 
 def write_bytes(path: PathLike, data: bytes) -> Path:
@@ -93,3 +278,108 @@ def write_text(path: PathLike, text: str) -> Path:
     with atomic_write(path, "w") as f:
         f.write(text)
     return Path(path)
+
+
+def write_json(path: PathLike, value: Any, *, indent: int | None = 2) -> Path:
+    """Write ``value`` as JSON (``json.dumps(value, indent=indent)``, no final newline)
+    to ``path`` atomically; returns the path.
+
+    Example:
+        >>> import pathlib, tempfile
+        >>> write_json(pathlib.Path(tempfile.mkdtemp()) / "a.json", {"a": [1]}).read_text()
+        '{\\n  "a": [\\n    1\\n  ]\\n}'
+    """
+    return write_text(path, json.dumps(value, indent=indent))
+
+
+def check_writable(file: PathLike) -> Path:
+    """Check early that ``file`` can be written: its folder exists and takes a new file.
+
+    A hidden temporary file is created beside it and removed (see
+    :class:`PendingFile`). Returns ``file`` as a Path.
+
+    Raises:
+        OutputError: ``file`` is a folder, its folder is missing, or the file system
+            refuses a new file there (permissions, read-only, full, name too long).
+
+    Example:
+        >>> import pathlib, tempfile
+        >>> check_writable(pathlib.Path(tempfile.mkdtemp()) / "depth.png").name
+        'depth.png'
+    """
+    PendingFile(file).discard()
+    return Path(file)
+
+
+def remove_temp_files(path: PathLike) -> list[Path]:
+    """Remove the temporary files a killed writer of ``path`` left beside it.
+
+    Only files named as this module names them (:func:`is_temp_of`) are removed;
+    call this only when no other process is writing ``path``. Returns what was
+    removed.
+
+    Example:
+        >>> import pathlib, tempfile
+        >>> target = pathlib.Path(tempfile.mkdtemp()) / "a.png"
+        >>> pending = PendingFile(target, suffix=".png")  # its writer is "killed"
+        >>> [p == pending.path for p in remove_temp_files(target)], pending.path.exists()
+        ([True], False)
+    """
+    final = Path(os.path.realpath(path))
+    try:
+        entries = list(final.parent.iterdir())
+    except OSError:
+        return []
+    removed = []
+    for entry in entries:
+        if is_temp_of(entry.name, final.name) and entry.is_file() and not entry.is_symlink():
+            with contextlib.suppress(FileNotFoundError):
+                entry.unlink()
+            _LIVE.discard(entry)
+            removed.append(entry)
+    return removed
+
+
+def _naming_target(err: OSError | OutputError, pending: PendingFile) -> OutputError | None:
+    """``err`` as one line naming the target: ``cannot write TARGET: reason`` for an
+    ``OSError``, the message with the temporary name replaced for an
+    ``OutputError`` that names it; None for another ``OutputError``."""
+    if isinstance(err, OSError):
+        return OutputError(f"cannot write {pending.target}: {err.strerror or err}")
+    if str(pending.path) in str(err):
+        return OutputError(str(err).replace(str(pending.path), str(pending.target)))
+    return None
+
+
+def _create_temp(final: Path, suffix: str) -> Path:
+    """A new empty file ``.NAME.XXXXXXXX.tmp`` + ``suffix`` beside ``final``."""
+    for _ in range(100):
+        tmp = temp_sibling(final)
+        tmp = tmp.with_name(tmp.name + suffix)
+        try:  # the mode the umask leaves, as open() gives
+            os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666))
+        except FileExistsError:
+            continue
+        return tmp
+    raise OSError(errno.EEXIST, "no free temporary name")
+
+
+def _check_target(final: Path, target: Path) -> None:
+    if final.is_dir():
+        raise OutputError(f"output {target} is a folder; expected a file name")
+    parent = final.parent
+    if not parent.is_dir():
+        raise OutputError(f"cannot write {target}: the folder {parent} does not exist")
+    try:
+        name_max = os.pathconf(parent, "PC_NAME_MAX")
+    except (OSError, ValueError):
+        name_max = 255
+    if len(os.fsencode(final.name)) > name_max:
+        raise OSError(errno.ENAMETOOLONG, os.strerror(errno.ENAMETOOLONG))
+
+
+@atexit.register
+def _remove_live() -> None:
+    for tmp in list(_LIVE):
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)

@@ -1,7 +1,15 @@
 """SIGINT, SIGTERM and SIGHUP as exceptions, so that cleanup code always runs.
 
-Used by the command line around every command: a temporary output folder
-(:mod:`photo3d.files.staging`) is removed on Ctrl-C and on termination alike.
+The one place photo3d sets signal handlers. :func:`handle_signals` is used by the
+command line around every command, so a temporary output folder
+(:mod:`photo3d.files.staging`) or file (:mod:`photo3d.files.atomic`) is removed on
+Ctrl-C and on termination alike. The batch's pool workers use
+:func:`worker_signals` for their whole life, and the batch starts them inside
+:func:`sigint_ignored`. In all three a signal becomes the same exceptions
+(:class:`KeyboardInterrupt` for SIGINT, :class:`Interrupted` otherwise), one that
+lands inside a C callback is raised again once the C code returns
+(:func:`redeliver_swallowed`), and a signal repeated while the first one unwinds
+does not interrupt the cleanup.
 """
 
 from __future__ import annotations
@@ -80,9 +88,31 @@ _REDELIVER_TRIES = 3
 
 
 class SignalGuard:
-    """What :func:`handle_signals` saw: ``signum`` is the first signal received, or None."""
+    """What :func:`handle_signals` (or :func:`worker_signals`) saw: ``signum`` is the
+    first signal received, or None."""
 
     signum: int | None = None
+
+
+def _raise_for(signum: int) -> None:
+    """The exception a signal becomes: KeyboardInterrupt for SIGINT, as Python does."""
+    if signum == signal.SIGINT:
+        raise KeyboardInterrupt
+    raise Interrupted(signum)
+
+
+def _install(handler: Callable, signums: list[int]) -> dict[int, object]:
+    """Set ``handler`` for ``signums``, except those ignored when the process started
+    (``nohup``, background jobs); returns the previous handlers (none outside the
+    main thread, where handlers cannot be set)."""
+    previous: dict[int, object] = {}
+    try:
+        for signum in signums:
+            if signal.getsignal(signum) != signal.SIG_IGN:
+                previous[signum] = signal.signal(signum, handler)
+    except ValueError:  # not the main thread: leave the handlers alone
+        pass
+    return previous
 
 
 @contextlib.contextmanager
@@ -90,15 +120,15 @@ def handle_signals() -> Iterator[SignalGuard]:
     """Turn SIGINT, SIGTERM and SIGHUP into exceptions, so cleanup code runs.
 
     SIGINT raises :class:`KeyboardInterrupt` (as Python does), SIGTERM and SIGHUP
-    raise :class:`Interrupted`; either unwinds through ``with stage_output(...)``,
-    which removes its temporary folder. The guard remembers the signal, because an
-    interrupt that lands inside compiled code (numba) can surface as another
-    exception (``SystemError``): callers should treat any exception raised after
-    ``guard.signum`` was set as the interruption; one raised inside a C callback
-    (numba's compiler), which Python would print and drop, is raised again once the
-    C code returns (:func:`redeliver_swallowed`). Signals ignored when the process
-started stay ignored (``nohup``, background jobs). Does nothing outside the main
-thread.
+    raise :class:`Interrupted`; either unwinds through ``with stage_output(...)`` or
+    ``with atomic_path(...)``, which remove their temporary folder or file. The
+    guard remembers the signal, because an interrupt that lands inside compiled
+    code (numba) can surface as another exception (``SystemError``): callers should
+    treat any exception raised after ``guard.signum`` was set as the interruption;
+    one raised inside a C callback (numba's compiler), which Python would print and
+    drop, is raised again once the C code returns (:func:`redeliver_swallowed`).
+    Signals ignored when the process started stay ignored (``nohup``, background
+    jobs). Does nothing outside the main thread.
 
     Example:
         >>> import os, signal
@@ -119,18 +149,12 @@ thread.
                 signal.signal(number, old)
             return
         guard.signum = signum
-        if signum == signal.SIGINT:
-            raise KeyboardInterrupt
-        raise Interrupted(signum)
+        _raise_for(signum)
 
     wanted = [signal.SIGINT, signal.SIGTERM] + ([signal.SIGHUP] if hasattr(signal, "SIGHUP")
                                                 else [])
-    try:
-        for signum in wanted:
-            if signal.getsignal(signum) != signal.SIG_IGN:  # nohup, background jobs
-                previous[signum] = signal.signal(signum, handler)
-    except ValueError:  # not the main thread: leave the handlers alone
-        pass
+    previous.update(_install(handler, wanted))
+
     def rearm() -> int | None:  # the exception was swallowed: raise it again later
         signum, guard.signum = guard.signum, None
         return signum
@@ -143,3 +167,75 @@ thread.
             signal.signal(signum, old)
         if restore is not None:
             restore()
+
+
+def worker_signals(busy: Callable[[], bool]) -> SignalGuard:
+    """Set up a pool worker process for the rest of its life (call it first in the
+    pool's initializer).
+
+    SIGINT is ignored: a Ctrl-C reaches the whole process group, and the parent,
+    which gets it too, stops its workers itself with SIGTERM. SIGTERM raises
+    :class:`Interrupted` while ``busy()`` is true, so the photo's temporary output
+    is removed as the exception unwinds; when the worker is idle it ends the
+    process at once (``os._exit(0)``: nothing of it is half-done). Further SIGTERMs
+    are ignored, so they cannot interrupt that cleanup (the pool also terminates
+    its workers when one of them exits); one that lands inside a C callback is
+    raised again once the C code returns (:func:`redeliver_swallowed`). Returns the
+    guard that records the signal.
+
+    Example:
+        >>> import subprocess, sys
+        >>> code = ("import os, signal\\n"
+        ...         "from photo3d.files.signals import Interrupted, worker_signals\\n"
+        ...         "worker_signals(busy=lambda: True)\\n"
+        ...         "try:\\n"
+        ...         "    os.kill(os.getpid(), signal.SIGTERM)\\n"
+        ...         "except Interrupted as err:\\n"
+        ...         "    print(err)")
+        >>> subprocess.run([sys.executable, "-c", code], capture_output=True,
+        ...                text=True).stdout
+        'SIGTERM\\n'
+    """
+    guard = SignalGuard()
+
+    def handler(signum, frame):
+        signal.signal(signal.SIGTERM, signal.SIG_IGN)  # once is enough (see above)
+        guard.signum = signum
+        if not busy():
+            os._exit(0)
+        _raise_for(signum)
+
+    def rearm() -> int:  # the exception was swallowed: arm again, have it sent again
+        signal.signal(signal.SIGTERM, handler)
+        return signal.SIGTERM
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, handler)
+    redeliver_swallowed((Interrupted,), rearm)
+    return guard
+
+
+@contextlib.contextmanager
+def sigint_ignored() -> Iterator[None]:
+    """Ignore SIGINT inside the block (outside the main thread: do nothing).
+
+    For starting worker processes: they inherit it, so a Ctrl-C at the terminal,
+    which reaches the whole process group, cannot interrupt them while they import,
+    before their initializer runs (:func:`worker_signals`). The parent stops them
+    itself.
+
+    Example:
+        >>> import signal
+        >>> with sigint_ignored():
+        ...     signal.getsignal(signal.SIGINT) == signal.SIG_IGN
+        True
+    """
+    try:
+        previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    except ValueError:  # not the main thread: nothing to protect
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)

@@ -38,12 +38,12 @@ import atexit
 import errno
 import fnmatch
 import os
-import secrets
 import shutil
 from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
 
 from photo3d.errors import OutputError
+from photo3d.files.atomic import is_temp_of, temp_sibling
 from photo3d.files.rename import claim, identity, swap
 
 PathLike = str | os.PathLike[str]
@@ -293,9 +293,8 @@ def _remove_empty(made: list[Path]) -> None:
 
 def _make_temp(parent: Path, name: str) -> Path:
     """A new hidden folder beside the output, with the umask's permissions."""
-    stem = name[:64]  # the suffix must never make the name too long
     for _ in range(100):
-        tmp = parent / f".{stem}.{secrets.token_hex(4)}.tmp"
+        tmp = temp_sibling(parent / name)
         try:
             os.mkdir(tmp, 0o777)  # mkdir applies the umask (mkdtemp would force 0700)
         except FileExistsError:
@@ -320,53 +319,18 @@ def remove_leftovers(out: PathLike) -> list[Path]:
         ([True], False)
     """
     final = Path(os.path.realpath(out))
-    stem = final.name[:64]
     removed = []
     try:
         entries = list(final.parent.iterdir())
     except OSError:
         return removed
     for tmp in entries:
-        name = tmp.name
-        middle = name[len(stem) + 2:-4]
-        if (name.startswith(f".{stem}.") and name.endswith(".tmp") and len(middle) == 8
-                and all(c in "0123456789abcdef" for c in middle)
+        if (is_temp_of(tmp.name, final.name, suffixed=False)
                 and tmp.is_dir() and not tmp.is_symlink()):
             shutil.rmtree(tmp, ignore_errors=True)
             _LIVE.discard(tmp)
             removed.append(tmp)
     return removed
-
-
-def check_writable(file: PathLike) -> Path:
-    """Check early that ``file`` can be created: its folder exists and takes a new file.
-
-    A hidden probe file is created beside it and removed. Returns ``file`` as a Path.
-
-    Raises:
-        OutputError: ``file`` is a folder, its folder is missing, or the file system
-            refuses a new file there (permissions, read-only, full, name too long).
-
-    Example:
-        >>> import pathlib, tempfile
-        >>> check_writable(pathlib.Path(tempfile.mkdtemp()) / "depth.png").name
-        'depth.png'
-    """
-    file = Path(file)
-    if file.is_dir():
-        raise OutputError(f"output {file} is a folder; expected a file name")
-    parent = file.parent
-    if not parent.is_dir():
-        raise OutputError(f"cannot write {file}: the folder {parent} does not exist")
-    probe = parent / f".{file.name[:64]}.{secrets.token_hex(4)}.tmp"
-    try:
-        if len(os.fsencode(file.name)) > 255:
-            raise OSError(errno.ENAMETOOLONG, os.strerror(errno.ENAMETOOLONG))
-        probe.touch(exist_ok=False)
-        probe.unlink()
-    except OSError as err:
-        raise OutputError(f"cannot write {file}: {err.strerror or err}") from None
-    return file
 
 
 @atexit.register

@@ -15,9 +15,10 @@ libx264 and libvpx, so no system ffmpeg is needed. The format follows the extens
 MP4 and WebM store limited-range BT.709 YUV (converted by
 :func:`photo3d.io._yuv.rgb_to_yuv420`) and tag it so. ``yuv420p`` halves the
 colour resolution, so they need an even width and height (the renderer produces even
-sizes); GIF takes any size. The video goes to a hidden ``.part`` file beside the
-target, renamed over it only when :meth:`VideoWriter.close` succeeds: an error never
-leaves a partial video behind.
+sizes); GIF takes any size. The video goes to a hidden temporary file beside the
+target (``.NAME.XXXXXXXX.tmp.part``, a :class:`~photo3d.files.atomic.PendingFile`),
+renamed over it only when :meth:`VideoWriter.close` succeeds: an error, Ctrl-C or
+termination signal never leaves a partial video behind.
 
 Example:
     >>> sorted(video_formats())
@@ -29,7 +30,6 @@ from __future__ import annotations
 import contextlib
 import math
 import os
-import secrets
 from collections.abc import Iterable
 from fractions import Fraction
 from pathlib import Path
@@ -39,6 +39,7 @@ import numpy as np
 from PIL import Image
 
 from photo3d.errors import ConfigError, InputError, OutputError
+from photo3d.files.atomic import PendingFile
 from photo3d.io._yuv import rgb_to_yuv420
 
 PathLike = str | os.PathLike[str]
@@ -139,10 +140,12 @@ class VideoWriter:
         self._closed = False
         self._pending: list[np.ndarray] = []  # GIF frames not yet encoded
         self._palette: tuple[Image.Image, np.ndarray] | None = None
-        self._tmp = self.path.with_name(f".{self.path.name}.{secrets.token_hex(4)}.part")
+        self._file = PendingFile(self.path, suffix=".part")  # the muxer is named: any suffix
         try:
-            self._container = av.open(str(self._tmp), "w", format=muxer, options=mux_options)
+            self._container = av.open(str(self._file.path), "w", format=muxer,
+                                      options=mux_options)
         except OSError as err:
+            self._file.discard()
             raise OutputError(f"cannot write video {self.path}: {err}") from err
         try:
             self._stream = self._add_stream(codec, fps, default_crf if quality is None else quality)
@@ -205,7 +208,6 @@ class VideoWriter:
             self._flush_pending()
             self._encode(None)
             self._container.close()
-            os.replace(self._tmp, self.path)
         except (OSError, _require_av().FFmpegError) as err:
             self._abort()
             raise OutputError(f"cannot write video {self.path}: {err}") from err
@@ -213,6 +215,7 @@ class VideoWriter:
             self._abort()
             raise
         self._closed = True
+        self._file.commit()  # on failure it removes the file and raises OutputError
 
     def __enter__(self) -> VideoWriter:
         return self
@@ -231,7 +234,7 @@ class VideoWriter:
         av = _require_av()
         with contextlib.suppress(OSError, av.FFmpegError):
             self._container.close()
-        self._tmp.unlink(missing_ok=True)
+        self._file.discard()
 
     def _encode(self, frame: Any, pts: int | None = None) -> None:
         """Encode one ``av.VideoFrame`` at ``pts`` (frame index), or flush on ``None``."""

@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
 import shutil
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -35,6 +34,7 @@ import numpy as np
 from photo3d.config import Config
 from photo3d.depth.normalize import prepare_depth
 from photo3d.errors import InputError
+from photo3d.files.atomic import write_json
 from photo3d.files.folders import IMAGE_SUFFIXES, depth_by_key, files_in
 from photo3d.io.depth import read_depth
 from photo3d.io.images import read_image
@@ -359,8 +359,6 @@ def prepare_data(files: list[TrainingFile], *, crop: int, region_size: int,
         report("prepare", 1.0)
     if cache is not None:
         _save_pool(cache / "pool.npz", pool)
-        tmp = cache / "index.json.tmp"
-        tmp.write_text(json.dumps({"signature": sig, "options": options, "names": names,
-                                   "pairs": len(pool)}, indent=2))
-        os.replace(tmp, cache / "index.json")
+        write_json(cache / "index.json", {"signature": sig, "options": options, "names": names,
+                                          "pairs": len(pool)})  # last: marks the cache complete
     return TrainingData(names, has_depth, pool, targets)

@@ -11,13 +11,17 @@
 
 Running again in the same folder resumes from the last checkpoint; the step count
 continues and ``steps`` is the total to reach.
+
+Every file is written atomically (:mod:`photo3d.files.atomic`) and every checkpoint
+folder is staged (:mod:`photo3d.files.staging`), so an interrupted run never leaves
+a half-written one; ``losses.csv`` is appended to, one row per step.
 """
 
 from __future__ import annotations
 
 import csv
+import io
 import json
-import os
 import shutil
 import time
 from collections.abc import Callable
@@ -25,6 +29,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from photo3d.errors import ConfigError
+from photo3d.files.atomic import atomic_path, write_bytes, write_json
+from photo3d.files.staging import remove_leftovers, stage_output
 from photo3d.train.dataset import TrainingData
 from photo3d.train.grid import sample_grid
 from photo3d.train.samples import make_batch
@@ -91,14 +97,17 @@ def check_resumable(run_dir: Path, config: TrainConfig) -> None:
                               "same options or use a new --out folder")
 
 
-def _write_atomic(path: Path, text: str) -> None:
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(text)
-    os.replace(tmp, path)
+def _csv_bytes(rows: list[list]) -> bytes:
+    text = io.StringIO(newline="")
+    csv.writer(text).writerows(rows)
+    return text.getvalue().encode()
 
 
 class _LossLog:
-    """``losses.csv``, truncated to ``start`` on resume so steps never repeat."""
+    """``losses.csv``, truncated to ``start`` on resume so steps never repeat.
+
+    The header and the truncated log are written atomically; rows are appended.
+    """
 
     def __init__(self, path: Path, start: int) -> None:
         self.path = path
@@ -109,14 +118,12 @@ class _LossLog:
             if rows:
                 self.columns = rows[0]
                 kept = [r for r in rows[1:] if r and int(r[0]) <= start]
-                with open(path, "w", newline="") as f:
-                    csv.writer(f).writerows([rows[0], *kept])
+                write_bytes(path, _csv_bytes([rows[0], *kept]))
 
     def write(self, step: int, seconds: float, terms: dict[str, float]) -> None:
         if self.columns is None:
             self.columns = ["step", "seconds", *terms]
-            with open(self.path, "w", newline="") as f:
-                csv.writer(f).writerow(self.columns)
+            write_bytes(self.path, _csv_bytes([self.columns]))
         values = {"step": step, "seconds": f"{seconds:.4f}",
                   **{k: f"{v:.6g}" for k, v in terms.items()}}
         with open(self.path, "a", newline="") as f:
@@ -160,7 +167,7 @@ def train(data: TrainingData, run_dir: str | Path, config: TrainConfig, *,
     run_dir = Path(run_dir)
     run_dir.mkdir(parents=True, exist_ok=True)
     check_resumable(run_dir, config)
-    _write_atomic(run_dir / "config.json", json.dumps(config.to_dict(), indent=2))
+    write_json(run_dir / "config.json", config.to_dict())
     trainer = Trainer(config, device=device, features=features)
     saved = checkpoints(run_dir)
     start = trainer.load(saved[-1][1]) if saved else 0
@@ -178,25 +185,31 @@ def train(data: TrainingData, run_dir: str | Path, config: TrainConfig, *,
         last = step == config.steps
         if step % config.sample_every == 0 or last:
             (run_dir / "samples").mkdir(exist_ok=True)
-            sample_grid(run_dir / "samples" / f"step_{step:07d}.png", config.kind, samples,
-                        output.cpu().numpy())
+            with atomic_path(run_dir / "samples" / f"step_{step:07d}.png") as tmp:
+                sample_grid(tmp, config.kind, samples, output.cpu().numpy())
         if step % config.checkpoint_every == 0 or last:
             _checkpoint(trainer, run_dir, step)
         if progress is not None:
             progress(step, config.steps, terms)
     seconds = time.perf_counter() - t_run
-    weights = trainer.export(run_dir / f"{config.kind}.safetensors")
+    weights = run_dir / f"{config.kind}.safetensors"
+    with atomic_path(weights) as tmp:
+        trainer.export(tmp)
     return TrainResult(run_dir, start, max(step, start), weights, terms, seconds)
 
 
 def _checkpoint(trainer: Trainer, run_dir: Path, step: int) -> None:
+    """Write ``checkpoints/step_NNNNNNN/`` (staged, replacing one already there) and
+    keep the last :data:`KEEP`."""
     folder = run_dir / "checkpoints" / f"step_{step:07d}"
-    tmp = folder.with_name(folder.name + ".tmp")
-    if tmp.exists():
-        shutil.rmtree(tmp)
-    trainer.save(tmp, step)
-    if folder.exists():
-        shutil.rmtree(folder)
-    os.replace(tmp, folder)
+    remove_leftovers(folder)  # of a run killed while writing this checkpoint
+    with stage_output(folder, overwrite=True, owned=_run_owned) as staging:
+        trainer.save(staging.path, step)
+        staging.commit()
     for _, old in checkpoints(run_dir)[:-KEEP]:
         shutil.rmtree(old)
+
+
+def _run_owned(folder: Path) -> list[str]:
+    """``checkpoints/`` belongs to the run: whatever is there may be replaced."""
+    return []
