@@ -46,8 +46,8 @@ def timed(module, name, stage):
     setattr(module, name, wrapper)
 
 timed(raster, "project_vertices", "vertex projection")
-timed(raster, "_block_bounds", "block bounds")
-timed(raster, "_raster", "rasterization + resolve")
+timed(raster, "block_bounds", "block bounds")
+timed(raster, "raster_frame", "rasterization + resolve")
 timed(renderer, "grow_fill", "hole filling")
 timed(renderer, "grow_fill_far", "hole filling")
 timed(animate, "to_rgb8", "8-bit conversion")

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from photo3d.errors import InputError
+from photo3d.errors import require
 from photo3d.io.images import to_float_image
 
 
@@ -67,7 +67,7 @@ def motorcycle() -> StereoSample:
         scikit-image docstring says NaN, but the data holds ``+inf``).
 
     Raises:
-        InputError: scikit-image is not installed.
+        MissingExtra: scikit-image is not installed (extra ``sample``).
 
     Example:
         >>> import numpy as np
@@ -75,12 +75,8 @@ def motorcycle() -> StereoSample:
         >>> sample.left.dtype, bool(np.isposinf(sample.disparity).any())
         (dtype('float32'), True)
     """
-    try:
-        from skimage import data
-    except ImportError as err:
-        raise InputError(
-            "the bundled sample needs scikit-image: pip install 'photo3d[sample]'"
-        ) from err
+    data = require("skimage.data", "sample", purpose="the bundled sample",
+                   package="scikit-image")
     left, right, disparity = data.stereo_motorcycle()
     return StereoSample(
         left=to_float_image(left),

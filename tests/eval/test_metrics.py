@@ -51,7 +51,8 @@ def test_lpips_behaves_like_lpips():
 
 
 def test_lpips_checkpoint_reader_refuses_code():
-    from photo3d.eval.lpips import convert_checkpoint
+    pytest.importorskip("torch")
+    from photo3d.nets.pretrained import convert_checkpoint
 
     class Evil:
         def __reduce__(self):

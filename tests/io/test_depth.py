@@ -11,7 +11,7 @@ import pytest
 import tifffile
 from PIL import Image
 
-from photo3d.errors import InputError, OutputError
+from photo3d.errors import InputError, MissingExtra, OutputError
 from photo3d.io.depth import read_depth, write_depth_png16, write_pfm
 
 RNG = np.random.default_rng(1)
@@ -193,8 +193,18 @@ def test_float64_tiff_without_tifffile_names_the_extra(tmp_path, monkeypatch):
     path = tmp_path / "d.tif"
     tifffile.imwrite(path, np.zeros((5, 8)))
     monkeypatch.setitem(sys.modules, "tifffile", None)
-    with pytest.raises(InputError, match=r"pip install 'photo3d\[tiff\]'"):
+    with pytest.raises(InputError, match=r"pip install 'photo3d\[tiff\]'") as err:
         read_depth(path)
+    assert isinstance(err.value.__cause__, MissingExtra) and err.value.__cause__.extra == "tiff"
+
+
+def test_grey_tiff_stored_as_separate_colour_planes(tmp_path):
+    """tifffile gives (C, H, W) for separate planes; the shared reader puts them last."""
+    rng = np.random.default_rng(0)
+    depth = rng.random((20, 30)).astype(np.float32)
+    path = tmp_path / "planes.tif"
+    tifffile.imwrite(path, np.stack([depth] * 3), planarconfig="separate", photometric="rgb")
+    np.testing.assert_array_equal(read_depth(path), depth)
 
 
 def test_sixteen_bit_tiff_raw_values(tmp_path):

@@ -9,7 +9,7 @@ import pytest
 import tifffile
 from PIL import Image
 
-from photo3d.errors import InputError, OutputError
+from photo3d.errors import InputError, MissingExtra, OutputError
 from photo3d.io.images import read_image, to_float_image, write_image
 
 RNG = np.random.default_rng(0)
@@ -150,8 +150,10 @@ def test_sixteen_bit_rgb_tiff_without_tifffile_names_the_extra(tmp_path, monkeyp
     path = tmp_path / "rgb16.tif"
     tifffile.imwrite(path, np.zeros((9, 9, 3), np.uint16), photometric="rgb")
     monkeypatch.setitem(sys.modules, "tifffile", None)
-    with pytest.raises(InputError, match=r"pip install 'photo3d\[tiff\]'"):
+    message = r"^cannot read image .*rgb16.tif: this TIFF needs the tifffile package: pip "
+    with pytest.raises(InputError, match=message + r"install 'photo3d\[tiff\]'$") as err:
         read_image(path)
+    assert isinstance(err.value.__cause__, MissingExtra) and err.value.__cause__.extra == "tiff"
 
 
 def test_float_tiff_in_unit_range_is_read_and_out_of_range_refused(tmp_path):

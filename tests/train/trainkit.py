@@ -52,9 +52,9 @@ def fake_vgg_tree(channels=(4, 4, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8), seed: int = 
 def write_fake_vgg(cache: Path) -> Path:
     """Convert a fake ``vgg16.ckpt`` pickle the way the real one is converted and cache it
     as ``$PHOTO3D_CACHE/lpips_vgg16_v0.1.npz``."""
-    from photo3d.eval.lpips import CACHE_NAMES, _write_npz, convert_checkpoint
+    from photo3d.nets.pretrained import CACHE_NAMES, cache_weights, convert_checkpoint
 
     flat = convert_checkpoint(pickle.dumps(fake_vgg_tree()), "vgg16")
-    path = cache / CACHE_NAMES["vgg16"]
-    _write_npz(path, flat)
+    path = cache_weights("vgg16", flat, folder=cache)
+    assert path == cache / CACHE_NAMES["vgg16"]
     return path

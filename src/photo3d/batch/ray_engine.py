@@ -25,15 +25,11 @@ from pathlib import Path
 from photo3d.batch.jobs import MakeOptions, PhotoJob
 from photo3d.batch.manifest import PhotoResult
 from photo3d.batch.worker import PhotoMaker, discard_partial
-from photo3d.errors import ConfigError, Photo3DError
+from photo3d.errors import ConfigError, Photo3DError, require
 
 
 def _ray():
-    try:
-        import ray
-    except ImportError:
-        raise Photo3DError("--engine ray needs Ray: pip install 'photo3d[ray]'") from None
-    return ray
+    return require("ray", "ray", purpose="--engine ray", package="Ray")
 
 
 class _Actor:

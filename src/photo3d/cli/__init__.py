@@ -58,12 +58,7 @@ def main(argv: list[str] | None = None) -> int:
             args = build_parser().parse_args(argv)
             warnings.showwarning = show
             return args.run(args)
-        except Photo3DError as err:
-            print(f"photo3d: error: {err}", file=sys.stderr)
-            return 2
-        except ImportError as err:
-            if "pip install" not in str(err):  # not a missing extra: a bug, show it
-                raise
+        except Photo3DError as err:  # also MissingExtra: an optional package is missing
             print(f"photo3d: error: {err}", file=sys.stderr)
             return 2
         except BaseException as err:  # noqa: B036 - only interruptions are turned into a line

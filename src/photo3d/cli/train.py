@@ -6,7 +6,7 @@ import argparse
 from pathlib import Path
 
 from photo3d.cli.progress import count_bar
-from photo3d.errors import ConfigError, Photo3DError
+from photo3d.errors import ConfigError, require
 
 
 def add_parser(sub) -> None:
@@ -63,10 +63,7 @@ _TRAIN_OPTIONS = ("width", "levels", "blocks", "size", "batch", "steps", "lr", "
 
 def run(args: argparse.Namespace) -> int:
     """Run ``photo3d train``; returns the exit status."""
-    try:
-        import torch
-    except ImportError:
-        raise Photo3DError("photo3d train needs PyTorch: pip install 'photo3d[learned]'") from None
+    torch = require("torch", "learned", purpose="photo3d train", package="PyTorch")
     from photo3d.train import (
         TrainConfig,
         find_training_files,

@@ -2,17 +2,18 @@
 
 :func:`default_depth_model` names the model used for photos without depth,
 :func:`needs_download` says whether its weights are cached and :func:`fetch_model`
-downloads them with a clear one-line error when offline. Re-exported by
-:mod:`photo3d.depth.models`.
+downloads them with a clear one-line error when offline (:func:`failure_reason`
+says why a download or a load failed). The hub models live in the Hugging Face
+cache; photo3d's own downloads go through :mod:`photo3d.files.download`.
 """
 
 from __future__ import annotations
 
 import os
-import socket
 from pathlib import Path
 
-from photo3d.errors import InputError
+from photo3d.errors import InputError, require
+from photo3d.files.download import check_reachable
 
 DEFAULT_MODEL = "depth-anything/Depth-Anything-V2-Small-hf"
 """The monocular model for photos that come with no depth (Apache-2.0, 25 M parameters)."""
@@ -67,8 +68,9 @@ def fetch_model(model: str | Path, *, bar=None) -> None:
             the library never prints).
 
     Raises:
-        InputError: transformers missing, offline (``HF_HUB_OFFLINE`` set or the hub
-            not reachable) or the download failed; one line.
+        MissingExtra: transformers is not installed (extra ``depth``).
+        InputError: offline (``HF_HUB_OFFLINE`` set or the hub not reachable) or the
+            download failed; one line.
 
     Example:
         >>> fetch_model("models/depth.onnx")  # nothing to download
@@ -76,23 +78,16 @@ def fetch_model(model: str | Path, *, bar=None) -> None:
     name = str(model)
     if not needs_download(name):
         return
-    try:
-        import transformers  # noqa: F401
-        from huggingface_hub import constants, hf_hub_download
-        from huggingface_hub.utils import EntryNotFoundError
-    except ImportError as err:
-        from photo3d.depth.models import _missing
+    require("transformers", "depth", purpose="monocular depth")
+    hub = require("huggingface_hub", "depth", purpose="monocular depth")
+    from huggingface_hub.utils import EntryNotFoundError
 
-        raise _missing("transformers") from err
+    constants, hf_hub_download = hub.constants, hub.hf_hub_download
     if constants.HF_HUB_OFFLINE:
         raise InputError(f"depth model {name} is not in the Hugging Face cache and "
                          "HF_HUB_OFFLINE is set")
-    host = constants.ENDPOINT.split("://", 1)[-1].split("/", 1)[0]
-    try:  # the hub client retries for ~25 s when offline: find out at once
-        socket.create_connection((host.split(":")[0], 443), timeout=5).close()
-    except OSError:
-        raise InputError(f"cannot download depth model {name}: {host} is not reachable "
-                         "(offline?)") from None
+    # the hub client retries for ~25 s when offline: find out at once
+    check_reachable(constants.ENDPOINT, what=f"depth model {name}")
     quiet = _quiet_bar() if bar is None else bar
     try:
         for filename in ("config.json", "preprocessor_config.json"):
@@ -102,9 +97,24 @@ def fetch_model(model: str | Path, *, bar=None) -> None:
         except EntryNotFoundError:  # older repos keep PyTorch weights only
             hf_hub_download(name, "pytorch_model.bin", tqdm_class=quiet)
     except (OSError, ValueError, EntryNotFoundError) as err:
-        from photo3d.depth.models import _why
+        raise InputError(f"cannot download depth model {name}: "
+                         f"{failure_reason(err, name)}") from err
 
-        raise InputError(f"cannot download depth model {name}: {_why(err, name)}") from err
+
+def failure_reason(err: Exception, name: str) -> str:
+    """A short reason (one line, at most 160 characters) why downloading or loading
+    the model ``name`` (hub name or local folder) failed with ``err``.
+
+    Example:
+        >>> failure_reason(OSError("no   such file"), ".")
+        'no such file'
+    """
+    from huggingface_hub import constants
+
+    if constants.HF_HUB_OFFLINE and not Path(name).is_dir():
+        return "not in the Hugging Face cache and HF_HUB_OFFLINE is set"
+    text = " ".join(str(err).split()) or type(err).__name__
+    return text if len(text) <= 160 else text[:157] + "..."
 
 
 def _quiet_bar():

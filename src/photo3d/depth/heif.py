@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from photo3d.depth.embedded import EmbeddedDepth
-from photo3d.errors import InputError
+from photo3d.errors import InputError, require
 from photo3d.io.images import to_float_image
 
 PathLike = str | os.PathLike[str]
@@ -94,15 +94,14 @@ def _open(path: PathLike, **options):
     path = Path(path)
     if not path.is_file():
         raise InputError(f"image file not found: {path}")
+    pillow_heif = _pillow_heif(path)
     try:
-        return _pillow_heif().open_heif(path, **options)
+        return pillow_heif.open_heif(path, **options)
     except (ValueError, RuntimeError, OSError) as err:
         raise InputError(f"cannot read HEIF {path}: {err}") from err
 
 
-def _pillow_heif():
-    try:
-        import pillow_heif
-    except ImportError as err:
-        raise InputError("HEIF/HEIC photos need pillow-heif: pip install 'photo3d[heif]'") from err
-    return pillow_heif
+def _pillow_heif(path: Path):
+    """pillow-heif, or :class:`~photo3d.errors.MissingExtra` naming ``path`` and the extra."""
+    return require("pillow_heif", "heif", purpose=f"reading the HEIF/HEIC file {path}",
+                   package="pillow-heif")

@@ -44,7 +44,8 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
-from photo3d.errors import InputError
+from photo3d.depth.fetch import failure_reason
+from photo3d.errors import InputError, require
 from photo3d.io.images import read_image, to_float_image
 
 DEPTH_TYPES = ("zoedepth", "glpn", "depth_pro", "prompt_depth_anything")
@@ -119,8 +120,10 @@ def estimate_depth(
         (see :func:`run_model` for the reason too).
 
     Raises:
-        InputError: transformers/onnxruntime missing, the model cannot be found or
-            loaded (offline and not cached), or an invalid ``kind``.
+        MissingExtra: torch, transformers or onnxruntime is not installed (extra
+            ``depth``; an :class:`InputError` too).
+        InputError: the model cannot be found or loaded (offline and not cached), or
+            an invalid ``kind``.
 
     Example:
         >>> depth, kind = estimate_depth("photo.jpg", "Intel/dpt-hybrid-midas")  # doctest: +SKIP
@@ -166,18 +169,12 @@ def _resize(array: np.ndarray, height: int, width: int) -> np.ndarray:
     return np.asarray(im.resize((width, height), Image.Resampling.BILINEAR), np.float32)
 
 
-def _missing(package: str) -> InputError:
-    return InputError(f"monocular depth needs {package}: pip install 'photo3d[depth]'")
-
-
 @functools.lru_cache(maxsize=2)
 def _load_transformers(name: str, device: str):
-    try:
-        import torch  # noqa: F401
-        import transformers
-        from transformers import AutoImageProcessor, AutoModelForDepthEstimation
-    except ImportError as err:
-        raise _missing("transformers") from err
+    require("torch", "depth", purpose="monocular depth", package="PyTorch")
+    transformers = require("transformers", "depth", purpose="monocular depth")
+    from transformers import AutoImageProcessor, AutoModelForDepthEstimation
+
     options = {}
     if not Path(name).is_dir():
         from huggingface_hub import try_to_load_from_cache
@@ -197,30 +194,17 @@ def _load_transformers(name: str, device: str):
         processor = AutoImageProcessor.from_pretrained(name, **processor_options)
         net = AutoModelForDepthEstimation.from_pretrained(name, **options)
     except (OSError, ValueError, KeyError) as err:
-        raise InputError(f"cannot load depth model {name!r}: {_why(err, name)}; download it "
-                         "once while online (it is then cached) or pass a local folder saved "
-                         "with save_pretrained") from err
+        raise InputError(f"cannot load depth model {name!r}: {failure_reason(err, name)}; "
+                         "download it once while online (it is then cached) or pass a local "
+                         "folder saved with save_pretrained") from err
     finally:
         if bars:
             logging.enable_progress_bar()
     return processor, net.to(device).eval()
 
 
-def _why(err: Exception, name: str) -> str:
-    """A short reason for a failed ``from_pretrained``."""
-    from huggingface_hub import constants
-
-    if constants.HF_HUB_OFFLINE and not Path(name).is_dir():
-        return "not in the Hugging Face cache and HF_HUB_OFFLINE is set"
-    text = " ".join(str(err).split()) or type(err).__name__
-    return text if len(text) <= 160 else text[:157] + "..."
-
-
 def _run_transformers(rgb: np.ndarray, name: str, device: str | None):
-    try:
-        import torch
-    except ImportError as err:
-        raise _missing("transformers") from err
+    torch = require("torch", "depth", purpose="monocular depth", package="PyTorch")
     if device is None:
         device = "cuda" if torch.cuda.is_available() else "cpu"
     processor, net = _load_transformers(name, device)
@@ -270,10 +254,7 @@ def onnx_input_size(shape: list, image_hw: tuple[int, int], *, lower_bound: int 
 
 
 def _run_onnx(rgb: np.ndarray, path: Path):
-    try:
-        import onnxruntime as ort
-    except ImportError as err:
-        raise _missing("onnxruntime") from err
+    ort = require("onnxruntime", "depth", purpose="monocular depth")
     if not path.is_file():
         raise InputError(f"depth model file not found: {path}")
     try:

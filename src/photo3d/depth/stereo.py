@@ -35,7 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from photo3d.depth.normalize import fill_unknown
-from photo3d.errors import InputError
+from photo3d.errors import InputError, MissingExtra, install_hint, require
 from photo3d.io.images import to_float_image
 
 WORK_SIZE = 1600
@@ -98,17 +98,11 @@ class StereoResult:
 
 def _cv2(feature: str = "stereo matching"):
     """Import OpenCV with the contrib modules or explain how to install them."""
-    try:
-        import cv2
-    except ImportError as err:
-        raise InputError(
-            f"{feature} needs OpenCV: pip install 'photo3d[stereo]'"
-        ) from err
+    cv2 = require("cv2", "stereo", purpose=feature, package="OpenCV")
     if not hasattr(cv2, "ximgproc"):
-        raise InputError(
-            f"{feature} needs OpenCV's contrib modules: pip uninstall opencv-python-headless "
-            "and pip install 'photo3d[stereo]' (opencv-contrib-python-headless)"
-        )
+        raise MissingExtra(feature, "OpenCV's contrib modules", "stereo", module="cv2.ximgproc",
+                           hint="pip uninstall opencv-python-headless and "
+                                f"{install_hint('stereo')} (opencv-contrib-python-headless)")
     return cv2
 
 

@@ -25,7 +25,7 @@ import numpy as np
 from PIL import Image, UnidentifiedImageError
 
 from photo3d.errors import InputError, OutputError
-from photo3d.io.images import check_pixel_count
+from photo3d.io.images import read_tiff_page
 from photo3d.io.npy import read_npy
 
 PathLike = str | os.PathLike[str]
@@ -253,7 +253,7 @@ def _read_pfm(path: Path) -> np.ndarray:
 def _read_tiff(path: Path) -> np.ndarray:
     """Float or grey TIFF through Pillow, else through tifffile."""
     pixels = _read_tiff_with_pillow(path)
-    return pixels if pixels is not None else _read_tiff_with_tifffile(path)
+    return pixels if pixels is not None else _first_of_equal_channels(read_tiff_page(path)[0])
 
 
 def _read_tiff_with_pillow(path: Path) -> np.ndarray | None:
@@ -268,24 +268,6 @@ def _read_tiff_with_pillow(path: Path) -> np.ndarray | None:
         return None  # e.g. float64 or multi-channel float: tifffile reads those
     except (OSError, SyntaxError, ValueError, Image.DecompressionBombError) as err:
         raise InputError(str(err)) from err
-
-
-def _read_tiff_with_tifffile(path: Path) -> np.ndarray:
-    """First page of a TIFF through tifffile (extra ``photo3d[tiff]``)."""
-    try:
-        import tifffile
-    except ImportError as err:
-        raise InputError(
-            "this TIFF needs the tifffile package: pip install 'photo3d[tiff]'"
-        ) from err
-    try:
-        with tifffile.TiffFile(path) as tif:
-            page = tif.pages[0]
-            check_pixel_count(page.shape)
-            array = page.asarray()
-    except (OSError, ValueError, IndexError, tifffile.TiffFileError) as err:
-        raise InputError(str(err) or "not a readable TIFF") from err
-    return _first_of_equal_channels(array)
 
 
 _READERS = {

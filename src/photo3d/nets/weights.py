@@ -13,7 +13,6 @@ keys and shapes is accepted as custom. Everything else raises
 
 from __future__ import annotations
 
-import hashlib
 import json
 import logging
 from dataclasses import dataclass
@@ -23,6 +22,7 @@ import torch
 from torch import Tensor, nn
 
 from photo3d.errors import InputError
+from photo3d.files.download import sha256_of
 from photo3d.nets.edge import EdgeGenerator
 from photo3d.nets.partialconv import PartialConvUNet, color_net, depth_net
 
@@ -84,15 +84,6 @@ def _kind_of(module: nn.Module) -> str:
     if isinstance(module, PartialConvUNet):
         return module.layout
     raise TypeError(f"cannot save {type(module).__name__}: not one of the inpainting nets")
-
-
-def sha256(path: Path) -> str:
-    """Hex SHA-256 of a file's bytes."""
-    digest = hashlib.sha256()
-    with open(path, "rb") as f:
-        for block in iter(lambda: f.read(1 << 22), b""):
-            digest.update(block)
-    return digest.hexdigest()
 
 
 def read_pth(path: Path) -> dict[str, Tensor]:
@@ -162,7 +153,7 @@ def load_net(kind: str, folder: str | Path) -> tuple[nn.Module, str]:
         state = read_pth(pth)
         module = build_net(kind)
         check_state_dict(state, module, pth.name)
-        source = "official" if sha256(pth) == OFFICIAL_SHA256[kind] else "custom .pth"
+        source = "official" if sha256_of(pth) == OFFICIAL_SHA256[kind] else "custom .pth"
         name = pth.name
     elif st.exists():
         state, meta = read_safetensors(st)

@@ -204,10 +204,25 @@ def block_vertices(faces, block):
 
 
 @njit(parallel=True, cache=True, error_model="numpy", nogil=True)
-def _block_bounds(sv, offsets, ids):
-    """Per block (CSR from :func:`block_vertices`): screen ``ymin, ymax, xmin, xmax``
-    and the largest inverse depth; ``ymin = +inf`` marks a block with a vertex behind
-    the near plane (never culled)."""
+def block_bounds(sv, offsets, ids):
+    """Per block of faces, its screen bounding box and nearest depth, for culling.
+
+    Args:
+        sv: ``(N, 3) float32`` screen vertices ``(x, y, 1 / z)`` (negative ``1 / z``:
+            behind the near plane).
+        offsets, ids: the blocks' vertices as CSR, from :func:`block_vertices`.
+
+    Returns:
+        ``(nb, 5) float64``: screen ``ymin, ymax, xmin, xmax`` and the largest inverse
+        depth of each block; ``ymin = +inf`` marks a block with a vertex behind the
+        near plane (never culled).
+
+    Example:
+        >>> faces = np.array([[0, 1, 2]], np.int32)
+        >>> sv = np.array([[1, 2, 0.5], [3, 4, 0.25], [2, 5, 0.5]], np.float32)
+        >>> block_bounds(sv, *block_vertices(faces, 64)).tolist()
+        [[2.0, 5.0, 1.0, 3.0, 0.5]]
+    """
     nb = offsets.shape[0] - 1
     out = np.empty((nb, 5), np.float64)
     for b in prange(nb):
@@ -285,7 +300,7 @@ def _resolve_rows(color, depth, factor, r0, r1, out_color, out_cov, out_depth):
 def resolve(color, depth, factor):
     """Supersampling resolve of a whole ``(H, W)`` frame (H, W multiples of
     ``factor``): ``(color (H/f, W/f, 3), coverage (H/f, W/f), depth (H/f, W/f))``,
-    see :func:`_resolve_rows`. :func:`_raster` does the same per band, fused."""
+    see :func:`_resolve_rows`. :func:`raster_frame` does the same per band, fused."""
     h, w = depth.shape[0] // factor, depth.shape[1] // factor
     out_color = np.empty((h, w, 3), np.float32)
     out_cov = np.empty((h, w), np.float32)
@@ -332,14 +347,17 @@ def apply_texture(color, depth, texture):
 
 
 @njit(parallel=True, cache=True, error_model="numpy", nogil=True)
-def _raster(sv, col, scale, faces, n_first, bounds, block, xsv, xcol, xfaces, height, width,
-            bands, background, count, color, depth, mask, factor, out_color, out_cov, out_depth,
-            texture):
-    """Z-buffer render of ``faces`` over ``sv`` and ``xfaces`` over ``xsv``.
+def raster_frame(sv, col, scale, faces, n_first, bounds, block, xsv, xcol, xfaces, height,
+                 width, bands, background, count, color, depth, mask, factor, out_color, out_cov,
+                 out_depth, texture):
+    """Z-buffer render of ``faces`` over ``sv`` and ``xfaces`` over ``xsv``, in
+    ``bands`` horizontal bands rendered in parallel; returns ``(color, depth, mask)``.
 
-    ``col``: ``(N, 3)`` vertex colours (times ``scale`` in [0, 1]); ``xcol``:
-    ``(K, 3) float32`` colours of ``xsv``. ``count``: ``(H, W) int32`` coverage
-    counter (tests), or ``(0, 0)`` for none. ``color (H, W, 3) float32``,
+    ``sv``: ``(N, 3) float32`` screen vertices ``(x, y, 1 / z)``, ``faces``: ``(M, 3)
+    int32``; ``xsv``, ``xfaces``: the triangles clipped at the near plane. ``col``:
+    ``(N, 3)`` vertex colours (times ``scale`` in [0, 1]); ``xcol``: ``(K, 3)
+    float32`` colours of ``xsv``. ``count``: ``(H, W) int32`` coverage counter
+    (tests), or ``(0, 0)`` for none. ``color (H, W, 3) float32``,
     ``depth (H, W) float32`` and ``mask (H, W) bool`` receive the image (every
     element is written; callers reuse them across frames). With ``factor > 0`` each
     band is resolved as it finishes (:func:`_resolve_rows`, bands aligned to
@@ -350,9 +368,28 @@ def _raster(sv, col, scale, faces, n_first, bounds, block, xsv, xcol, xfaces, he
     :func:`_texture_rows`), ``(0, 0, 3)`` for vertex colours.
 
     ``faces[:n_first]`` are drawn first; later faces and blocks (``bounds`` from
-    :func:`_block_bounds`) are skipped when they lie behind the farthest depth drawn
+    :func:`block_bounds`) are skipped when they lie behind the farthest depth drawn
     so far in every 8x8 tile they touch (hierarchical z: the image is the same, only
     work is saved). Blocks outside a band are skipped whole.
+
+    Example:
+        >>> sv = np.array([[0, 0, 0.5], [4, 0, 0.5], [0, 4, 0.5]], np.float32)
+        >>> faces, empty = np.array([[0, 1, 2]], np.int32), np.zeros((0, 3), np.int32)
+        >>> bounds = block_bounds(sv, *block_vertices(faces, 64))
+        >>> color, depth = np.zeros((4, 4, 3), np.float32), np.zeros((4, 4), np.float32)
+        >>> mask, none = np.zeros((4, 4), np.bool_), np.zeros((0, 0), np.float32)
+        >>> _, depth, mask = raster_frame(
+        ...     sv, np.ones((3, 3), np.float32), 1.0, faces, 1, bounds, 64,
+        ...     np.zeros((0, 3), np.float32), np.zeros((0, 3), np.float32), empty, 4, 4, 2,
+        ...     np.zeros(3, np.float32), np.zeros((0, 0), np.int32), color, depth, mask, 0,
+        ...     np.zeros((0, 0, 3), np.float32), none, none, np.zeros((0, 0, 3), np.uint8))
+        >>> mask.astype(int)
+        array([[1, 1, 1, 0],
+               [1, 1, 0, 0],
+               [1, 0, 0, 0],
+               [0, 0, 0, 0]])
+        >>> float(depth[0, 0])
+        2.0
     """
     tile = 8
     cull = count.shape[0] == 0  # the coverage counter must see every face

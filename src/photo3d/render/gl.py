@@ -44,8 +44,8 @@ import re
 import numpy as np
 
 from photo3d.camera import Intrinsics
-from photo3d.errors import InputError
-from photo3d.render.raster import Fragments, _check_texture, _prepare
+from photo3d.errors import InputError, require
+from photo3d.render.raster import Fragments, check_texture, prepare_mesh
 
 __all__ = ["GLRasterizer", "gl_available", "gl_renderer", "is_software_renderer"]
 
@@ -96,11 +96,7 @@ def is_software_renderer(name: str) -> bool:
 
 
 def _moderngl():
-    try:
-        import moderngl
-    except ImportError as err:
-        raise ImportError("the OpenGL renderer needs moderngl: pip install 'photo3d[gl]'") from err
-    return moderngl
+    return require("moderngl", "gl", purpose="the OpenGL renderer")
 
 
 def _create_context(device_index: int | None):
@@ -187,7 +183,7 @@ class GLRasterizer:
             afterwards (deferred texturing, as the numba rasterizer does).
 
     Raises:
-        ImportError: moderngl is not installed.
+        MissingExtra: moderngl is not installed (extra ``gl``; an ImportError too).
         RuntimeError: no OpenGL 3.3 context can be created (use the CPU rasterizer).
         InputError: invalid mesh arrays.
 
@@ -199,8 +195,8 @@ class GLRasterizer:
 
     def __init__(self, vertices, colors, faces, *, device_index: int | None = None,
                  texture: np.ndarray | None = None):
-        vertices, colors, scale, faces, _, _ = _prepare(vertices, colors, faces, None)
-        self._texture = _check_texture(texture)
+        vertices, colors, scale, faces, _, _ = prepare_mesh(vertices, colors, faces, None)
+        self._texture = check_texture(texture)
         if not np.all(np.isfinite(vertices)):
             raise InputError("vertices have non-finite coordinates")
         bounds = np.stack([vertices.min(0), vertices.max(0)]) if len(vertices) else np.zeros((2, 3))

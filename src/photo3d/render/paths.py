@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from photo3d.camera import Camera, Intrinsics
-from photo3d.errors import InputError
+from photo3d.errors import InputError, require
 
 PRESETS = ("dolly-zoom-in", "zoom-in", "circle", "swing")
 _SHIFTS = {  # x, y, z of the authors' presets
@@ -224,12 +224,11 @@ def load_path(path: str | Path, intrinsics: Intrinsics, *, frames: int) -> list[
         text = path.read_text()
     except (OSError, UnicodeDecodeError) as err:
         raise InputError(f"cannot read camera path {path}: {err}") from None
+    is_yaml = path.suffix.lower() in (".yaml", ".yml")
+    if is_yaml:
+        yaml = require("yaml", "yaml", purpose="reading YAML camera paths", package="PyYAML")
     try:
-        if path.suffix.lower() in (".yaml", ".yml"):
-            try:
-                import yaml
-            except ImportError:
-                raise InputError("YAML camera paths need PyYAML: pip install pyyaml") from None
+        if is_yaml:
             try:
                 data = yaml.safe_load(text)
             except yaml.YAMLError as err:

@@ -34,7 +34,7 @@ import numpy as np
 from photo3d.camera import Intrinsics
 from photo3d.errors import InputError
 from photo3d.render._clip import clip_near, project_vertices
-from photo3d.render._kernels import BLOCK, _block_bounds, _raster, block_vertices
+from photo3d.render._kernels import BLOCK, block_bounds, block_vertices, raster_frame
 
 __all__ = ["CPURasterizer", "Fragments", "rasterize"]
 
@@ -65,8 +65,32 @@ def _check_array(name: str, array: np.ndarray, shape: str) -> None:
         raise InputError(f"{name} must have shape {shape}, got {array.shape}")
 
 
-def _prepare(vertices, colors, faces, pose):
-    """Validate and convert the inputs of :func:`rasterize` (public edge)."""
+def prepare_mesh(vertices, colors, faces, pose):
+    """Validate the mesh and pose given to :func:`rasterize` (or to
+    :class:`~photo3d.render.gl.GLRasterizer`) and convert them to what the
+    rasterizers take.
+
+    Args:
+        vertices: ``(N, 3)`` float, camera-space or world coordinates.
+        colors: ``(N, 3)`` uint8, or float in [0, 1] (or texture coordinates
+            ``(u, v, 0)`` for a textured mesh).
+        faces: ``(M, 3)`` integer vertex indices (``[]`` for none).
+        pose: ``(4, 4)`` camera-from-world matrix, or None for the identity.
+
+    Returns:
+        ``(vertices (N, 3) float32, colors (N, 3) uint8 | float32, scale, faces (M, 3)
+        int32, rotation (3, 3) float64, translation (3,) float64)``, all C-contiguous;
+        ``colors * scale`` is in [0, 1] (``scale`` is ``1 / 255`` for uint8, else 1).
+
+    Raises:
+        InputError: a shape, dtype or index is wrong (the message names the array).
+
+    Example:
+        >>> v, c, scale, f, rot, trans = prepare_mesh(np.zeros((3, 3)), np.zeros((3, 3),
+        ...                                           np.uint8), [[0, 1, 2]], None)
+        >>> v.dtype, f.dtype, round(scale * 255), rot.shape, trans.shape
+        (dtype('float32'), dtype('int32'), 1, (3, 3), (3,))
+    """
     vertices = np.ascontiguousarray(vertices, np.float32)
     colors = np.asarray(colors)
     faces = np.asarray(faces)
@@ -103,8 +127,17 @@ def _check_pose(pose) -> tuple[np.ndarray, np.ndarray]:
     return np.ascontiguousarray(pose[:3, :3]), np.ascontiguousarray(pose[:3, 3])
 
 
-def _check_texture(texture) -> np.ndarray:
-    """``(T, U, 3) uint8`` C-contiguous texture (None: no texture, ``(0, 0, 3)``)."""
+def check_texture(texture) -> np.ndarray:
+    """A texture as the rasterizers take it: ``(T, U, 3) uint8`` C-contiguous, or
+    ``(0, 0, 3)`` for None (no texture: vertex colours).
+
+    Raises:
+        InputError: not ``(T >= 2, U >= 2, 3) uint8``.
+
+    Example:
+        >>> check_texture(None).shape, check_texture(np.zeros((2, 4, 3), np.uint8)).shape
+        ((0, 0, 3), (2, 4, 3))
+    """
     if texture is None:
         return _NO_TEXTURE
     texture = np.ascontiguousarray(texture)
@@ -160,7 +193,7 @@ def rasterize(
         >>> f.mask.all(), float(f.depth[0, 0]), f.color[0, 0].tolist()
         (np.True_, 1.0, [1.0, 1.0, 1.0])
     """
-    prepared = _prepare(vertices, colors, faces, pose)
+    prepared = prepare_mesh(vertices, colors, faces, pose)
     height, width = int(intrinsics.height), int(intrinsics.width)
     if height <= 0 or width <= 0:
         raise InputError(f"intrinsics size must be positive, got {width}x{height}")
@@ -216,15 +249,15 @@ def _render(vertices, colors, scale, faces, rot, trans, k, near, height, width, 
         xsv, xcol = np.empty((0, 3), np.float32), np.empty((0, 3), np.float32)
         xfaces = np.empty((0, 3), np.int32)
     image = (height, width, bands, bg, count)
-    bounds = _block_bounds(sv, *blocks)
+    bounds = block_bounds(sv, *blocks)
     out = (buffers.get("color", (height, width, 3), np.float32),
            buffers.get("depth", (height, width), np.float32),
            buffers.get("mask", (0, 0) if factor else (height, width), np.bool_))
     small = (height // factor, width // factor) if factor else (0, 0)
     resolved = (np.empty((*small, 3), np.float32), np.empty(small, np.float32),
                 np.empty(small, np.float32))
-    frame = _raster(sv, colors, scale, faces, n_first, bounds, BLOCK, xsv, xcol, xfaces, *image,
-                    *out, factor, *resolved, texture)
+    frame = raster_frame(sv, colors, scale, faces, n_first, bounds, BLOCK, xsv, xcol, xfaces,
+                         *image, *out, factor, *resolved, texture)
     return resolved if factor else frame
 
 
@@ -249,8 +282,8 @@ class CPURasterizer:
         allocation per frame, for callers that consume a frame before the next.
         ``texture``: ``(T, U, 3) uint8`` sRGB; then ``colors`` are ``(N, 3) float32``
         texture coordinates ``(u, v, 0)`` (glTF convention, origin top-left)."""
-        self._prepared = _prepare(vertices, colors, faces, None)[:4]
-        self._texture = _check_texture(texture)
+        self._prepared = prepare_mesh(vertices, colors, faces, None)[:4]
+        self._texture = check_texture(texture)
         n = len(self._prepared[3])
         self._first = n if first is None else int(np.clip(first, 0, n))
         self._buffers = _Buffers() if reuse else None

@@ -20,7 +20,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from photo3d.camera import Camera, Intrinsics
-from photo3d.errors import ConfigError
+from photo3d.errors import ConfigError, require
 from photo3d.holes import fill_holes
 from photo3d.mesh.types import Mesh, TexturedMesh
 from photo3d.render._resolve import grow_fill, grow_fill_far
@@ -200,10 +200,7 @@ def select_backend(name: str) -> str:
     if name == "numba":
         return "numba"
     if name == "gl":
-        import importlib.util
-
-        if importlib.util.find_spec("moderngl") is None:
-            raise ImportError("--backend gl needs moderngl: pip install 'photo3d[gl]'")
+        require("moderngl", "gl", purpose="--backend gl")
     try:
         from photo3d.render.gl import gl_available, gl_renderer, is_software_renderer
     except ImportError:

@@ -19,10 +19,12 @@ Example:
     {'levels': 5, 'width': 0.25, 'center': True}
 """
 
+from photo3d.errors import MissingExtra
+
 try:
     import torch  # noqa: F401
 except ImportError as err:  # pragma: no cover - depends on the environment
-    raise ImportError("photo3d.train needs PyTorch: pip install 'photo3d[learned]'") from err
+    raise MissingExtra("photo3d.train", "PyTorch", "learned", module="torch") from err
 
 from photo3d.train.builtin import write_builtin
 from photo3d.train.dataset import (

@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from photo3d.camera import Intrinsics
-from photo3d.errors import InputError
+from photo3d.errors import require
 from photo3d.io.depth import write_pfm
 from photo3d.io.images import to_float_image, write_image
 
@@ -63,11 +63,8 @@ def write_builtin(folder: str | Path, *, scenes: int = 48, width: int = 512, hei
         >>> [p.name for p in (d / "depth").iterdir()]
         ['scene1000.pfm']
     """
-    try:
-        from skimage import data as skdata
-    except ImportError as err:  # pragma: no cover - depends on the environment
-        raise InputError("--images builtin needs scikit-image: pip install "
-                         "'photo3d[sample]'") from err
+    skdata = require("skimage.data", "sample", purpose="--images builtin",
+                     package="scikit-image")
     from photo3d.eval.synthetic import cast, random_scene
 
     folder = Path(folder)
