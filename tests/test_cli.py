@@ -230,3 +230,18 @@ def test_mesh_glb_is_light_and_textured_unless_full_glb(files):
     assert len(light.faces) < len(full.faces) / 4 and light.texture.ndim == 3
     with pytest.raises(Exception, match="TEXCOORD_0|textured"):
         read_textured_glb(files / "full" / "mesh.glb")
+
+
+def test_make_says_where_the_depth_came_from_and_records_it(files, capsys):
+    import json
+
+    out = files / "out"
+    assert main(["make", str(files / "photo.png"), "--depth", str(files / "depth.png"),
+                 "--depth-kind", "depth", "-o", str(out), "--size", "64", "--no-video",
+                 "--no-viewer"]) == 0
+    source = f"depth file {files / 'depth.png'} (depth)"
+    assert f"depth: {source}\n" in capsys.readouterr().err
+    meta = json.loads((out / "config.json").read_text())
+    assert meta["depth_source"] == source and meta["config"]["depth_kind"] == "depth"
+    assert meta["save"]["viewer"] is False and meta["save"]["videos"] == []
+    assert meta["inpainter"]["name"] == "diffusion"

@@ -30,8 +30,8 @@ LAYERS = {
     "photo3d.render": 6, "photo3d.viewer": 6,
     # 7: the 3D photo, its folder, the memory check
     "photo3d.photo": 7, "photo3d.output": 7, "photo3d.resources": 7,
-    # 8: make
-    "photo3d.pipeline": 8,
+    # 8: make, and make into an output folder (the path `make` and `batch` share)
+    "photo3d.pipeline": 8, "photo3d.folder": 8,
     # 9: what runs make many times
     "photo3d.eval": 9, "photo3d.train": 9, "photo3d.batch": 9,
     # 10: the command line

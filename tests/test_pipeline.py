@@ -144,3 +144,51 @@ def test_metric_depth_and_intrinsics_are_kept():
         photo3d.Config(metric=True)
     with pytest.raises(InputError, match="intrinsics are for"):
         photo3d.make(img, depth=z, intrinsics=Intrinsics.default(10, 10))
+
+
+def test_config_json_records_the_inpainter_the_depth_source_and_the_save_options(tmp_path):
+    img, d = two_planes(32, 48, 24)
+    np.save(tmp_path / "d.npy", d)
+    photo = photo3d.make(img, depth=tmp_path / "d.npy", config=exact_config())
+    out = photo.save(tmp_path / "out", ply="ascii", full_glb=True, viewer=False)
+    meta = json.loads((out / "config.json").read_text())
+    assert list(meta) == ["config", "inpainter", "depth_source", "save", "stats", "timings"]
+    assert meta["inpainter"] == {"name": "diffusion", "iterations": 300, "tolerance": 1e-3}
+    assert meta["depth_source"] == f"depth file {tmp_path / 'd.npy'} (disparity)"
+    assert meta["save"] == {"ply": "ascii", "glb": "full", "light_error": 0.5,
+                            "viewer": False, "videos": [], "render_settings": None}
+    from photo3d.io.npz import load_npz
+
+    assert load_npz(out / "photo3d.npz")[1] == meta  # the LDI file carries the same
+    back = photo3d.load(out)
+    assert (back.inpainter, back.depth_source) == (photo.inpainter, photo.depth_source)
+
+
+def test_folders_saved_before_the_new_records_still_load(tmp_path):
+    from photo3d.io.npz import save_npz
+
+    img, d = two_planes(16, 16, 8)
+    photo = photo3d.make(img, depth=d, config=exact_config(border=2))
+    old = tmp_path / "old"
+    old.mkdir()
+    meta = {"config": photo.config.to_dict(), "stats": photo.stats, "timings": photo.timings}
+    save_npz(photo.ldi, old / "photo3d.npz", meta=meta)
+    (old / "config.json").write_text(json.dumps(meta))
+    back = photo3d.load(old)
+    assert back.config == photo.config and back.stats == photo.stats
+    assert back.inpainter == {} and back.depth_source is None
+    back.save(tmp_path / "again", glb=False, viewer=False)  # and can be saved again
+    assert json.loads((tmp_path / "again" / "config.json").read_text())["inpainter"] == {}
+
+
+def test_make_reads_heic_photos_like_the_command_line(tmp_path):
+    pillow_heif = pytest.importorskip("pillow_heif")
+    from photo3d.depth.sources import read_photo
+
+    img, d = two_planes(32, 48, 24)
+    rgb = (img * 255).round().astype(np.uint8)
+    pillow_heif.from_pillow(Image.fromarray(rgb)).save(tmp_path / "a.heic", quality=-1)
+    photo = photo3d.make(tmp_path / "a.heic", depth=d, config=exact_config())
+    from_array = photo3d.make(read_photo(tmp_path / "a.heic"), depth=d, config=exact_config())
+    np.testing.assert_array_equal(photo.ldi.color, from_array.ldi.color)
+    assert np.abs(photo.ldi.color[: 32 * 48].reshape(32, 48, 3) - img).mean() < 0.04  # lossy

@@ -4,7 +4,7 @@ A 3D photo folder holds ``photo3d.npz`` (the LDI, lossless), ``mesh.ply``
 (binary by default, the authors' header; one vertex per LDI pixel), ``mesh.glb``
 (the light textured mesh of :mod:`photo3d.mesh.light`, or the full vertex-coloured mesh
 with ``full_glb``), ``viewer.html`` (interactive, self-contained) and ``config.json``
-(the resolved configuration plus stats and timings), and videos in ``video/``
+(everything that changes the output, see :func:`photo_meta`), and videos in ``video/``
 (rendered from the full mesh with the numba backend, where the light one is not
 faster, and from the light mesh with OpenGL, where it is; see benchmarks/RESULTS.md).
 Everything is written into a temporary sibling folder first and moved into place at
@@ -15,6 +15,7 @@ nothing but these files.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor
@@ -43,6 +44,8 @@ class SavedPhoto(Protocol):
     config: Config
     stats: dict
     timings: dict
+    inpainter: dict
+    depth_source: str | None
 
     def mesh(self) -> Mesh: ...
 
@@ -52,8 +55,26 @@ PHOTO_FILES = (LDI_FILE, "config.json", "mesh.ply", "mesh.glb", "viewer.html", "
                "still.png", "still_*.png")
 """Top-level names in a 3D photo folder (``render --still`` adds ``still*.png``)."""
 
+FINISHED_FILES = (LDI_FILE, "config.json")
+"""Files every finished 3D photo folder holds (whatever else was asked for)."""
+
 owned_photo = owned_by_names(LDI_FILE, PHOTO_FILES)
 """The check that a folder is a 3D photo folder photo3d wrote (and may replace)."""
+
+
+def is_complete(out: str | Path) -> bool:
+    """True if ``out`` is a finished 3D photo folder.
+
+    Folders are written atomically (:func:`stage_photo`), so a folder holding
+    :data:`FINISHED_FILES` is complete; ``photo3d batch`` skips such folders.
+
+    Example:
+        >>> import tempfile
+        >>> is_complete(Path(tempfile.mkdtemp()))
+        False
+    """
+    out = Path(out)
+    return out.is_dir() and all((out / name).is_file() for name in FINISHED_FILES)
 
 
 def check_output(out: str | Path, *, overwrite: bool, inputs: Sequence[str | Path] = (),
@@ -149,8 +170,8 @@ def _write_photo(photo: SavedPhoto, tmp: Path, *, title: str, ply, glb, viewer, 
     The meshes are built in this thread; the files are written by two writer threads
     as soon as what they hold is ready (``photo3d.npz`` first, its deflate and the
     writes release the GIL), so writing overlaps building the light mesh."""
-    meta = {"config": photo.config.to_dict(), "stats": photo.stats,
-            "timings": photo.timings}
+    meta = photo_meta(photo, ply=ply, glb=glb, full_glb=full_glb, light_error=light_error,
+                      viewer=viewer, videos=videos, render_settings=render_settings)
     with ThreadPoolExecutor(max_workers=2) as pool:
         jobs = [pool.submit(save_npz, photo.ldi, tmp / LDI_FILE, meta=meta)]
         (tmp / "config.json").write_text(json.dumps(meta, indent=2))
@@ -163,6 +184,39 @@ def _write_photo(photo: SavedPhoto, tmp: Path, *, title: str, ply, glb, viewer, 
     if videos:
         write_videos(photo, _video_mesh(photo, mesh, light, render_settings, light_error), tmp,
                      videos, settings=render_settings, progress=progress)
+
+
+def photo_meta(photo: SavedPhoto, *, ply: str | None = "binary", glb: bool = True,
+               full_glb: bool = False, light_error: float = LIGHT_ERROR, viewer: bool = True,
+               videos: Sequence[VideoSpec] = (),
+               render_settings: RenderSettings | None = None) -> dict:
+    """What ``config.json`` (and the metadata of ``photo3d.npz``) records: everything
+    that changes the output.
+
+    Returns:
+        ``{"config": the resolved Config, "inpainter": the backend's settings,
+        "depth_source": one line or None, "save": {"ply", "glb": "light", "full" or
+        None, "light_error", "viewer", "videos": [VideoSpec fields], "render_settings":
+        RenderSettings fields or None without videos}, "stats", "timings"}``, JSON-able.
+
+    Example:
+        >>> import photo3d, numpy as np
+        >>> photo = photo3d.make(np.zeros((16, 16, 3)), depth=np.ones((16, 16)),
+        ...                      config=photo3d.Config(size=None))
+        >>> meta = photo_meta(photo, full_glb=True)
+        >>> list(meta), meta["save"]["glb"], meta["inpainter"]["name"]
+        (['config', 'inpainter', 'depth_source', 'save', 'stats', 'timings'], 'full', 'diffusion')
+    """
+    save = {"ply": ply, "glb": ("full" if full_glb else "light") if glb else None,
+            "light_error": light_error, "viewer": viewer,
+            "videos": [dataclasses.asdict(v) for v in videos], "render_settings": None}
+    if videos:
+        from photo3d.render.renderer import RenderSettings
+
+        save["render_settings"] = dataclasses.asdict(render_settings or RenderSettings())
+    return {"config": photo.config.to_dict(), "inpainter": dict(photo.inpainter),
+            "depth_source": photo.depth_source, "save": save, "stats": photo.stats,
+            "timings": photo.timings}
 
 
 def _video_mesh(photo: SavedPhoto, mesh, light, settings: RenderSettings | None, light_error):
@@ -231,8 +285,10 @@ def write_videos(photo: SavedPhoto, mesh, folder: Path, videos: Sequence[VideoSp
 
 
 def read_folder(path: str | Path) -> tuple[LDI, dict]:
-    """The LDI and the metadata (``config``, ``stats``, ``timings``) of a 3D photo
-    folder or of its ``photo3d.npz``; :func:`photo3d.load` makes a Photo3D of them.
+    """The LDI and the metadata (:func:`photo_meta`; folders saved before it recorded
+    ``inpainter``, ``depth_source`` and ``save`` hold only ``config``, ``stats`` and
+    ``timings``) of a 3D photo folder or of its ``photo3d.npz``;
+    :func:`photo3d.load` makes a Photo3D of them.
 
     Raises:
         InputError: there is no 3D photo at ``path``.

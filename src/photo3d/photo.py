@@ -28,12 +28,19 @@ class Photo3D:
         config: the configuration that produced it.
         timings: seconds per stage.
         stats: counts (edges per pass, pixels added, ...).
+        inpainter: the inpainting backend's settings, JSON-able (its ``settings()``:
+            name, and for ``learned`` the weights and their SHA-256, precision, ...);
+            empty for a photo saved before they were recorded.
+        depth_source: where the depth came from, one line (a
+            :attr:`~photo3d.depth.sources.DepthEstimate.source`), or None if unknown.
     """
 
     ldi: LDI
     config: Config
     timings: dict[str, float] = field(default_factory=dict)
     stats: dict[str, object] = field(default_factory=dict)
+    inpainter: dict[str, object] = field(default_factory=dict)
+    depth_source: str | None = None
 
     def mesh(self) -> Mesh:
         """The triangle mesh of the LDI (see :func:`photo3d.mesh.full.build_mesh`)."""
@@ -88,7 +95,7 @@ class Photo3D:
              progress=None, full_glb: bool = False, light_error: float | None = None) -> Path:
         """Write ``photo3d.npz``, ``mesh.ply``, ``mesh.glb``, ``viewer.html``,
         ``config.json`` and the requested videos (``video/NAME.mp4``) to ``out``,
-        atomically.
+        atomically; ``light_error`` None: :data:`photo3d.mesh.light.LIGHT_ERROR`.
 
         See :func:`photo3d.output.save_photo`.
         """
@@ -109,16 +116,21 @@ class Photo3D:
 def load(path: str | Path) -> Photo3D:
     """Reload a 3D photo from its folder or its ``photo3d.npz``.
 
+    Folders saved before the inpainter's settings and the depth source were
+    recorded load with ``inpainter == {}`` and ``depth_source is None``.
+
     Example:
         >>> import photo3d, numpy as np, tempfile, pathlib
         >>> photo = photo3d.make(np.zeros((16, 16, 3)), depth=np.ones((16, 16)),
         ...                      config=photo3d.Config(size=None))
         >>> tmp = photo.save(pathlib.Path(tempfile.mkdtemp()) / "out", glb=False, ply=None)
-        >>> photo3d.load(tmp).ldi.size == photo.ldi.size
-        True
+        >>> back = photo3d.load(tmp)
+        >>> back.ldi.size == photo.ldi.size, back.inpainter["name"], back.depth_source
+        (True, 'diffusion', 'depth array (disparity)')
     """
     from photo3d.output import read_folder
 
     ldi, meta = read_folder(path)
     return Photo3D(ldi=ldi, config=Config.from_dict(meta.get("config", {})),
-                   timings=meta.get("timings", {}), stats=meta.get("stats", {}))
+                   timings=meta.get("timings", {}), stats=meta.get("stats", {}),
+                   inpainter=meta.get("inpainter") or {}, depth_source=meta.get("depth_source"))

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -11,12 +10,14 @@ import numpy as np
 from photo3d.camera import DepthMapping, Intrinsics
 from photo3d.config import Config
 from photo3d.depth.normalize import prepare_depth
+from photo3d.depth.sources import describe_depth, read_photo
 from photo3d.errors import InputError
 from photo3d.inpaint import get_inpainter
 from photo3d.inpaint.base import Inpainter
 from photo3d.io.depth import read_depth
-from photo3d.io.images import MIN_SIDE, read_image, to_float_image
+from photo3d.io.images import MIN_SIDE
 from photo3d.photo import Photo3D
+from photo3d.progress import StageProgress
 from photo3d.resources import check_memory
 from photo3d.stages.border import extend_border
 from photo3d.stages.edges import edges_csr
@@ -26,8 +27,6 @@ from photo3d.stages.patches import extract_patches
 from photo3d.stages.preprocess import preprocess
 from photo3d.stages.regions import find_regions
 
-Progress = Callable[[str, float], None]
-"""``progress(stage, fraction)``; ``fraction`` in [0, 1] within the stage."""
 
 def make(
     image: np.ndarray | str | Path,
@@ -36,13 +35,15 @@ def make(
     config: Config | None = None,
     intrinsics: Intrinsics | None = None,
     inpainter: Inpainter | None = None,
-    progress: Progress | None = None,
+    progress: StageProgress | None = None,
 ) -> Photo3D:
     """Turn an RGB-D photo into a 3D photo.
 
     Args:
-        image: path or array (``(H, W)``, ``(H, W, 3)`` or ``(H, W, 4)``; uint8,
-            uint16 or float in [0, 1]).
+        image: path (JPEG, PNG, TIFF, WebP, or HEIF/HEIC with the ``heif`` extra:
+            :func:`~photo3d.depth.sources.read_photo`, the command line's reader)
+            or array (``(H, W)``, ``(H, W, 3)`` or ``(H, W, 4)``; uint8, uint16 or
+            float in [0, 1]).
         depth: path or ``(H, W)`` array of disparity (default) or depth
             (``config.depth_kind``); NaN/inf/negative values are filled.
         config: :class:`Config` (defaults: 1024 px, diffusion inpainting). With
@@ -54,7 +55,8 @@ def make(
         progress: optional ``progress(stage, fraction)`` callback.
 
     Returns:
-        :class:`Photo3D`.
+        :class:`Photo3D`, with the backend's settings (:func:`inpainter_settings`) and
+        a depth source naming the depth file or array.
 
     Example:
         >>> import photo3d
@@ -77,7 +79,7 @@ def make(
         t = now
         report(stage, 1.0)
 
-    img = read_image(image) if isinstance(image, str | Path) else to_float_image(image)
+    img = read_photo(image)
     raw = read_depth(depth) if isinstance(depth, str | Path) else np.asarray(depth)
     if min(img.shape[:2]) < MIN_SIDE:
         raise InputError(f"image is {img.shape[1]}x{img.shape[0]} pixels; photo3d needs at "
@@ -143,6 +145,8 @@ def make(
         ldi=ldi,
         config=config,
         timings=timings,
+        inpainter=inpainter_settings(backend),
+        depth_source=describe_depth(depth, config.depth_kind),
         stats={
             "working_size": [pre.image.shape[1], pre.image.shape[0]],
             "edges": edges_per_pass,
@@ -152,3 +156,16 @@ def make(
             "disparity_range": list(pre.disparity_range),
         },
     )
+
+
+def inpainter_settings(backend: Inpainter) -> dict[str, object]:
+    """The settings a backend reports (its optional ``settings()``, JSON-able), else
+    just its name; :func:`make` records them in the :class:`Photo3D` it returns.
+
+    Example:
+        >>> from photo3d.inpaint import get_inpainter
+        >>> inpainter_settings(get_inpainter("diffusion"))["name"]
+        'diffusion'
+    """
+    settings = getattr(backend, "settings", None)
+    return dict(settings()) if callable(settings) else {"name": backend.name}

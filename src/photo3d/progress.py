@@ -1,4 +1,4 @@
-"""The two shapes of progress callback the library reports through (the CLI turns
+"""The shapes of progress callback the library reports through (the CLI turns
 them into bars; the library never prints).
 
 Example:
@@ -17,3 +17,6 @@ StageProgress = Callable[[str, float], None]
 
 CountProgress = Callable[[int, int], None]
 """``progress(done, total)``: items (patches, frames) finished so far."""
+
+ByteProgress = Callable[[int, int | None], None]
+"""``progress(done, total)``: bytes downloaded so far; ``total`` None when unknown."""

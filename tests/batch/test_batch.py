@@ -219,3 +219,37 @@ def test_ctrl_c_stops_cleanly_and_a_rerun_resumes(tmp_path):
     assert f"{4 - len(finished)} ok, 0 failed, {len(finished)} skipped" in done.stdout
     assert all(is_complete(out / f"p{i}") for i in range(4))
     assert (out / "p0" / "video" / "circle.mp4").is_file()
+
+
+def test_a_finished_folder_is_defined_once():
+    import photo3d.batch
+    import photo3d.batch.worker
+    import photo3d.folder
+    import photo3d.output
+
+    assert photo3d.batch.is_complete is photo3d.output.is_complete
+    assert photo3d.batch.worker.is_complete is photo3d.output.is_complete
+    assert set(photo3d.output.FINISHED_FILES) <= set(photo3d.output.PHOTO_FILES)
+    assert photo3d.batch.MakeOptions is photo3d.folder.MakeOptions
+
+
+def test_a_photo_without_a_depth_map_keeps_its_model_kind(tmp_path, monkeypatch):
+    """--depth-kind describes the depth folder's maps; a photo without one uses the
+    depth model (or its embedded map) with the model's own kind."""
+    from photo3d.batch import PhotoMaker
+    from photo3d.depth import sources
+
+    seen = []
+
+    def fake_resolve(image, **kw):
+        seen.append((Path(image).name, kw["kind"], kw["depth"] is not None))
+        raise InputError("stop here")
+
+    monkeypatch.setattr(sources, "resolve_depth", fake_resolve)
+    add_photo(tmp_path, "a", tmp_path)
+    add_photo(tmp_path, "b", None)
+    maker = PhotoMaker(MakeOptions(depth_kind="depth"))
+    for job in (PhotoJob("a", tmp_path / "a.png", tmp_path / "a.npy"),
+                PhotoJob("b", tmp_path / "b.png")):
+        assert maker(job, tmp_path / "out").error == "stop here"
+    assert seen == [("a.png", "depth", True), ("b.png", None, False)]

@@ -8,10 +8,10 @@ from PIL import Image
 
 from photo3d.depth.export import VIRIDIS, colorize, export_depth
 from photo3d.depth.normalize import normalize, prepare_depth
-from photo3d.depth.sources import DepthEstimate, resolve_depth
+from photo3d.depth.sources import DepthEstimate, read_photo, resolve_depth
 from photo3d.errors import InputError, OutputError
 from photo3d.io.depth import read_depth, write_pfm
-from photo3d.io.images import write_image
+from photo3d.io.images import read_image, write_image
 
 
 def floor_disparity(h: int = 48, w: int = 64) -> np.ndarray:
@@ -141,3 +141,14 @@ def test_viridis_is_monotonic_in_lightness():
     lum = VIRIDIS @ np.array([0.2126, 0.7152, 0.0722])
     assert (np.diff(lum[::4]) > 0).all()  # 8-bit rounding makes some neighbours equal
     assert colorize(np.array([[np.nan, 2.0]])).tolist() == [[[68, 1, 84], [253, 231, 37]]]
+
+
+def test_read_photo_is_the_one_photo_reader(tmp_path):
+    from photo3d.depth import sources
+
+    path = photo_file(tmp_path, 8, 12)
+    np.testing.assert_array_equal(read_photo(path), read_image(path))
+    assert read_photo(np.zeros((8, 12), np.uint8)).shape == (8, 12, 3)
+    assert not hasattr(sources, "load_photo")  # photo3d.load reloads 3D photos, not photos
+    with pytest.raises(InputError, match="not found"):
+        read_photo(tmp_path / "missing.heic")

@@ -82,13 +82,15 @@ def test_error_bound_controls_the_triangle_count():
 
 
 def test_silhouettes_keep_their_pixel_outline():
-    """The box's outline seen from (near) the input camera is exactly the full mesh's.
+    """The box's outline seen from (near) the input camera is exactly the full mesh's,
+    at 4 times the default bound.
 
     (Slightly off the input camera: exactly there, pixel centres lie on the outline,
     where the full mesh has a vertex on every one and the light mesh only at corners,
-    and the rasterizer's fill rule treats the two differently.)"""
+    and the rasterizer's fill rule treats the two differently. A much coarser bound
+    may cut a corner, which it allows: here from 4 px on, with meshoptimizer from 6 px.)"""
     photo = box_photo(border=0)
-    full, light = photo.mesh(), photo.light_mesh(max_error=4.0)
+    full, light = photo.mesh(), photo.light_mesh(max_error=2.0)
     k = photo.ldi.intrinsics
     settings = RenderSettings(ssaa=1, fill_holes=False, backend="numba")
     with Renderer(full, settings) as rf, Renderer(light, settings) as rl:

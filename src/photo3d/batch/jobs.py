@@ -2,19 +2,22 @@
 
 :func:`find_photos` lists a folder into :class:`PhotoJob` s (one output folder per
 photo, named by the photo's path relative to the input folder without its
-extension); :class:`MakeOptions` holds everything ``photo3d make`` takes besides
-the photo and its depth, so a worker process can rebuild the same run.
+extension); :class:`~photo3d.folder.MakeOptions` (re-exported here) holds everything
+``photo3d make`` takes besides the photo and its depth, so a worker process can
+rebuild the same run.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
-from photo3d.config import Config
 from photo3d.depth.sources import HEIF_SUFFIXES
 from photo3d.errors import InputError
 from photo3d.files.folders import IMAGE_SUFFIXES, depth_by_key, file_key, files_in
+from photo3d.folder import MakeOptions
+
+__all__ = ["PHOTO_SUFFIXES", "MakeOptions", "PhotoJob", "find_photos"]
 
 PHOTO_SUFFIXES = IMAGE_SUFFIXES + HEIF_SUFFIXES
 """Files a batch takes as photos."""
@@ -35,38 +38,6 @@ class PhotoJob:
     name: str
     image: Path
     depth: Path | None = None
-
-
-@dataclass(frozen=True)
-class MakeOptions:
-    """Everything ``photo3d make`` takes besides the photo and its depth.
-
-    Attributes:
-        config: the pipeline configuration (``config.depth_kind`` is replaced per
-            photo by what its depth source holds).
-        inpainter_options: keyword arguments of the inpainter backend, as pairs.
-        depth_kind: what the depth files hold (None: disparity).
-        depth_model: the monocular model for photos with neither a depth file nor an
-            embedded map (None: the default, see
-            :func:`photo3d.depth.fetch.default_depth_model`).
-        ply: ``"binary"``, ``"ascii"`` or None.
-        glb: write ``mesh.glb``.
-        viewer: write ``viewer.html``.
-        videos: the videos to render (``VideoSpec`` s).
-        render_settings: how videos are rendered (None: defaults).
-        overwrite: replace finished output folders instead of skipping them.
-    """
-
-    config: Config = field(default_factory=Config)
-    inpainter_options: tuple[tuple[str, object], ...] = ()
-    depth_kind: str | None = None
-    depth_model: str | None = None
-    ply: str | None = "binary"
-    glb: bool = True
-    viewer: bool = True
-    videos: tuple = ()
-    render_settings: object | None = None
-    overwrite: bool = False
 
 
 def find_photos(folder: str | Path, *, depth: str | Path | None = None,

@@ -10,12 +10,12 @@ from pathlib import Path
 
 from photo3d.batch.jobs import MakeOptions, PhotoJob
 from photo3d.batch.manifest import MANIFEST, ManifestWriter, PhotoResult
-from photo3d.batch.worker import is_complete
 from photo3d.errors import ConfigError, OutputError
+from photo3d.output import is_complete
 
 ENGINES = ("local", "ray")
 
-Progress = Callable[[PhotoResult, int, int], None]
+PhotoProgress = Callable[[PhotoResult, int, int], None]
 """``progress(result, done, total)`` after each photo (skipped ones included)."""
 
 
@@ -56,7 +56,8 @@ def check_out_dir(out: Path) -> Path:
 
 def run_batch(jobs: Sequence[PhotoJob], out: str | Path, options: MakeOptions | None = None,
               *, engine: str = "local", workers: int | None = None,
-              ray_address: str | None = None, progress: Progress | None = None) -> BatchSummary:
+              ray_address: str | None = None,
+              progress: PhotoProgress | None = None) -> BatchSummary:
     """Make every photo of ``jobs`` into ``out/<name>/``, skipping finished ones.
 
     A photo counts as finished when its folder is complete (folders are written

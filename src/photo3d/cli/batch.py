@@ -7,13 +7,7 @@ import os
 import sys
 from pathlib import Path
 
-from photo3d.cli.options import (
-    add_make_options,
-    config_from,
-    inpainter_options,
-    render_settings_from,
-    videos_from,
-)
+from photo3d.cli.options import add_make_options, make_options
 from photo3d.cli.progress import PhotoBar, download_bar
 
 
@@ -50,21 +44,6 @@ def add_parser(sub) -> None:
     bt.set_defaults(run=run_batch_command)
 
 
-def _options(args: argparse.Namespace):
-    from photo3d.batch import MakeOptions
-    from photo3d.inpaint import get_inpainter
-
-    config = config_from(args)
-    inpainter = inpainter_options(args, config.inpainter)
-    get_inpainter(config.inpainter, **inpainter)  # bad names or weights: refused before any work
-    return MakeOptions(config=config, inpainter_options=tuple(inpainter.items()),
-                       depth_kind=args.depth_kind, depth_model=args.depth_model,
-                       ply=None if args.ply == "none" else args.ply, glb=not args.no_glb,
-                       viewer=not args.no_viewer,
-                       videos=() if args.no_video else tuple(videos_from(args)),
-                       render_settings=render_settings_from(args), overwrite=args.overwrite)
-
-
 def _prefetch(jobs, out: Path, options, quiet: bool) -> None:
     """Download the depth model once, here, before the workers may need it (for photos
     to make that have no depth map; those with an embedded map will not use it)."""
@@ -87,12 +66,14 @@ def run_batch_command(args: argparse.Namespace) -> int:
     from photo3d.batch import find_photos, run_batch
     from photo3d.batch.run import check_out_dir
     from photo3d.errors import ConfigError
+    from photo3d.folder import prepare
 
     if args.workers is not None and args.workers < 1:
         raise ConfigError(f"--workers must be at least 1, got {args.workers}")
     if args.ray_address and args.engine != "ray":
         raise ConfigError("--ray-address only applies to --engine ray")
-    options = _options(args)
+    options = make_options(args)  # the same options as make, read in the same place
+    prepare(options)  # bad names, weights, memory or OpenGL: refused before any work
     jobs = find_photos(args.input, depth=args.depth, recursive=args.recursive, skip=args.out)
     check_out_dir(args.out)
     _prefetch(jobs, args.out, options, args.quiet)

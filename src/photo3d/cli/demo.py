@@ -6,7 +6,7 @@ import argparse
 from pathlib import Path
 
 from photo3d.cli.make import run_make
-from photo3d.cli.options import add_make_options, config_from
+from photo3d.cli.options import add_make_options
 
 
 def add_parser(sub) -> None:
@@ -26,4 +26,4 @@ def run(args: argparse.Namespace) -> int:
     if not args.quiet:
         print("sample: Middlebury 2014 'Motorcycle' left view with its ground-truth "
               "disparity (unknown pixels filled with the farther row neighbour)")
-    return run_make(args, sample.left, np.asarray(sample.disparity), config_from(args))
+    return run_make(args, sample.left, depth=np.asarray(sample.disparity), say_source=False)

@@ -4,21 +4,18 @@ from __future__ import annotations
 
 import argparse
 import sys
-import time
 from pathlib import Path
 
 from photo3d.cli.options import (
     add_depth_sources,
     add_make_options,
-    config_from,
-    inpainter_options,
     list_files,
-    render_settings_from,
-    resolve_depth,
-    videos_from,
+    make_options,
+    say_depth,
 )
-from photo3d.cli.progress import STAGE_LABELS, StageBar
+from photo3d.cli.progress import STAGE_LABELS, StageBar, download_bar
 from photo3d.config import Config
+from photo3d.folder import output_bytes
 
 
 def add_parser(sub) -> None:
@@ -32,59 +29,59 @@ def add_parser(sub) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run ``photo3d make``; returns the exit status."""
-    from photo3d.depth.sources import load_photo
-
-    def depth():
-        est = resolve_depth(args)
-        image = est.image if est.image is not None else load_photo(args.image)
-        return image, est.depth, est.kind
-
-    return run_make(args, None, depth, config_from(args))
+    return run_make(args, args.image, depth=args.depth, right=args.right,
+                    depth_model=args.depth_model)
 
 
-def run_make(args: argparse.Namespace, image, depth, config: Config) -> int:
-    """Validate everything cheap first, then resolve depth (if a callable), make, save.
+def run_make(args: argparse.Namespace, image, *, say_source: bool = True, **sources) -> int:
+    """Check every option first, then make ``image`` into ``args.out`` with a progress
+    bar (:func:`photo3d.folder.make_folder`) and print a summary.
 
-    ``depth`` may be a callable returning ``(image, depth, depth_kind)``: it runs
-    only after the options are known to be valid (it can be slow: stereo, models).
+    ``sources``: ``depth``, ``right`` or ``depth_model`` of the photo (none: its
+    embedded map, else the depth model). ``say_source``: print where the depth came
+    from (its warnings are printed anyway).
     """
-    from photo3d.inpaint import get_inpainter
-    from photo3d.output import stage_photo
-    from photo3d.pipeline import make
-    from photo3d.resources import check_memory
+    from photo3d.folder import make_folder, prepare
 
-    check_memory((9, 16), config, at_least=True)  # a 16:9 photo, before reading the input
-    videos = [] if args.no_video else videos_from(args)
-    settings = render_settings_from(args)
-    if videos and settings.backend == "gl":
-        from photo3d.render.renderer import select_backend
+    options = make_options(args)
+    inpainter = prepare(options)
+    bar = _LateBar(args.quiet)
 
-        select_backend("gl")
-    backend = get_inpainter(config.inpainter, **inpainter_options(args, config.inpainter))
-    staging = stage_photo(args.out, overwrite=args.overwrite, inputs=inputs_of(args),
-                          need_bytes=output_bytes(config, videos))
-    with staging:  # removed on any error or interruption unless committed
-        if callable(depth):
-            image, depth, kind = depth()
-            config = config.with_(depth_kind=kind)
+    def on_depth(est, photo) -> None:
+        say_depth(est, quiet=args.quiet, source=say_source)
         if not args.quiet:
-            _say_if_upscaled(image.shape[:2], config)
-        bar = StageBar(args.quiet)
-        try:
-            photo = make(image, depth=depth, config=config, inpainter=backend, progress=bar)
-            bar("mesh", 0.0)
-            t = time.perf_counter()
-            photo.save(staging, ply=None if args.ply == "none" else args.ply,
-                       glb=not args.no_glb, full_glb=args.full_glb,
-                       viewer=not args.no_viewer, videos=videos,
-                       render_settings=settings, progress=bar)
-            photo.timings["save + video" if videos else "save"] = time.perf_counter() - t
-            bar("video", 1.0)
-        finally:
-            bar.close()
+            _say_if_upscaled(photo.shape[:2], options.config)
+
+    try:
+        photo = make_folder(image, args.out, options=options, inpainter=inpainter,
+                            progress=bar, on_depth=on_depth,
+                            download_bar=download_bar(args.quiet),
+                            # by its name here, so a test can stand in another estimate
+                            need_bytes=output_bytes(options.config, options.videos),
+                            **sources)
+    finally:
+        bar.close()
     if not args.quiet:
         summary(photo, args.out)
     return 0
+
+
+class _LateBar:
+    """A :class:`StageBar` started at the first progress report, so that what is
+    printed while the depth is resolved comes before it."""
+
+    def __init__(self, quiet: bool) -> None:
+        self.quiet = quiet
+        self.bar: StageBar | None = None
+
+    def __call__(self, stage: str, fraction: float) -> None:
+        if self.bar is None:
+            self.bar = StageBar(self.quiet)
+        self.bar(stage, fraction)
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.close()
 
 
 def _say_if_upscaled(shape: tuple[int, int], config: Config) -> None:
@@ -95,23 +92,6 @@ def _say_if_upscaled(shape: tuple[int, int], config: Config) -> None:
         h, w = working_shape(shape, config.size)
         print(f"photo3d: note: the photo is {shape[1]}x{shape[0]}; it is upscaled to a "
               f"{w}x{h} working size (--size 0 keeps its size)", file=sys.stderr)
-
-
-def output_bytes(config: Config, videos: list) -> int:
-    """A low estimate of the output's size (a full disk is refused before the work)."""
-    side = config.size or 1024
-    frames = sum(v.frames * (v.size[0] * v.size[1] if v.size else side * side * 0.75)
-                 for v in videos)
-    return int(60 * side * side + 0.02 * frames)
-
-
-def inputs_of(args: argparse.Namespace) -> list[Path]:
-    """The files a run reads (its output folder may not hold any of them)."""
-    given = [getattr(args, n, None) for n in ("image", "depth", "right", "weights")]
-    model = getattr(args, "depth_model", None)
-    paths = [p for p in (args.paths or []) if Path(p).suffix.lower() in (".json", ".yaml",
-                                                                         ".yml")]
-    return [Path(p) for p in [*given, model, *paths] if p is not None and Path(p).exists()]
 
 
 def summary(photo, out: Path) -> None:

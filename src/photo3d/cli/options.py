@@ -2,7 +2,9 @@
 
 ``add_*`` functions register arguments on a parser; the others turn the parsed
 ``argparse.Namespace`` into what the library takes (a :class:`~photo3d.config.Config`,
-video specs, render settings, inpainter options).
+video specs, render settings, inpainter options, and all of them together: the
+:class:`~photo3d.folder.MakeOptions` of ``make``, ``demo`` and ``batch``, built in
+:func:`make_options` only).
 """
 
 from __future__ import annotations
@@ -153,18 +155,55 @@ def inpainter_options(args: argparse.Namespace, inpainter: str) -> dict:
     return {**options, **(dict(edge_unit=8, precision="bf16") if fast else {})}
 
 
-def resolve_depth(args: argparse.Namespace):
-    """Resolve the depth of ``args.image`` from the depth options; say where it came from."""
+def make_options(args: argparse.Namespace):
+    """The :class:`~photo3d.folder.MakeOptions` of ``make``, ``demo`` and ``batch``
+    (the options :func:`add_make_options` registers, plus ``--depth-kind`` and
+    ``--depth-model``): the one place they are read, so every command takes them alike.
+
+    Raises:
+        ConfigError: a bad option (video size, ``--weights`` without the learned
+            inpainter, ...).
+
+    Example:
+        >>> from photo3d.cli import build_parser
+        >>> args = build_parser().parse_args(["batch", "in", "-o", "o", "--full-glb",
+        ...                                   "--no-video", "--size", "512"])
+        >>> options = make_options(args)
+        >>> options.full_glb, options.videos, options.config.size
+        (True, (), 512)
+    """
+    from photo3d.folder import MakeOptions
+
+    config = config_from(args)
+    inpainter = inpainter_options(args, config.inpainter)
+    return MakeOptions(config=config, inpainter_options=tuple(inpainter.items()),
+                       depth_kind=getattr(args, "depth_kind", None),
+                       depth_model=getattr(args, "depth_model", None),
+                       ply=None if args.ply == "none" else args.ply, glb=not args.no_glb,
+                       full_glb=args.full_glb, viewer=not args.no_viewer,
+                       videos=() if args.no_video else tuple(videos_from(args)),
+                       render_settings=render_settings_from(args), overwrite=args.overwrite)
+
+
+def depth_from_args(args: argparse.Namespace):
+    """Resolve the depth of ``args.image`` from the depth options; say where it came
+    from (``photo3d depth``; ``make`` resolves it in :func:`photo3d.folder.make_folder`)."""
     from photo3d.depth.sources import resolve_depth
 
     est = resolve_depth(args.image, depth=args.depth, right=args.right,
                         depth_model=args.depth_model, kind=args.depth_kind,
                         download_bar=download_bar(getattr(args, "quiet", False)))
-    if not getattr(args, "quiet", False):
+    say_depth(est, quiet=getattr(args, "quiet", False))
+    return est
+
+
+def say_depth(est, *, quiet: bool, source: bool = True) -> None:
+    """Print where a :class:`~photo3d.depth.sources.DepthEstimate` came from (unless
+    ``quiet`` or not ``source``) and its warnings (always), on stderr."""
+    if source and not quiet:
         print(f"depth: {est.source}", file=sys.stderr)
     for warning in est.warnings:
         print(f"photo3d: warning: {warning}", file=sys.stderr)
-    return est
 
 
 def list_files(out: Path) -> None:

@@ -56,12 +56,15 @@ UNKNOWN_WARNING = 0.5
 """Warn when more than this fraction of the depth map is unknown."""
 
 
-def load_photo(image: np.ndarray | PathLike) -> np.ndarray:
+def read_photo(image: np.ndarray | PathLike) -> np.ndarray:
     """A photo path (JPEG/PNG/TIFF/WebP, or HEIF/HEIC with pillow-heif) or array ->
     ``(H, W, 3) float32`` in [0, 1].
 
+    The one photo reader of :func:`photo3d.make`, ``photo3d make`` and ``photo3d
+    batch`` (:func:`photo3d.load` reloads a saved 3D photo, not a photo).
+
     Example:
-        >>> load_photo(np.zeros((8, 8), np.uint8)).shape
+        >>> read_photo(np.zeros((8, 8), np.uint8)).shape
         (8, 8, 3)
     """
     if isinstance(image, str | os.PathLike):
@@ -71,6 +74,19 @@ def load_photo(image: np.ndarray | PathLike) -> np.ndarray:
             return read_heif_image(image)
         return read_image(image)
     return to_float_image(image)
+
+
+def describe_depth(depth: np.ndarray | PathLike, kind: str) -> str:
+    """One line naming a depth map given as a file or an array (a
+    :attr:`DepthEstimate.source`).
+
+    Example:
+        >>> describe_depth("d.png", "disparity"), describe_depth(np.ones((2, 2)), "depth")
+        ('depth file d.png (disparity)', 'depth array (depth)')
+    """
+    if isinstance(depth, str | os.PathLike):
+        return f"depth file {depth} ({kind})"
+    return f"depth array ({kind})"
 
 
 def resolve_depth(
@@ -127,19 +143,18 @@ def resolve_depth(
                          "(--depth, --right and --depth-model exclude each other)")
     if kind not in (None, "disparity", "depth"):
         raise InputError(f"depth kind must be 'disparity' or 'depth', got {kind!r}")
-    photo = load_photo(image)
+    photo = read_photo(image)
     notes: list[str] = []
     better_image = None
     if depth is not None:
         kind = kind or "disparity"
-        if isinstance(depth, str | os.PathLike):
-            raw, source = read_depth(depth), f"depth file {depth} ({kind})"
-        else:
-            raw, source = np.asarray(depth, np.float32), f"depth array ({kind})"
+        raw = read_depth(depth) if isinstance(depth, str | os.PathLike) else np.asarray(
+            depth, np.float32)
+        source = describe_depth(depth, kind)
     elif right is not None:
         from photo3d.depth.stereo import stereo_disparity
 
-        result = stereo_disparity(photo, load_photo(right))
+        result = stereo_disparity(photo, read_photo(right))
         raw, kind = result.disparity, "disparity"
         notes += result.warnings
         source = (f"stereo pair (SGBM, {result.valid.mean():.0%} of pixels matched, "

@@ -29,17 +29,15 @@ import socket
 import urllib.error
 import urllib.parse
 import urllib.request
-from collections.abc import Callable
 from pathlib import Path
 
 from photo3d.errors import InputError
 from photo3d.files.atomic import PathLike, atomic_write
+from photo3d.progress import ByteProgress
 
 CACHE_ENV = "PHOTO3D_CACHE"
 """Environment variable naming the cache folder (default ``~/.cache/photo3d``)."""
 
-Progress = Callable[[int, int | None], None]
-"""``progress(done, total)``: bytes received so far and the size (None if unknown)."""
 
 _BLOCK = 1 << 20
 
@@ -74,7 +72,7 @@ def sha256_of(path: PathLike) -> str:
     return digest.hexdigest()
 
 
-def download(url: str, path: PathLike, *, sha256: str, progress: Progress | None = None,
+def download(url: str, path: PathLike, *, sha256: str, progress: ByteProgress | None = None,
              timeout: float = 30.0) -> Path:
     """Download ``url`` to ``path`` (its folder is created), atomically and verified.
 

@@ -10,11 +10,13 @@ the pipeline never needs to know which one runs.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Protocol
 
 import numpy as np
+
+from photo3d.progress import CountProgress
 
 
 @dataclass(frozen=True)
@@ -64,10 +66,6 @@ class InpaintResult:
     edges: np.ndarray
 
 
-Progress = Callable[[int, int], None]
-"""``progress(done, total)`` called by backends as jobs finish."""
-
-
 class Inpainter(Protocol):
     """What a backend provides."""
 
@@ -78,7 +76,7 @@ class Inpainter(Protocol):
     # fraction of the first pass's (the pipeline reads it with getattr; default 1).
 
     def inpaint(
-        self, patches: Sequence[Patch], *, progress: Progress | None = None,
+        self, patches: Sequence[Patch], *, progress: CountProgress | None = None,
         pass_index: int = 0,
     ) -> list[InpaintResult]:
         """Fill every patch's synthesis region; one result per patch, same order.

@@ -18,11 +18,33 @@ from concurrent.futures import ThreadPoolExecutor
 import numba
 import numpy as np
 
-from photo3d.inpaint.base import InpaintResult, Patch, Progress
+from photo3d.inpaint.base import InpaintResult, Patch
+from photo3d.progress import CountProgress
 
 
 @numba.njit(cache=True, nogil=True)
-def _diffuse(values, context, synthesis, iterations, tolerance, omega):  # pragma: no cover
+def diffuse_in_place(values, context, synthesis, iterations, tolerance, omega):  # pragma: no cover
+    """Fill ``values`` under ``synthesis`` in place: a breadth-first guess from the
+    known neighbours, then over-relaxed Laplace (Gauss-Seidel) iterations.
+
+    Args:
+        values: ``(h, w, c) float64`` known under ``context``; overwritten under
+            ``synthesis``.
+        context, synthesis: ``(h, w) bool``.
+        iterations: at most this many relaxation sweeps.
+        tolerance: stop when no value changes by more than this.
+        omega: over-relaxation factor in (1, 2).
+
+    Returns:
+        ``(h, w) bool`` the pixels reached (known or filled).
+
+    Example:
+        >>> v = np.zeros((1, 3, 1)); v[0, 0, 0] = 1.0
+        >>> ctx = np.array([[True, False, False]])
+        >>> reached = diffuse_in_place(v, ctx, ~ctx, 100, 1e-6, 1.9)
+        >>> bool(reached.all()), float(v[0, 2, 0].round(3))
+        (True, 1.0)
+    """
     h, w, c = values.shape
     known = context.copy()
     # Breadth-first initial guess: mean of already known neighbours.
@@ -132,7 +154,7 @@ def diffuse(
     out = np.where(context[..., None], values, 0).astype(np.float32)
     if not synthesis.any():
         return out
-    reached = _diffuse(out, context, synthesis, iterations, tolerance, 1.9)
+    reached = diffuse_in_place(out, context, synthesis, iterations, tolerance, 1.9)
     lost = synthesis & ~reached
     if lost.any():
         out[lost] = out[context].mean(axis=0) if context.any() else 0.0
@@ -167,8 +189,18 @@ class DiffusionInpainter:
         self.tolerance = tolerance
         self.workers = workers or os.cpu_count() or 1
 
+    def settings(self) -> dict[str, object]:
+        """What changes this backend's output, JSON-able (``config.json`` records it;
+        ``workers`` does not change it).
+
+        Example:
+            >>> DiffusionInpainter(iterations=50).settings()
+            {'name': 'diffusion', 'iterations': 50, 'tolerance': 0.001}
+        """
+        return {"name": self.name, "iterations": self.iterations, "tolerance": self.tolerance}
+
     def inpaint(
-        self, patches: Sequence[Patch], *, progress: Progress | None = None,
+        self, patches: Sequence[Patch], *, progress: CountProgress | None = None,
         pass_index: int = 0,
     ) -> list[InpaintResult]:
         """Fill every patch's synthesis region (every pass alike)."""

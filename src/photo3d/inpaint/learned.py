@@ -70,7 +70,7 @@ import numpy as np
 
 from photo3d.camera import DepthMapping
 from photo3d.errors import ConfigError
-from photo3d.inpaint.base import InpaintResult, Patch, Progress
+from photo3d.inpaint.base import InpaintResult, Patch
 from photo3d.inpaint.canvas import edges_in, joint_patch, share_canvases, trim, window
 from photo3d.inpaint.crops import Box, cover, grow
 from photo3d.inpaint.edgepaths import reported_edges
@@ -84,6 +84,7 @@ from photo3d.inpaint.netrun import (  # noqa: F401  (re-exported)
     release_memory,
     run_batched,
 )
+from photo3d.progress import CountProgress
 
 if TYPE_CHECKING:  # torch is imported lazily: photo3d works without it
     import torch
@@ -202,12 +203,50 @@ class LearnedInpainter:
         self.joint_pixels = joint_pixels
         self.edge_halo = edge_halo
         self.paths = paths
+        # the weights folder, for settings() (None: ``nets`` were given in memory)
+        self.weights = None if weights is None else Path(weights)
+        self._sha256: dict[str, str] | None = None  # of the weights files, once
         # Windows of the joint edge-net runs, one list per run over the pass's crops.
         self.edge_runs: list[list[Box]] = []
         self.batch = dict(batch_size=batch_size, batch_pixels=batch_pixels)
         self.mapping = DepthMapping()
         # Seconds spent in each net since construction (read by the benchmark).
         self.timings: dict[str, float] = {"edge": 0.0, "depth": 0.0, "color": 0.0}
+
+    def settings(self) -> dict[str, object]:
+        """What changes this backend's output, JSON-able (``config.json`` records it).
+
+        ``weights`` is ``"bundled compact"`` (:func:`bundled_weights`), the weights
+        folder, or ``"nets given in memory"``; ``sha256`` maps each weights file in
+        it to its SHA-256 (the authors' are
+        :data:`photo3d.nets.weights.OFFICIAL_SHA256`), computed once.
+
+        Example:
+            >>> s = LearnedInpainter(precision="bf16").settings()
+            >>> s["weights"], s["precision"], sorted(s["sha256"])[0]
+            ('bundled compact', 'bf16', 'color.safetensors')
+        """
+        if self._sha256 is None:
+            from photo3d.files.download import sha256_of
+            from photo3d.nets.weights import KINDS
+
+            names = {f"{k}-model.pth" for k in KINDS} | {f"{k}.safetensors" for k in KINDS}
+            self._sha256 = {} if self.weights is None else {
+                p.name: sha256_of(p) for p in sorted(self.weights.iterdir()) if p.name in names}
+        if self.weights is None:
+            weights = "nets given in memory"
+        elif self.weights.resolve() == bundled_weights():
+            weights = "bundled compact"
+        else:
+            weights = str(self.weights.resolve())
+        return {"name": self.name, "weights": weights, "sha256": dict(self._sha256),
+                "nets": dict(self.nets.sources), "device": str(self.nets.device),
+                "precision": self.precision, "edge_threshold": self.edge_threshold,
+                "edge_repeats": self.edge_repeats, "edge_passes": self.edge_passes,
+                "units": dict(self.units), "color_size": self.color_size,
+                "share": self.share, "joint_pixels": self.joint_pixels,
+                "edge_halo": self.edge_halo, "paths": self.paths,
+                "later_context": self.later_context, **self.batch}
 
     def _run(self, kind: str, inputs: list[np.ndarray]) -> list[np.ndarray]:
         if not inputs:
@@ -322,7 +361,7 @@ class LearnedInpainter:
             result.append(np.clip(disp, 0, 1).astype(np.float32))
         return result
 
-    def _shared(self, patches: Sequence[Patch], joint, progress: Progress | None):
+    def _shared(self, patches: Sequence[Patch], joint, progress: CountProgress | None):
         """Depth on clusters of non-conflicting patches, colour on whole groups (so
         the colour size limit shrinks them), edges from the joint run; each canvas
         without the empty margin that alone would grow its padded size
@@ -369,7 +408,7 @@ class LearnedInpainter:
         return [InpaintResult(color=c, disparity=d, edges=self._tears(e, p))
                 for e, d, c, p in zip(edges, out["depth"], out["color"], patches, strict=True)]
 
-    def inpaint(self, patches: Sequence[Patch], *, progress: Progress | None = None,
+    def inpaint(self, patches: Sequence[Patch], *, progress: CountProgress | None = None,
                 pass_index: int = 0) -> list[InpaintResult]:
         """Fill every patch's synthesis region; one result per patch, same order.
 

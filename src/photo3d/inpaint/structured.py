@@ -25,10 +25,11 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
-from photo3d.inpaint.base import InpaintResult, Patch, Progress
+from photo3d.inpaint.base import InpaintResult, Patch
 from photo3d.inpaint.continuation import continue_edges
-from photo3d.inpaint.diffusion import _diffuse
+from photo3d.inpaint.diffusion import diffuse_in_place
 from photo3d.inpaint.exemplar import exemplar_fill
+from photo3d.progress import CountProgress
 
 
 def piecewise_diffuse(values: np.ndarray, context: np.ndarray, synthesis: np.ndarray,
@@ -58,12 +59,12 @@ def piecewise_diffuse(values: np.ndarray, context: np.ndarray, synthesis: np.nda
     if not synthesis.any():
         return out
     free = synthesis & ~barriers
-    reached = _diffuse(out, context, free, iterations, tolerance, 1.9)
+    reached = diffuse_in_place(out, context, free, iterations, tolerance, 1.9)
     rest = synthesis & ~(reached & free)
     if rest.any():
         known = context | (free & reached)
         out[rest] = 0.0
-        got = _diffuse(out, known, rest, iterations, tolerance, 1.9)
+        got = diffuse_in_place(out, known, rest, iterations, tolerance, 1.9)
         lost = rest & ~got
         if lost.any():
             out[lost] = out[context].mean(axis=0) if context.any() else 0.0
@@ -114,6 +115,22 @@ class StructuredInpainter:
         self.workers = workers or os.cpu_count() or 1
         self.structure = dict(structure, support_factor=support_factor, coherence=coherence)
 
+    def settings(self) -> dict[str, object]:
+        """What changes this backend's output, JSON-able (``config.json`` records it;
+        ``workers`` does not change it).
+
+        Example:
+            >>> s = StructuredInpainter(texture=0.5).settings()
+            >>> s["name"], s["texture"], s["pm_iterations"], s["coherence"]
+            ('structured', 0.5, 3, 0.8)
+        """
+        return {"name": self.name, "iterations": self.iterations,
+                "tolerance": self.tolerance, "lines": self.lines, "texture": self.texture,
+                "patch_radius": self.patch_radius,
+                **{("pm_iterations" if k == "iterations" else k): v
+                   for k, v in self.exemplar.items()},
+                **self.structure}
+
     def radius(self, scale: float) -> int:
         """Texture patch radius in lattice pixels for a patch of this ``scale``.
 
@@ -144,7 +161,7 @@ class StructuredInpainter:
                              edges=lines.astype(np.float32))
 
     def inpaint(
-        self, patches: Sequence[Patch], *, progress: Progress | None = None,
+        self, patches: Sequence[Patch], *, progress: CountProgress | None = None,
         pass_index: int = 0,
     ) -> list[InpaintResult]:
         """Fill every patch's synthesis region (every pass alike)."""

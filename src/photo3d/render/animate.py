@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -11,13 +11,12 @@ import numpy as np
 
 from photo3d.camera import Camera, Intrinsics
 from photo3d.errors import ConfigError
+from photo3d.progress import CountProgress
 from photo3d.render._resolve import to_rgb8
 from photo3d.render.paths import PRESETS, load_path, preset_path
 from photo3d.render.renderer import Renderer, output_intrinsics
 from photo3d.render.stereo import compose, eye_cameras
 from photo3d.stages.ldi import LDI
-
-Progress = Callable[[int, int], None]
 
 
 @dataclass(frozen=True)
@@ -91,7 +90,7 @@ def path_cameras(ldi: LDI, spec: VideoSpec) -> list[Camera]:
 
 def render_frames(renderer: Renderer, cameras: Sequence[Camera], *, stereo: str | None = None,
                   eye_separation: float = 0.01, eye_order: str = "lr",
-                  progress: Progress | None = None) -> Iterator[np.ndarray]:
+                  progress: CountProgress | None = None) -> Iterator[np.ndarray]:
     """Yield ``(H, W, 3) uint8`` frames, one per camera (stereo frames composed).
 
     Example:
@@ -135,7 +134,7 @@ def render_still(renderer: Renderer, ldi: LDI, spec: VideoSpec) -> np.ndarray:
 
 
 def render_video(renderer: Renderer, ldi: LDI, spec: VideoSpec, out: str | Path, *,
-                 progress: Progress | None = None) -> Path:
+                 progress: CountProgress | None = None) -> Path:
     """Render ``spec`` to the video file ``out`` (format from ``spec.format``).
 
     The file is written to a temporary name and renamed when complete. (Encoding on a

@@ -25,7 +25,6 @@ from __future__ import annotations
 import hashlib
 import json
 import shutil
-from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -38,6 +37,7 @@ from photo3d.files.atomic import write_json
 from photo3d.files.folders import IMAGE_SUFFIXES, depth_by_key, files_in
 from photo3d.io.depth import read_depth
 from photo3d.io.images import read_image
+from photo3d.progress import StageProgress
 from photo3d.stages.preprocess import preprocess, resize, working_shape
 from photo3d.train.pairs import RegionPair, extract_region_pairs
 
@@ -45,9 +45,6 @@ KINDS = ("edge", "depth", "color")
 CACHE_VERSION = 1
 BUILTIN_SHAPES = 12
 """Synthetic scenes that give the region shapes of a folder without any depth."""
-
-Progress = Callable[[str, float], None]
-"""``progress(stage, fraction)``."""
 
 
 @dataclass(frozen=True)
@@ -283,7 +280,7 @@ def _load_pool(path: Path) -> list[RegionPair]:
 def prepare_data(files: list[TrainingFile], *, crop: int, region_size: int,
                  depth_kind: str = "disparity", max_pairs: int = 3, seed: int = 0,
                  builtin_shapes: int = BUILTIN_SHAPES, cache: str | Path | None = None,
-                 progress: Progress | None = None) -> TrainingData:
+                 progress: StageProgress | None = None) -> TrainingData:
     """Prepare targets and the pool; reuse ``cache`` if it was made from the same
     files (path, size, mtime) and options.
 

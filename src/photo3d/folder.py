@@ -1,0 +1,255 @@
+"""One photo to a 3D photo folder: what ``photo3d make`` does, and ``photo3d batch``
+for every photo.
+
+:class:`MakeOptions` holds everything ``make`` takes besides the photo, its depth
+and the output folder (the command line builds it in one place for both commands,
+:func:`photo3d.cli.options.make_options`); :func:`prepare` checks what can be
+checked before any photo is read and builds the inpainter once;
+:func:`make_folder` stages the output folder, reads the photo and its depth
+(:mod:`photo3d.depth.sources`), runs :func:`photo3d.make` and saves everything
+(:func:`photo3d.output.save_photo`), so a failure leaves nothing behind.
+
+This module imports only the configuration at import time (the command line
+imports it before its heavy modules).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+import time
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from photo3d.config import Config
+from photo3d.errors import ConfigError
+from photo3d.progress import StageProgress
+
+if TYPE_CHECKING:
+    import numpy as np
+
+    from photo3d.depth.sources import DepthEstimate
+    from photo3d.inpaint.base import Inpainter
+    from photo3d.photo import Photo3D
+    from photo3d.render.animate import VideoSpec
+    from photo3d.render.renderer import RenderSettings
+
+PathLike = str | os.PathLike[str]
+OnDepth = Callable[["DepthEstimate", "np.ndarray"], None]
+"""``on_depth(estimate, image)`` once the depth and the ``(H, W, 3) float32`` photo
+to make are known (before the pipeline runs)."""
+
+
+@dataclass(frozen=True)
+class MakeOptions:
+    """Everything ``photo3d make`` takes besides the photo, its depth and the output
+    folder; ``photo3d batch`` takes the same for every photo.
+
+    Attributes:
+        config: the pipeline configuration (``config.depth_kind`` is replaced per
+            photo by what its depth source holds).
+        inpainter_options: keyword arguments of the inpainter backend, as
+            ``(name, value)`` pairs (a mapping is turned into pairs).
+        depth_kind: what a photo's depth map (or chosen model) holds:
+            ``"disparity"``, ``"depth"`` or None (a map: disparity; a model: its own
+            kind); see :func:`~photo3d.depth.sources.resolve_depth`'s ``kind``.
+        depth_model: the monocular model for a photo with no depth source and no
+            embedded map (None: the default, see
+            :func:`photo3d.depth.fetch.default_depth_model`).
+        ply: ``"binary"``, ``"ascii"`` or None (no ``mesh.ply``).
+        glb: write ``mesh.glb``.
+        full_glb: ``mesh.glb`` is the full vertex-coloured mesh (one vertex per LDI
+            pixel) instead of the light textured one.
+        light_error: error bound of the light mesh in pixels (None:
+            :data:`photo3d.mesh.light.LIGHT_ERROR`).
+        viewer: write ``viewer.html``.
+        videos: the videos to render (:class:`~photo3d.render.animate.VideoSpec` s).
+        render_settings: how videos are rendered (None: defaults).
+        overwrite: replace a finished output folder (``batch``: redo finished photos).
+
+    Example:
+        >>> options = MakeOptions(config=Config(size=512), inpainter_options={"tolerance": 1e-2})
+        >>> options.inpainter_options, options.glb, options.full_glb
+        ((('tolerance', 0.01),), True, False)
+    """
+
+    config: Config = field(default_factory=Config)
+    inpainter_options: tuple[tuple[str, object], ...] = ()
+    depth_kind: str | None = None
+    depth_model: str | None = None
+    ply: str | None = "binary"
+    glb: bool = True
+    full_glb: bool = False
+    light_error: float | None = None
+    viewer: bool = True
+    videos: tuple[VideoSpec, ...] = ()
+    render_settings: RenderSettings | None = None
+    overwrite: bool = False
+
+    def __post_init__(self) -> None:
+        if isinstance(self.inpainter_options, Mapping):
+            object.__setattr__(self, "inpainter_options", tuple(self.inpainter_options.items()))
+        object.__setattr__(self, "videos", tuple(self.videos))
+        if self.ply not in ("binary", "ascii", None):
+            raise ConfigError(f"ply must be 'binary', 'ascii' or None, got {self.ply!r}")
+        if self.depth_kind not in (None, "disparity", "depth"):
+            raise ConfigError(f"depth_kind must be 'disparity', 'depth' or None, got "
+                              f"{self.depth_kind!r}")
+
+    def inpainter(self) -> Inpainter:
+        """A new inpainter of ``config.inpainter`` with ``inpainter_options``.
+
+        Raises:
+            ConfigError: unknown backend or bad options (the learned one: bad weights).
+
+        Example:
+            >>> MakeOptions(inpainter_options={"iterations": 10}).inpainter().iterations
+            10
+        """
+        from photo3d.inpaint import get_inpainter
+
+        return get_inpainter(self.config.inpainter, **dict(self.inpainter_options))
+
+    def weights(self) -> Path | None:
+        """The inpainter's weights folder when one is given, else None.
+
+        Example:
+            >>> MakeOptions(inpainter_options={"weights": "w"}).weights().name
+            'w'
+        """
+        weights = dict(self.inpainter_options).get("weights")
+        return None if weights is None else Path(weights)
+
+
+def output_bytes(config: Config, videos: Sequence[VideoSpec] = ()) -> int:
+    """A low estimate of an output folder's size in bytes (a full disk is refused
+    before the work).
+
+    Example:
+        >>> output_bytes(Config(size=1000)) / 1e6
+        60.0
+    """
+    side = config.size or 1024
+    frames = sum(v.frames * (v.size[0] * v.size[1] if v.size else side * side * 0.75)
+                 for v in videos)
+    return int(60 * side * side + 0.02 * frames)
+
+
+def prepare(options: MakeOptions) -> Inpainter:
+    """Check what can be checked before any photo is read, and build the inpainter
+    (build it once and pass it to every :func:`make_folder`).
+
+    Checks that memory suffices for a 16:9 photo at ``config.size`` and that the
+    OpenGL backend works if videos ask for it.
+
+    Raises:
+        ConfigError: not enough memory, no OpenGL, bad inpainter or its options.
+        ImportError: a missing extra (named in the message).
+
+    Example:
+        >>> prepare(MakeOptions(config=Config(size=256))).name
+        'diffusion'
+    """
+    from photo3d.resources import check_memory
+
+    check_memory((9, 16), options.config, at_least=True)
+    if options.videos and options.render_settings and options.render_settings.backend == "gl":
+        from photo3d.render.renderer import select_backend
+
+        select_backend("gl")
+    return options.inpainter()
+
+
+def make_folder(image: np.ndarray | PathLike, out: PathLike, *,
+                options: MakeOptions | None = None,
+                depth: np.ndarray | PathLike | None = None, right: PathLike | None = None,
+                depth_model: str | PathLike | None = None,
+                inpainter: Inpainter | None = None, progress: StageProgress | None = None,
+                on_depth: OnDepth | None = None, download_bar=None,
+                need_bytes: int | None = None) -> Photo3D:
+    """Make one photo into the 3D photo folder ``out``, atomically.
+
+    The output is checked and staged first (:func:`photo3d.output.stage_photo`),
+    then the depth is resolved (:func:`photo3d.depth.sources.resolve_depth`:
+    ``depth``, ``right`` or ``depth_model`` if one is given, else the photo's
+    embedded map, else ``options.depth_model``), the photo read
+    (:func:`~photo3d.depth.sources.read_photo`, or the better image the depth
+    source carries), :func:`photo3d.make` run and the folder written with
+    ``options``; nothing appears at ``out`` unless all of it succeeds.
+
+    Args:
+        image: the photo, a path or an ``(H, W, 3)`` array.
+        out: the output folder (must not exist or be empty unless
+            ``options.overwrite``).
+        options: :class:`MakeOptions` (default: ``photo3d make``'s defaults).
+        depth: a depth file or ``(H, W)`` array (``options.depth_kind``, default
+            disparity).
+        right: the right view of a rectified stereo pair whose left view is ``image``.
+        depth_model: a monocular model to run on the photo (over an embedded map).
+        inpainter: a backend built by :func:`prepare` (default: built here).
+        progress: ``progress(stage, fraction)``.
+        on_depth: ``on_depth(estimate, image)`` once the depth is known, before the
+            pipeline runs (the command line prints the source and warnings).
+        download_bar: a ``tqdm`` class showing a depth model's download.
+        need_bytes: free bytes the output's file system must have (None:
+            :func:`output_bytes`).
+
+    Returns:
+        The :class:`~photo3d.Photo3D` saved, its ``depth_source`` the estimate's and
+        its ``timings`` including ``save`` (or ``save + video``).
+
+    Raises:
+        Photo3DError: bad input, output or options (one line; nothing is left at ``out``).
+
+    Example:
+        >>> import numpy as np, tempfile
+        >>> disp = np.ones((32, 32), np.float32); disp[:, 16:] = 2.0
+        >>> out = Path(tempfile.mkdtemp()) / "out"
+        >>> photo = make_folder(np.full((32, 32, 3), 0.5), out, depth=disp,
+        ...                     options=MakeOptions(config=Config(size=None), glb=False))
+        >>> photo.depth_source, sorted(p.name for p in out.iterdir())
+        ('depth array (disparity)', ['config.json', 'mesh.ply', 'photo3d.npz', 'viewer.html'])
+    """
+    from photo3d import pipeline
+    from photo3d.depth.sources import read_photo, resolve_depth
+    from photo3d.output import stage_photo
+
+    options = options or MakeOptions()
+    report = progress or (lambda stage, fraction: None)
+    backend = inpainter or options.inpainter()
+    inputs = _inputs(image, depth, right, depth_model, options)
+    need = output_bytes(options.config, options.videos) if need_bytes is None else need_bytes
+    with stage_photo(out, overwrite=options.overwrite, inputs=inputs,
+                     need_bytes=need) as staging:  # removed on any error unless committed
+        est = resolve_depth(image, depth=depth, right=right, depth_model=depth_model,
+                            kind=options.depth_kind,
+                            fallback_model=options.depth_model or "default",
+                            download_bar=download_bar)
+        photo_image = est.image if est.image is not None else read_photo(image)
+        if on_depth is not None:
+            on_depth(est, photo_image)
+        config = options.config.with_(depth_kind=est.kind)
+        photo = pipeline.make(photo_image, depth=est.depth, config=config, inpainter=backend,
+                              progress=progress)
+        photo = dataclasses.replace(photo, depth_source=est.source)
+        report("mesh", 0.0)
+        start = time.perf_counter()
+        photo.save(staging, ply=options.ply, glb=options.glb, full_glb=options.full_glb,
+                   light_error=options.light_error, viewer=options.viewer,
+                   videos=options.videos, render_settings=options.render_settings,
+                   progress=progress)
+        photo.timings["save + video" if options.videos else "save"] = (time.perf_counter()
+                                                                       - start)
+        report("video", 1.0)
+    return photo
+
+
+def _inputs(image, depth, right, depth_model, options: MakeOptions) -> list[Path]:
+    """The files a run reads (its output folder may not hold any of them)."""
+    keyframes = [v.path for v in options.videos
+                 if Path(v.path).suffix.lower() in (".json", ".yaml", ".yml")]
+    given = [image, depth, right, depth_model, options.depth_model, options.weights(),
+             *keyframes]
+    return [Path(p) for p in given if isinstance(p, str | os.PathLike) and Path(p).exists()]

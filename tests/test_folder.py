@@ -1,0 +1,119 @@
+"""photo3d.folder: MakeOptions, prepare and make_folder (one photo -> its output folder)."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import pickle
+
+import numpy as np
+import pytest
+from conftest import two_planes
+
+import photo3d
+from photo3d.config import Config
+from photo3d.errors import ConfigError, InputError, OutputError
+from photo3d.folder import MakeOptions, make_folder, output_bytes, prepare
+from photo3d.render.animate import VideoSpec
+from photo3d.render.renderer import RenderSettings
+
+BASE = MakeOptions(config=Config(size=None))
+VIDEO = (VideoSpec(path="circle", size=(32, 24), frames=2),)
+
+# One change per MakeOptions field, and where config.json shows it. A field missing
+# here fails test_every_option_field_changes_what_config_json_records.
+CHANGES = {
+    "config": ({"config": Config(size=64)}, lambda m: m["config"]["size"] == 64),
+    "inpainter_options": ({"inpainter_options": {"tolerance": 0.01}},
+                          lambda m: m["inpainter"]["tolerance"] == 0.01),
+    "depth_kind": ({"depth_kind": "depth"}, lambda m: m["config"]["depth_kind"] == "depth"
+                   and m["depth_source"] == "depth array (depth)"),
+    "ply": ({"ply": "ascii"}, lambda m: m["save"]["ply"] == "ascii"),
+    "glb": ({"glb": False}, lambda m: m["save"]["glb"] is None),
+    "full_glb": ({"full_glb": True}, lambda m: m["save"]["glb"] == "full"),
+    "light_error": ({"light_error": 2.0}, lambda m: m["save"]["light_error"] == 2.0),
+    "viewer": ({"viewer": False}, lambda m: m["save"]["viewer"] is False),
+    "videos": ({"videos": VIDEO}, lambda m: m["save"]["videos"][0]["size"] == [32, 24]),
+    "render_settings": ({"videos": VIDEO, "render_settings": RenderSettings(ssaa=1)},
+                        lambda m: m["save"]["render_settings"]["ssaa"] == 1),
+}
+NOT_RECORDED = {
+    "depth_model": "the model for photos without any depth: a depth array is used here "
+                   "(tests/depth/test_depth_model_option.py records it)",
+    "overwrite": "where the folder may be written, not what it holds",
+}
+
+
+def recorded(out) -> dict:
+    meta = json.loads((out / "config.json").read_text())
+    return {k: v for k, v in meta.items() if k not in ("stats", "timings")}
+
+
+def test_every_option_field_changes_what_config_json_records(tmp_path):
+    fields = {f.name for f in dataclasses.fields(MakeOptions)}
+    assert fields == set(CHANGES) | set(NOT_RECORDED), "a MakeOptions field without a check"
+    img, d = two_planes(32, 48, 24)
+    make_folder(img, tmp_path / "base", depth=d, options=BASE)
+    base = recorded(tmp_path / "base")
+    assert base["save"] == {"ply": "binary", "glb": "light", "light_error": 0.5,
+                            "viewer": True, "videos": [], "render_settings": None}
+    for name, (change, shows) in CHANGES.items():
+        out = tmp_path / name
+        make_folder(img, out, depth=d, options=dataclasses.replace(BASE, **change))
+        meta = recorded(out)
+        assert meta != base and shows(meta), name
+
+
+def test_make_folder_writes_what_photo_save_writes_and_reports_the_depth(tmp_path):
+    img, d = two_planes(32, 48, 24)
+    seen = []
+    photo = make_folder(img, tmp_path / "out", depth=d, options=BASE,
+                        on_depth=lambda est, image: seen.append((est.source, image.shape)))
+    assert seen == [("depth array (disparity)", (32, 48, 3))]
+    direct = photo3d.make(img, depth=d, config=BASE.config)
+    direct.save(tmp_path / "direct")
+    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == sorted(
+        p.name for p in (tmp_path / "direct").iterdir())
+    back = photo3d.load(tmp_path / "out")
+    np.testing.assert_array_equal(back.ldi.color, direct.ldi.color)
+    assert back.inpainter == {"name": "diffusion", "iterations": 300, "tolerance": 1e-3}
+    assert back.depth_source == photo.depth_source == "depth array (disparity)"
+    assert "save" in photo.timings
+
+
+def test_make_folder_checks_the_output_before_the_depth_and_leaves_nothing(tmp_path):
+    img, d = two_planes(32, 48, 24)
+    np.save(tmp_path / "d.npy", d)
+    called = []
+    with pytest.raises(OutputError, match="holds the input"):
+        make_folder(img, tmp_path, depth=tmp_path / "d.npy", options=BASE,
+                    on_depth=lambda *a: called.append(a))
+    assert not called  # refused before the depth was read
+    with pytest.raises(InputError, match="aspect ratios differ"):
+        make_folder(img, tmp_path / "out", depth=np.ones((10, 10)), options=BASE)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["d.npy"]  # nothing staged left
+
+
+def test_make_options_validate_and_normalise():
+    options = MakeOptions(inpainter_options={"weights": "w"}, videos=list(VIDEO))
+    assert options.inpainter_options == (("weights", "w"),) and options.videos == VIDEO
+    assert str(options.weights()) == "w" and MakeOptions().weights() is None
+    with pytest.raises(ConfigError, match="ply must be"):
+        MakeOptions(ply="stl")
+    with pytest.raises(ConfigError, match="depth_kind must be"):
+        MakeOptions(depth_kind="z")
+    assert pickle.loads(pickle.dumps(options)) == options  # it travels to the workers
+
+
+def test_prepare_checks_memory_and_builds_the_inpainter(monkeypatch):
+    assert prepare(BASE).name == "diffusion"
+    with pytest.raises(ConfigError, match="unknown inpainter"):
+        prepare(MakeOptions(config=Config(inpainter="magic")))
+    monkeypatch.setattr("photo3d.resources.available_memory", lambda: 100_000_000)
+    with pytest.raises(ConfigError, match="--size 1024 needs at least"):
+        prepare(MakeOptions())
+
+
+def test_output_bytes_grows_with_the_videos():
+    none = output_bytes(Config(size=512))
+    assert output_bytes(Config(size=512), VIDEO) == none + int(0.02 * 2 * 32 * 24)
