@@ -27,14 +27,14 @@ import photo3d
 from photo3d.sample import motorcycle
 from photo3d.output import write_videos
 from photo3d.render.animate import VideoSpec
-from photo3d.render.paths import PRESETS
+from photo3d.render.paths import STANDARD_PATHS
 from photo3d.render.renderer import AUTHORS_CROP, RenderSettings
 frames, width, height, ssaa, backend = (int(sys.argv[1]), int(sys.argv[2]), int(sys.argv[3]),
                                         int(sys.argv[4]), sys.argv[5])
 s = motorcycle()
 photo = photo3d.make(s.left, depth=np.asarray(s.disparity))
 mesh = photo.mesh()
-specs = [VideoSpec(path=p, size=(width, height), frames=frames, fps=40) for p in PRESETS]
+specs = [VideoSpec(path=p, size=(width, height), frames=frames, fps=40) for p in STANDARD_PATHS]
 settings = RenderSettings(ssaa=ssaa, crop=AUTHORS_CROP, backend=backend)
 with tempfile.TemporaryDirectory() as tmp:
     t = time.perf_counter()

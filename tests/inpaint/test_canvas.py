@@ -1,4 +1,4 @@
-"""Shared canvases (issue 18): patches of one pass filled together, never reading
+"""Shared canvases (docs/learned.md): patches of one pass filled together, never reading
 another edge's foreground."""
 
 from __future__ import annotations

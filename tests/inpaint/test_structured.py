@@ -90,7 +90,7 @@ def hidden_layer(photo) -> np.ndarray:
 
 @pytest.mark.parametrize("name", ["structured"])
 def test_hidden_straight_edge_is_continued_within_2px(name):
-    """Acceptance (issue 14): the edge behind a foreground square continues to within
+    """The edge behind a foreground square continues to within
     2 px of the truth, sharply (diffusion smears it over many rows)."""
     img, bright = slanted()
     disp = np.ones((H, W), np.float32)

@@ -203,7 +203,7 @@ def test_edge_training_step_updates_generator_and_discriminator():
 
 
 def test_a_centred_colour_net_moves_its_output_with_the_context_colour(tmp_path):
-    """Issue 14: a centred colour net sees the context's colours minus their mean, so a
+    """A centred colour net sees the context's colours minus their mean, so a
     colour shift of the whole context shifts its fill by the same amount (where not
     clamped); it keeps ``center`` through save and load."""
     from photo3d.nets import build_net, save_safetensors

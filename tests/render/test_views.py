@@ -9,7 +9,7 @@ from conftest import exact_config, texture
 import photo3d
 from photo3d.camera import Camera, Intrinsics
 from photo3d.errors import ConfigError, InputError
-from photo3d.render.paths import PRESETS, keyframe_path, load_path, preset_path
+from photo3d.render.paths import STANDARD_PATHS, keyframe_path, load_path, preset_path
 from photo3d.render.renderer import AUTHORS_CROP, Renderer, RenderSettings, cropped
 from photo3d.render.stereo import compose, eye_cameras
 
@@ -137,7 +137,7 @@ def test_authors_paths_have_their_shifts():
     assert t[:, 2].min() == pytest.approx(-0.05) and t[:, 2].max() == pytest.approx(0.05)
     swing = np.array([c.pose[:3, 3] for c in preset_path("swing", k, frames=240)])
     assert not swing[:, 1].any()
-    assert set(PRESETS) == {"dolly-zoom-in", "zoom-in", "circle", "swing"}
+    assert set(STANDARD_PATHS) == {"dolly-zoom-in", "zoom-in", "circle", "swing"}
 
 
 def test_keyframes_interpolate_smoothly_and_load_from_json(tmp_path):

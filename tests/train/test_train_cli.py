@@ -83,7 +83,7 @@ def test_edge_and_depth_nets_need_photos_with_depth(folder, tmp_path, capsys):
 
 
 def test_colour_net_trains_on_photos_without_any_depth(tmp_path, capsys):
-    """Issue 14: photos only; the region shapes come from the built-in scenes."""
+    """Photos only; the region shapes come from the built-in scenes."""
     photos = write_folder(tmp_path / "photos", with_depth=0, without_depth=2)
     run = tmp_path / "run"
     args = ["train", "color", "--images", str(photos / "images"), "--out", str(run), *TINY]

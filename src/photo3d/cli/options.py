@@ -124,9 +124,9 @@ def config_from(args: argparse.Namespace, **changes) -> Config:
 def videos_from(args: argparse.Namespace) -> list:
     """One ``VideoSpec`` per ``--path`` (default: the four presets)."""
     from photo3d.render.animate import VideoSpec
-    from photo3d.render.paths import PRESETS
+    from photo3d.render.paths import STANDARD_PATHS
 
-    paths = args.paths or list(PRESETS)
+    paths = args.paths or list(STANDARD_PATHS)
     return [VideoSpec(path=p, size=args.video_size, fps=args.fps, frames=args.frames,
                       format=args.format, stereo=args.stereo,
                       eye_separation=args.eye_separation, eye_order=args.eye_order)

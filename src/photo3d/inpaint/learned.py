@@ -31,7 +31,7 @@ Per patch, as the authors' inference does (their margin of 20 px is this backend
    the edge channel zeroed, as the authors' code does) and the result is resized
    back bicubically.
 
-The patches of a pass share work (issue 18; ``share=False`` turns it off): the edge
+The patches of a pass share work (docs/learned.md; ``share=False`` turns it off): the edge
 net runs over all of them together, on crops of their joint canvas that cover every
 synthesis pixel with ``edge_halo`` pixels of surroundings (:mod:`photo3d.inpaint.crops`;
 each at most about ``joint_pixels``), the depth net on clusters and the colour net on

@@ -25,7 +25,7 @@ photo3d's own colour nets may be *centred* (``center=True``; never the authors'
 nets): the net subtracts the mean colour of the context (``rgb`` under the context
 channel, per image) from its RGB input, adds 0.5, and adds the mean back to its
 sigmoid output (``clamp(sigmoid - 0.5 + mean, 0, 1)``). A fill then starts from the
-context's own colour instead of a colour the training photos taught it (issue 14:
+context's own colour instead of a colour the training photos taught it (docs/learned.md:
 a briefly trained net filled every hole with its training set's orange-brown).
 Because the net does it itself, training and inference cannot disagree about it.
 """

@@ -13,7 +13,7 @@ from photo3d.camera import Camera, Intrinsics
 from photo3d.errors import ConfigError
 from photo3d.progress import CountProgress
 from photo3d.render._resolve import to_rgb8
-from photo3d.render.paths import PRESETS, load_path, preset_path
+from photo3d.render.paths import STANDARD_PATHS, load_path, preset_path
 from photo3d.render.renderer import Renderer, output_intrinsics
 from photo3d.render.stereo import compose, eye_cameras
 from photo3d.stages.ldi import LDI
@@ -53,16 +53,16 @@ class VideoSpec:
                               f"{self.frames} frames at {self.fps} fps")
         if not (math.isfinite(self.eye_separation) and self.eye_separation >= 0):
             raise ConfigError(f"eye separation must be >= 0, got {self.eye_separation}")
-        if self.path not in PRESETS and not Path(self.path).is_file():
+        if self.path not in STANDARD_PATHS and not Path(self.path).is_file():
             raise ConfigError(f"unknown camera path {self.path!r}: not a preset "
-                              f"({', '.join(PRESETS)}) nor a keyframe file")
-        if self.path not in PRESETS:  # a keyframe file: check it now, not after the work
+                              f"({', '.join(STANDARD_PATHS)}) nor a keyframe file")
+        if self.path not in STANDARD_PATHS:  # a keyframe file: check it now, not after the work
             load_path(self.path, Intrinsics.default(64, 48), frames=2)
 
     @property
     def name(self) -> str:
         """File stem of the video (preset name or keyframe file stem, plus stereo mode)."""
-        stem = self.path if self.path in PRESETS else Path(self.path).stem
+        stem = self.path if self.path in STANDARD_PATHS else Path(self.path).stem
         return f"{stem}_{self.stereo}" if self.stereo else stem
 
 
@@ -83,7 +83,7 @@ def path_cameras(ldi: LDI, spec: VideoSpec) -> list[Camera]:
     """
     width, height = spec.size or (ldi.width // 2 * 2, ldi.height // 2 * 2)
     k = output_intrinsics(ldi.intrinsics, width, height)
-    if spec.path in PRESETS:
+    if spec.path in STANDARD_PATHS:
         return preset_path(spec.path, k, frames=spec.frames, centre_depth=centre_depth(ldi))
     return load_path(spec.path, k, frames=spec.frames)
 

@@ -28,7 +28,7 @@ import numpy as np
 from photo3d.camera import Camera, Intrinsics
 from photo3d.errors import InputError, require
 
-PRESETS = ("dolly-zoom-in", "zoom-in", "circle", "swing")
+STANDARD_PATHS = ("dolly-zoom-in", "zoom-in", "circle", "swing")
 _SHIFTS = {  # x, y, z of the authors' presets
     "dolly-zoom-in": (0.0, 0.0, -0.05),
     "zoom-in": (0.0, 0.0, -0.05),
@@ -57,7 +57,7 @@ def preset_path(name: str, intrinsics: Intrinsics, *, frames: int = 240,
         [-0.015, 0.015, -0.015, 0.015]
     """
     if name not in _SHIFTS:
-        raise InputError(f"unknown camera path {name!r}; presets: {', '.join(PRESETS)}")
+        raise InputError(f"unknown camera path {name!r}; presets: {', '.join(STANDARD_PATHS)}")
     if frames < 1:
         raise InputError(f"frames must be at least 1, got {frames}")
     sx, sy, sz = _SHIFTS[name]
