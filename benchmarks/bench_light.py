@@ -38,7 +38,7 @@ import photo3d
 from photo3d.sample import motorcycle
 from photo3d.mesh.light import build_light_mesh
 from photo3d.render.animate import VideoSpec, path_cameras
-from photo3d.render.paths import PRESETS
+from photo3d.render.paths import STANDARD_PATHS
 from photo3d.render.renderer import AUTHORS_CROP, Renderer, RenderSettings
 frames, width, height, max_error = (int(sys.argv[1]), int(sys.argv[2]),
                                     int(sys.argv[3]), float(sys.argv[4]))
@@ -48,9 +48,9 @@ full = photo.mesh()
 import photo3d.mesh.light as light_module
 seen = {}
 simplify = light_module._simplify
-def spy(points, faces, error):  # how many triangles reach meshoptimizer
+def spy(points, faces, error, **kw):  # how many triangles reach the simplifier
     seen["faces"] = len(faces)
-    return simplify(points, faces, error)
+    return simplify(points, faces, error, **kw)
 light_module._simplify = spy
 t = time.perf_counter()
 light = build_light_mesh(photo.ldi, full=full, max_error=max_error)
@@ -63,7 +63,7 @@ out = {"ldi_pixels": int(photo.ldi.size), "full_faces": int(len(full.faces)),
 settings = RenderSettings(ssaa=2, crop=AUTHORS_CROP, backend="numba")
 psnr, times = {}, {"light": [], "full": []}
 with Renderer(full, settings) as rf, Renderer(light, settings) as rl:
-    for name in PRESETS:
+    for name in STANDARD_PATHS:
         spec = VideoSpec(path=name, size=(width, height), frames=240, fps=40)
         cameras = path_cameras(photo.ldi, spec)
         picks = np.linspace(0, len(cameras) - 1, frames).round().astype(int)
@@ -82,7 +82,7 @@ try:  # the OpenGL backend (EGL; software llvmpipe on a machine without a GPU)
     gl = RenderSettings(ssaa=2, crop=AUTHORS_CROP, backend="gl")
     gl_times, gl_psnr = {"light": [], "full": []}, []
     with Renderer(full, gl) as rf, Renderer(light, gl) as rl:
-        for name in PRESETS:
+        for name in STANDARD_PATHS:
             spec = VideoSpec(path=name, size=(width, height), frames=240, fps=40)
             cameras = path_cameras(photo.ldi, spec)
             for i in np.linspace(0, len(cameras) - 1, max(2, frames // 4)).round().astype(int):
@@ -106,7 +106,10 @@ import json, sys, tempfile, time
 from pathlib import Path
 import numpy as np
 import photo3d
-from photo3d.sample import motorcycle
+try:
+    from photo3d.sample import motorcycle
+except ImportError:  # the BEFORE commit: photo3d.data
+    from photo3d.data import motorcycle
 runs = int(sys.argv[1])
 s = motorcycle()
 photo = photo3d.make(s.left, depth=np.asarray(s.disparity))

@@ -32,7 +32,7 @@ def section_light(load, machine_line, missing) -> str:
         "frame.", "",
         f"The 1024 px motorcycle 3D photo ({rec['ldi_pixels']:,} LDI pixels). Light mesh: "
         f"error bound {rec['max_error']} px (parallax for a 0.03 camera shift, and texture "
-        "drift), built with meshoptimizer from the full mesh.", "",
+        "drift), built by edge collapses (`photo3d.mesh._simplify`) from the full mesh.", "",
         "| | before (full mesh) | now (light, default) | target |",
         "| --- | --- | --- | --- |",
         f"| `mesh.glb` | {full['mesh.glb'] / mb:.1f} MB, {rec['full_faces']:,} triangles | "
@@ -61,7 +61,7 @@ def section_light(load, machine_line, missing) -> str:
             "(32 to 2 pixels) planar within 0.3 x the error bound become fans that share "
             "their edges without the pixels between block corners, so "
             f"{rec['simplify_faces']:,} of the {rec['full_faces']:,} triangles reach "
-            "meshoptimizer; meshoptimizer runs on "
+            "the simplifier, which runs on "
             "four vertical strips in two threads with the vertices they share locked (5 % more "
             "triangles); the texture is built while it runs; the full mesh's faces come from "
             "a numba kernel; writer threads write `photo3d.npz` (format 2: colours stored, "

@@ -22,8 +22,8 @@ def test_missing_extra_is_a_photo3d_error_and_an_import_error():
     back = pickle.loads(pickle.dumps(err))  # crosses process boundaries (batch workers)
     assert type(back) is MissingExtra and str(back) == str(err)
     assert (back.extra, back.name, back.hint) == (err.extra, err.name, err.hint)
-    core = MissingExtra("the light mesh", "meshoptimizer", None, module="meshoptimizer._loader")
-    assert str(core) == "the light mesh needs meshoptimizer: pip install meshoptimizer"
+    core = MissingExtra("writing video", "PyAV", None, module="av.video")
+    assert str(core) == "writing video needs PyAV: pip install av"
     own = MissingExtra("x", "OpenCV's contrib modules", "stereo", hint="pip do this")
     assert str(own) == "x needs OpenCV's contrib modules: pip do this" and own.extra == "stereo"
     assert install_hint("gl") == "pip install 'photo3d[gl]'"

@@ -6,6 +6,7 @@ nets with known outputs check thresholds, depth conversion, rescaling and batchi
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import functools
 
@@ -293,22 +294,57 @@ def test_padding_unit_follows_the_architecture():
     assert LearnedInpainter(nets=big, edge_unit=8).units["edge"] == 8
 
 
+def bf16_rounded(nets: InpaintingNets) -> InpaintingNets:
+    """Copies of ``nets`` that round their weights and every module's inputs and
+    outputs to bfloat16 but compute in float32: the rounding that bf16 autocast
+    cannot avoid, without its arithmetic (which differs between CPUs)."""
+
+    def r16(x):
+        if isinstance(x, tuple):
+            return tuple(r16(a) for a in x)
+        return x.bfloat16().float() if torch.is_tensor(x) and x.is_floating_point() else x
+
+    def rounded(net: torch.nn.Module) -> torch.nn.Module:
+        net = copy.deepcopy(net)
+        with torch.no_grad():
+            for t in [*net.parameters(), *net.buffers()]:
+                if t.is_floating_point():
+                    t.copy_(r16(t))
+        for m in net.modules():
+            m.register_forward_pre_hook(lambda _, args: r16(args))
+            m.register_forward_hook(lambda _, args, out: r16(out))
+        return net
+
+    return dataclasses.replace(nets, edge=rounded(nets.edge), depth=rounded(nets.depth),
+                               color=rounded(nets.color))
+
+
 def test_bf16_stays_close_to_fp32():
+    """bf16 moves the fills about as far from the fp32 ones as the same rounding
+    done in fp32 arithmetic does (:func:`bf16_rounded`), a reference measured on the
+    CPU at hand: a fixed bound (0.01) held on one CPU's bf16 arithmetic and not on
+    another's (0.0101). Not less than half (so it ran in bf16, not fp32) and not more
+    than twice (so it is not broken)."""
     nets = random_nets(5)
     p = make_patch(seed=2)
-    a = LearnedInpainter(nets=nets, edge_threshold=0.5).inpaint([p])[0]
-    b = LearnedInpainter(nets=nets, edge_threshold=0.5, precision="bf16").inpaint([p])[0]
-    diff = np.abs(a.color - b.color)[p.synthesis]
-    assert 0 < diff.mean() < 0.01 and diff.max() < 0.1
-    # random nets amplify rounding more than trained ones: ~0.011 here, unpadded
-    assert np.abs(a.disparity - b.disparity)[p.synthesis].mean() < 0.02
+
+    def fill(n: InpaintingNets, **kw):
+        return LearnedInpainter(nets=n, edge_threshold=0.5, **kw).inpaint([p])[0]
+
+    a, b, r = fill(nets), fill(nets, precision="bf16"), fill(bf16_rounded(nets))
+    for name in ("color", "disparity"):
+        bf16 = np.abs(getattr(a, name) - getattr(b, name))[p.synthesis].mean()
+        rounding = np.abs(getattr(a, name) - getattr(r, name))[p.synthesis].mean()
+        # measured (AMD EPYC): bf16 / rounding 1.11 (colour), 1.10 (disparity); over
+        # six seeds 0.90 to 1.18 (rounding only weights and the nets' inputs: 1.3 to 7)
+        assert rounding > 0 and rounding / 2 < bf16 < 2 * rounding, (name, bf16, rounding)
     with pytest.raises(ConfigError, match="precision"):
         LearnedInpainter(nets=nets, precision="fp8")
 
 
 @pytest.mark.parametrize("colour", [(0.2, 0.6, 0.2), (0.8, 0.75, 0.6), (0.15, 0.2, 0.7)])
 def test_the_shipped_colour_net_fills_with_the_colour_of_the_context(colour):
-    """Issue 14: the shipped compact colour net painted every hole orange-brown (about
+    """The shipped compact colour net once painted every hole orange-brown (about
     (0.6, 0.46, 0.35) beside green, beige or blue). Beside a textured context of one
     colour, the fill must take about that colour."""
     rng = np.random.default_rng(0)
@@ -326,7 +362,7 @@ def test_the_shipped_colour_net_fills_with_the_colour_of_the_context(colour):
     np.testing.assert_allclose(fill, colour, atol=0.08)
 
 
-# --- The joint edge run on crops (issue 18) ---
+# --- The joint edge run on crops ---
 
 @functools.lru_cache(maxsize=1)
 def scene_patches() -> tuple[Patch, ...]:
@@ -540,7 +576,7 @@ def test_trim_keeps_every_mask_pixel_and_never_pads_more():
 
 @pytest.mark.parametrize("seed", [0, 1])
 def test_random_nets_do_not_make_later_passes_explode(seed, monkeypatch):
-    """Issue 18: random (the poorest) nets leave steps all over their fills. With the
+    """Random (the poorest) nets leave steps all over their fills. With the
     merge's fill rules every pass finds fewer new edges than the one before; without
     them the second pass found about three times the first's."""
     pytest.importorskip("skimage")

@@ -1,4 +1,4 @@
-"""The planar-block merge that runs before meshoptimizer (photo3d.mesh._planar)."""
+"""The planar-block merge that runs before the simplifier (photo3d.mesh._planar)."""
 
 from __future__ import annotations
 

@@ -125,6 +125,30 @@ def test_locked_vertices_stay():
     assert 2 < len(out) < 30  # the rest still goes
 
 
+def edge_drift(points: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Largest gap along each edge between pixel positions interpolated linearly in
+    3D (weighted by ``v``, proportional to inverse depth) and linearly in the image."""
+    a = points[np.concatenate([faces[:, 0], faces[:, 1], faces[:, 2]])]
+    b = points[np.concatenate([faces[:, 1], faces[:, 2], faces[:, 0]])]
+    t = np.linspace(0, 1, 101)[:, None, None]
+    image = (1 - t) * a[None, :, :2] + t * b[None, :, :2]
+    w = (1 - t) * a[None, :, 2:] + t * b[None, :, 2:]
+    in_3d = ((1 - t) * a[None, :, 2:] * a[None, :, :2] + t * b[None, :, 2:] * b[None, :, :2]) / w
+    return np.linalg.norm(in_3d - image, axis=2).max(axis=0)
+
+
+def test_the_texture_drift_stays_within_the_bound():
+    """A plane slanted in depth (inverse depth 1 to 3 across 40 px): flat, so two
+    triangles would do, but their texture would drift by pixels."""
+    points, faces = grid(41, lambda x, y: 1.0 + x / 20.0)
+    plain = simplify(points, faces, 0.5)
+    assert len(plain) == 2 and edge_drift(points, plain).max() > 3  # the check can fail
+    bounded = simplify(points, faces, 0.5, drift=True)
+    assert edge_drift(points, bounded).max() <= 0.5 + 1e-9
+    assert 2 < len(bounded) < len(faces) / 4  # still simplified
+    assert height_error(points, bounded).max() < 1e-9  # and the same plane
+
+
 def test_deterministic_and_position_from_points_or_given():
     points, faces = grid(40, bump)
     a = simplify(points, faces, 0.3)

@@ -1,6 +1,6 @@
-"""Numba kernels of :mod:`photo3d.mesh.light`: merge planar blocks before meshoptimizer.
+"""Numba kernels of :mod:`photo3d.mesh.light`: merge planar blocks before simplifying.
 
-meshoptimizer's cost grows with the triangles it is given (3 million for a 1024 px
+The simplifier's cost grows with the triangles it is given (3 million for a 1024 px
 photo, most of the save time). Most of them lie in blocks of the lattice whose
 surface is a plane to well within the light mesh's error bound; such a block's
 ``2 b^2`` triangles are replaced by a fan of at most ``4 b`` triangles from its centre pixel
