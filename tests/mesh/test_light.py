@@ -88,7 +88,8 @@ def test_silhouettes_keep_their_pixel_outline():
     (Slightly off the input camera: exactly there, pixel centres lie on the outline,
     where the full mesh has a vertex on every one and the light mesh only at corners,
     and the rasterizer's fill rule treats the two differently. A much coarser bound
-    may cut a corner, which it allows: here from 4 px on (meshoptimizer, used before, from 6 px).)"""
+    may cut a corner, which it allows: here from 4 px on (meshoptimizer, used before:
+    6 px).)"""
     photo = box_photo(border=0)
     full, light = photo.mesh(), photo.light_mesh(max_error=2.0)
     k = photo.ldi.intrinsics
