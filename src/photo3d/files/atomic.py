@@ -93,7 +93,37 @@ def is_temp_of(name: str, target: str, *, suffixed: bool = True) -> bool:
     return suffixed and tail.startswith("tmp.") and "." not in tail[4:] and len(tail) > 4
 
 
-class PendingFile:
+class Pending:
+    """A temporary result that is discarded unless committed: leaving its ``with``
+    block without :meth:`commit` (an error, Ctrl-C) calls :meth:`discard`.
+
+    Subclasses set ``self._done = False`` and implement ``commit`` and ``discard``
+    (which sets ``_done``); :class:`PendingFile` and
+    :class:`photo3d.files.staging.Staging` are the two.
+
+    Example:
+        >>> class Demo(Pending):
+        ...     _done = False
+        ...     def discard(self): print("discarded"); self._done = True
+        >>> with Demo():
+        ...     pass
+        discarded
+    """
+
+    _done: bool
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc) -> None:
+        if not self._done:
+            self.discard()
+
+    def discard(self) -> None:  # pragma: no cover - abstract
+        raise NotImplementedError
+
+
+class PendingFile(Pending):
     """A hidden temporary sibling of ``path`` that replaces it on :meth:`commit`.
 
     Creating one checks the target (not a folder, its folder exists, the name fits
@@ -139,13 +169,6 @@ class PendingFile:
         except OSError as err:
             raise OutputError(f"cannot write {self.target}: {err.strerror or err}") from None
         _LIVE.add(self.path)
-
-    def __enter__(self) -> PendingFile:
-        return self
-
-    def __exit__(self, *exc) -> None:
-        if not self._done:
-            self.discard()
 
     def commit(self) -> Path:
         """Rename the temporary file over the target; return the target as given.

@@ -43,7 +43,7 @@ from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
 
 from photo3d.errors import OutputError
-from photo3d.files.atomic import is_temp_of, temp_sibling
+from photo3d.files.atomic import Pending, is_temp_of, temp_sibling
 from photo3d.files.rename import claim, identity, swap
 
 PathLike = str | os.PathLike[str]
@@ -81,7 +81,7 @@ def owned_by_names(required: str, allowed: Sequence[str]) -> Callable[[Path], li
     return owned
 
 
-class Staging:
+class Staging(Pending):
     """A hidden temporary folder that becomes ``final`` on :meth:`commit`.
 
     Use as a context manager: leaving the block without a commit (an error, Ctrl-C)
@@ -100,13 +100,6 @@ class Staging:
         self._seen, self._owned, self._made = seen, owned, made
         self._overwrite = overwrite
         self._done = False
-
-    def __enter__(self) -> Staging:
-        return self
-
-    def __exit__(self, *exc) -> None:
-        if not self._done:
-            self.discard()
 
     def commit(self) -> Path:
         """Move the temporary folder into place atomically; return the output path.
