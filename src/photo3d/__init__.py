@@ -14,7 +14,7 @@ Example:
 """
 
 from photo3d.config import PRESETS, Config
-from photo3d.errors import ConfigError, InputError, OutputError, Photo3DError
+from photo3d.errors import ConfigError, InputError, MissingExtra, OutputError, Photo3DError
 
 __version__ = "0.1.0"
 
@@ -37,6 +37,7 @@ __all__ = [
     "Config",
     "ConfigError",
     "InputError",
+    "MissingExtra",
     "OutputError",
     "Photo3D",
     "Photo3DError",
