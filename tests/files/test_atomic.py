@@ -148,6 +148,61 @@ def test_a_symbolic_link_is_followed_and_stays(tmp_path):
     assert names(tmp_path) == ["link.txt", "real.txt"]
 
 
+def tree(root: Path) -> dict[str, str | bytes]:
+    """Every entry under ``root``: a link's target, a file's bytes, ``"dir"``."""
+    found = {}
+    for path in sorted(root.rglob("*")):
+        key = str(path.relative_to(root))
+        if path.is_symlink():
+            found[key] = "-> " + os.readlink(path)
+        elif path.is_dir():
+            found[key] = "dir"
+        else:
+            found[key] = path.read_bytes()
+    return found
+
+
+@pytest.mark.parametrize("points_to", ["outside/real.txt", "outside/missing.txt",
+                                       "inside.txt"])
+def test_follow_symlinks_false_refuses_any_link_before_any_data(tmp_path, points_to):
+    (tmp_path / "outside").mkdir()
+    (tmp_path / "outside" / "real.txt").write_text("theirs")
+    folder = tmp_path / "folder"
+    folder.mkdir()
+    (folder / "inside.txt").write_text("mine")
+    link = folder / "link.txt"
+    link.symlink_to(tmp_path / points_to if points_to.startswith("outside") else points_to)
+    before = tree(tmp_path)
+    message = f"{link} is a symbolic link; photo3d does not write through links"
+    produced = []
+    writers = [
+        lambda: check_writable(link, follow_symlinks=False),
+        lambda: PendingFile(link, suffix=".part", follow_symlinks=False),
+        lambda: produced.append(atomic_path(link, follow_symlinks=False).__enter__()),
+        lambda: produced.append(atomic_write(link, "w", follow_symlinks=False).__enter__()),
+    ]
+    for write in writers:
+        with pytest.raises(OutputError) as caught:
+            write()
+        assert str(caught.value) == message
+    assert produced == [] and tree(tmp_path) == before
+
+
+def test_follow_symlinks_false_writes_a_plain_file_and_replaces_a_late_link(tmp_path):
+    (tmp_path / "outside.txt").write_text("theirs")
+    target = tmp_path / "a.txt"
+    with atomic_write(target, "w", follow_symlinks=False) as f:
+        f.write("one")
+    assert target.read_text() == "one" and not target.is_symlink()
+    with atomic_path(target, follow_symlinks=False) as tmp:
+        target.unlink()
+        target.symlink_to(tmp_path / "outside.txt")  # a link appears while writing
+        tmp.write_text("two")
+    assert not target.is_symlink() and target.read_text() == "two"
+    assert (tmp_path / "outside.txt").read_text() == "theirs"
+    assert names(tmp_path) == ["a.txt", "outside.txt"]
+
+
 def test_pending_file_commits_or_discards(old):
     pending = PendingFile(old)
     pending.path.write_text("new")

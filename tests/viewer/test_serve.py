@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import _thread
+import http.client
 import importlib
+import os
 import signal
 import socket
 import threading
@@ -12,6 +14,7 @@ import urllib.request
 
 import pytest
 
+import photo3d.viewer
 from photo3d.errors import InputError
 from photo3d.viewer import ViewerServer, serve
 
@@ -98,3 +101,125 @@ def test_browser_is_opened_only_with_a_display(monkeypatch):
     monkeypatch.setenv("DISPLAY", ":0")
     assert serve_module.open_in_browser("http://127.0.0.1:1/viewer.html") is True
     assert opened == ["http://127.0.0.1:1/viewer.html"]
+
+
+def tree(root) -> dict:
+    """Every entry under ``root``: a link's target, a file's bytes, ``"dir"``."""
+    found = {}
+    for path in sorted(root.rglob("*")):
+        key = str(path.relative_to(root))
+        if path.is_symlink():
+            found[key] = "-> " + os.readlink(path)
+        elif path.is_dir():
+            found[key] = "dir"
+        else:
+            found[key] = path.read_bytes()
+    return found
+
+
+@pytest.fixture
+def running(tmp_path):
+    """A server of ``tmp_path/photo`` in a thread, with a secret beside the folder,
+    links to it and to a file inside, a subfolder and a hidden file."""
+    photo = tmp_path / "photo"
+    photo.mkdir()
+    (photo / "viewer.html").write_text("<!doctype html>")
+    (photo / "video").mkdir()
+    (photo / "video" / "circle.mp4").write_bytes(b"mp4")
+    (photo / ".hidden").write_text("temporary")
+    (tmp_path / "secret.txt").write_text("secret")
+    (tmp_path / "elsewhere").mkdir()
+    (tmp_path / "elsewhere" / "x.txt").write_text("secret too")
+    (photo / "out.txt").symlink_to(tmp_path / "secret.txt")
+    (photo / "in.html").symlink_to("viewer.html")
+    (photo / "linked").symlink_to(tmp_path / "elsewhere")
+    (photo / "fifo").mkdir()  # a folder named like a file
+    with ViewerServer(photo) as server:
+        thread = threading.Thread(target=server.serve_forever)
+        thread.start()
+        try:
+            yield server
+        finally:
+            server.shutdown()
+            thread.join()
+
+
+def request(server, path: str, *, host: str | None = "own",
+            method: str = "GET") -> tuple[int, bytes, dict]:
+    port = server.url.split(":")[2].split("/")[0]
+    conn = http.client.HTTPConnection("127.0.0.1", int(port), timeout=10)
+    try:
+        conn.putrequest(method, path, skip_host=True, skip_accept_encoding=True)
+        if host is not None:
+            conn.putheader("Host", f"127.0.0.1:{port}" if host == "own" else
+                           host.replace("PORT", port))
+        conn.endheaders()
+        response = conn.getresponse()
+        return response.status, response.read(), dict(response.getheaders())
+    finally:
+        conn.close()
+
+
+def test_only_regular_files_inside_the_folder_are_served(running):
+    assert request(running, "/viewer.html")[:2] == (200, b"<!doctype html>")
+    assert request(running, "/viewer.html?x=1#y")[:2] == (200, b"<!doctype html>")
+    assert request(running, "/video/circle.mp4")[:2] == (200, b"mp4")
+    assert request(running, "/viewer.html", method="HEAD")[0] == 200
+    refused = ["/out.txt", "/in.html", "/linked/x.txt", "/linked/", "/../secret.txt",
+               "/%2e%2e/secret.txt", "/video/../../secret.txt", "/video/%2e%2e/%2e%2e/secret.txt",
+               "/..%2fsecret.txt", "/.hidden", "/video", "/video/", "/fifo", "//etc/passwd",
+               "/viewer.html/", "/missing.txt", "/video\\..\\..\\secret.txt", "/%00"]
+    for path in refused:
+        status, body, _ = request(running, path)
+        assert status in (403, 404), path
+        assert b"secret" not in body and b"circle.mp4" not in body and b"x.txt" not in body
+    status, body, headers = request(running, "/")
+    assert status == 302 and headers["Location"] == "/viewer.html" and body == b""
+    status, body, _ = request(running, "http://evil.example/viewer.html")
+    assert status == 400 and b"doctype" not in body
+
+
+def test_only_requests_to_its_own_host_are_answered(running):
+    assert request(running, "/viewer.html", host="localhost:PORT")[:2] == (200, b"<!doctype html>")
+    assert request(running, "/viewer.html", host="LocalHost:PORT")[0] == 200
+    for host in ("evil.example", "evil.example:PORT", "127.0.0.1", "localhost",
+                 "127.0.0.1:1", "0.0.0.0:PORT", "[::1]:PORT", ""):
+        status, body, _ = request(running, "/viewer.html", host=host)
+        assert status in (400, 421), host
+        assert b"doctype" not in body
+    status, body, _ = request(running, "/viewer.html", host=None)
+    assert status == 400 and b"doctype" not in body
+
+
+def test_the_server_listens_on_loopback_only(folder):
+    with ViewerServer(folder) as server:
+        assert server._server.server_address[0] == "127.0.0.1"
+        assert server._server.socket.getsockname()[0] == "127.0.0.1"
+
+
+@pytest.mark.parametrize("points_to", ["outside.html", "missing.html", "inside.html"])
+def test_a_linked_viewer_page_is_refused_before_any_work(tmp_path, capsys, monkeypatch,
+                                                       points_to):
+    from photo3d.cli import main
+
+    photo = tmp_path / "photo"
+    photo.mkdir()
+    (tmp_path / "outside.html").write_text("theirs")
+    (photo / "inside.html").write_text("mine")
+    (photo / "viewer.html").symlink_to(photo / points_to if points_to == "inside.html"
+                                       else tmp_path / points_to)
+    before = tree(tmp_path)
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("worked before the link was refused")
+
+    monkeypatch.setattr("photo3d.photo.load", refuse)
+    monkeypatch.setattr(serve_module, "serve", refuse)
+    monkeypatch.setattr(photo3d.viewer, "serve", refuse)  # what view imports
+    assert main(["view", str(photo), "--no-browser"]) == 2
+    err = capsys.readouterr().err
+    assert err == (f"photo3d: error: {photo / 'viewer.html'} is a symbolic link; "
+                   "photo3d does not write through links\n")
+    assert tree(tmp_path) == before
+    with pytest.raises(InputError, match="is a symbolic link"):
+        ViewerServer(photo)

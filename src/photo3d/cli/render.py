@@ -52,10 +52,10 @@ def _still(args: argparse.Namespace, photo, spec) -> int:
     from photo3d.render.renderer import Renderer
 
     path = args.photo / (f"still_{spec.stereo}.png" if spec.stereo else "still.png")
-    check_writable(path)  # before rendering
+    check_writable(path, follow_symlinks=False)  # before rendering; never through a link
     with Renderer(photo.mesh(), render_settings_from(args)) as renderer:
         image = render_still(renderer, photo.ldi, spec)
-    with atomic_path(path) as tmp:
+    with atomic_path(path, follow_symlinks=False) as tmp:
         write_image(tmp, image)
     if not args.quiet:
         print(f"wrote {path} ({image.shape[1]}x{image.shape[0]})")

@@ -17,12 +17,15 @@ def add_parser(sub) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run ``photo3d view`` until Ctrl-C; returns the exit status."""
+    from photo3d.files.atomic import atomic_path, refuse_symlink
     from photo3d.photo import load
     from photo3d.viewer import VIEWER_FILE, serve, write_viewer
 
-    page = args.photo / VIEWER_FILE
+    page = refuse_symlink(args.photo / VIEWER_FILE)  # never written through, never served
     if not page.is_file():  # made with --no-viewer: write it now
-        write_viewer(load(args.photo).mesh(), page, title=args.photo.name)
+        photo = load(args.photo)
+        with atomic_path(page, follow_symlinks=False) as tmp:  # checked before the mesh
+            write_viewer(photo.mesh(), tmp, title=args.photo.name)
 
     def ready(url: str, opened: bool) -> None:
         print(f"serving {args.photo}/ at {url}" + ("" if opened else "  (open it in a browser)"),

@@ -22,7 +22,11 @@ files are written with :mod:`photo3d.files.staging` instead.
   what a killed writer left.
 
 A target that is a symbolic link is followed: the file it points to is replaced
-and the link stays, as ``open(path, "w")`` would do.
+and the link stays, as ``open(path, "w")`` would do. With ``follow_symlinks=False``
+(every writer takes it) a link is refused instead (:func:`refuse_symlink`), so a
+link placed in an output folder can never make photo3d write outside it; the
+commit renames over the name itself, so a link that appears meanwhile is
+replaced, never written through.
 
 Example:
     >>> import pathlib, tempfile
@@ -138,6 +142,9 @@ class PendingFile(Pending):
         suffix: appended to the temporary name ``.NAME.XXXXXXXX.tmp`` (default
             none), e.g. the target's own suffix for a library that infers the
             format from it.
+        follow_symlinks: True (default): a target that is a symbolic link is
+            followed. False: it is refused (:func:`refuse_symlink`) and
+            :meth:`commit` renames over ``path`` itself.
 
     Attributes:
         path: the temporary file to write into.
@@ -148,7 +155,7 @@ class PendingFile(Pending):
     Raises:
         OutputError: ``path`` is a folder, its folder is missing, or the file
             system refuses a new file there (permissions, read-only, full, name
-            too long).
+            too long); ``path`` is a symbolic link and ``follow_symlinks`` is False.
 
     Example:
         >>> import pathlib, tempfile
@@ -158,9 +165,12 @@ class PendingFile(Pending):
         (b'xy', False)
     """
 
-    def __init__(self, path: PathLike, *, suffix: str = "") -> None:
+    def __init__(self, path: PathLike, *, suffix: str = "",
+                 follow_symlinks: bool = True) -> None:
         self.target = Path(path)
         self._done = False
+        if not follow_symlinks:
+            refuse_symlink(self.target)
         try:
             self.final = (Path(os.path.realpath(path)) if self.target.is_symlink()
                           else self.target)
@@ -209,7 +219,8 @@ class PendingFile(Pending):
 
 
 @contextlib.contextmanager
-def atomic_path(path: PathLike, *, suffix: str | None = None) -> Iterator[Path]:
+def atomic_path(path: PathLike, *, suffix: str | None = None,
+                follow_symlinks: bool = True) -> Iterator[Path]:
     """Yield a temporary sibling of ``path`` to write to; rename it over ``path`` when
     the block ends without an error, remove it otherwise.
 
@@ -222,6 +233,8 @@ def atomic_path(path: PathLike, *, suffix: str | None = None) -> Iterator[Path]:
         suffix: the temporary name's last suffix: ``.NAME.XXXXXXXX.tmp`` + suffix.
             Default: ``path``'s own (``.png``), for libraries that infer the format
             from it (``np.savez`` appends ``.npz`` to a name without it).
+        follow_symlinks: False refuses a ``path`` that is a symbolic link
+            (see :class:`PendingFile`).
 
     Raises:
         OutputError: the file cannot be written; an ``OSError`` raised in the block,
@@ -237,7 +250,8 @@ def atomic_path(path: PathLike, *, suffix: str | None = None) -> Iterator[Path]:
         >>> np.load(target).tolist(), [p.name for p in target.parent.iterdir()]
         ([0, 1, 2], ['a.npy'])
     """
-    pending = PendingFile(path, suffix=Path(path).suffix if suffix is None else suffix)
+    pending = PendingFile(path, suffix=Path(path).suffix if suffix is None else suffix,
+                          follow_symlinks=follow_symlinks)
     with pending:
         try:
             yield pending.path
@@ -250,13 +264,16 @@ def atomic_path(path: PathLike, *, suffix: str | None = None) -> Iterator[Path]:
 
 
 @contextlib.contextmanager
-def atomic_write(path: PathLike, mode: str = "wb") -> Iterator[IO]:
+def atomic_write(path: PathLike, mode: str = "wb", *,
+                 follow_symlinks: bool = True) -> Iterator[IO]:
     """Open a temporary sibling of ``path`` for writing; rename it over ``path`` when
     the block ends without an error, remove it otherwise.
 
     Args:
         path: the file to write; an existing file is replaced.
         mode: ``"wb"`` or ``"w"`` (text, UTF-8).
+        follow_symlinks: False refuses a ``path`` that is a symbolic link
+            (see :class:`PendingFile`).
 
     Raises:
         OutputError: the file cannot be written (permissions, full disk, a folder
@@ -272,7 +289,7 @@ def atomic_write(path: PathLike, mode: str = "wb") -> Iterator[IO]:
     """
     if mode not in ("wb", "w"):
         raise ValueError(f"mode must be 'wb' or 'w', got {mode!r}")
-    with atomic_path(path, suffix="") as tmp:
+    with atomic_path(path, suffix="", follow_symlinks=follow_symlinks) as tmp:
         with open(tmp, mode, **({} if "b" in mode else {"encoding": "utf-8"})) as f:
             yield f
 
@@ -315,23 +332,50 @@ def write_json(path: PathLike, value: Any, *, indent: int | None = 2) -> Path:
     return write_text(path, json.dumps(value, indent=indent))
 
 
-def check_writable(file: PathLike) -> Path:
+def check_writable(file: PathLike, *, follow_symlinks: bool = True) -> Path:
     """Check early that ``file`` can be written: its folder exists and takes a new file.
 
     A hidden temporary file is created beside it and removed (see
-    :class:`PendingFile`). Returns ``file`` as a Path.
+    :class:`PendingFile`). Returns ``file`` as a Path. ``follow_symlinks=False``
+    also refuses a ``file`` that is a symbolic link (:func:`refuse_symlink`).
 
     Raises:
         OutputError: ``file`` is a folder, its folder is missing, or the file system
-            refuses a new file there (permissions, read-only, full, name too long).
+            refuses a new file there (permissions, read-only, full, name too long);
+            ``file`` is a symbolic link and ``follow_symlinks`` is False.
 
     Example:
         >>> import pathlib, tempfile
         >>> check_writable(pathlib.Path(tempfile.mkdtemp()) / "depth.png").name
         'depth.png'
     """
-    PendingFile(file).discard()
+    PendingFile(file, follow_symlinks=follow_symlinks).discard()
     return Path(file)
+
+
+def refuse_symlink(path: PathLike) -> Path:
+    """Refuse ``path`` if it is a symbolic link (to anything, or to nothing).
+
+    For writers that must never write outside their folder: a link placed there
+    could point anywhere. Returns ``path`` as a Path.
+
+    Raises:
+        OutputError: ``PATH is a symbolic link; photo3d does not write through links``.
+
+    Example:
+        >>> import pathlib, tempfile
+        >>> folder = pathlib.Path(tempfile.mkdtemp())
+        >>> (folder / "a.png").symlink_to("/nowhere")
+        >>> refuse_symlink(folder / "b.png").name
+        'b.png'
+        >>> refuse_symlink(folder / "a.png")
+        Traceback (most recent call last):
+        photo3d.errors.OutputError: ... is a symbolic link; photo3d does not write through links
+    """
+    path = Path(path)
+    if path.is_symlink():
+        raise OutputError(f"{path} is a symbolic link; photo3d does not write through links")
+    return path
 
 
 def remove_temp_files(path: PathLike) -> list[Path]:

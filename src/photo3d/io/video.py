@@ -136,7 +136,8 @@ class VideoWriter:
         self._closed = False
         self._pending: list[np.ndarray] = []  # GIF frames not yet encoded
         self._palette: tuple[Image.Image, np.ndarray] | None = None
-        self._file = PendingFile(self.path, suffix=".part")  # the muxer is named: any suffix
+        # the muxer is named, so any suffix; never written through a symbolic link
+        self._file = PendingFile(self.path, suffix=".part", follow_symlinks=False)
         try:
             self._container = av.open(str(self._file.path), "w", format=muxer,
                                       options=mux_options)
