@@ -58,8 +58,12 @@ PHOTO_FILES = (LDI_FILE, "config.json", "mesh.ply", "mesh.glb", "viewer.html", "
 FINISHED_FILES = (LDI_FILE, "config.json")
 """Files every finished 3D photo folder holds (whatever else was asked for)."""
 
-owned_photo = owned_by_names(LDI_FILE, PHOTO_FILES)
-"""The check that a folder is a 3D photo folder photo3d wrote (and may replace)."""
+VIDEO_FILES = ("*.mp4", "*.webm", "*.gif")
+"""Names of the files in a 3D photo folder's ``video/`` (one per format photo3d writes)."""
+
+owned_photo = owned_by_names(LDI_FILE, PHOTO_FILES, inside={"video": VIDEO_FILES})
+"""The check that a folder is a 3D photo folder photo3d wrote (and may replace): only
+:data:`PHOTO_FILES` at the top, only :data:`VIDEO_FILES` in ``video/``."""
 
 
 def is_complete(out: str | Path) -> bool:
@@ -261,10 +265,18 @@ def write_videos(photo: SavedPhoto, mesh, folder: Path, videos: Sequence[VideoSp
 
     ``mesh``: the mesh to draw, a full :class:`~photo3d.mesh.types.Mesh` or a light
     :class:`~photo3d.mesh.types.TexturedMesh`; None: the light one with the OpenGL
-    backend, else the full one (built here)."""
+    backend, else the full one (built here).
+
+    Nothing is written through a symbolic link: a ``video`` that is one, or a link
+    named as one of the videos, is refused (OutputError) before anything is rendered.
+    """
+    from photo3d.files.atomic import refuse_symlink
     from photo3d.render.animate import render_video
     from photo3d.render.renderer import Renderer
 
+    refuse_symlink(folder / "video")
+    for spec in videos:
+        refuse_symlink(folder / "video" / f"{spec.name}.{spec.format}")
     try:
         (folder / "video").mkdir(exist_ok=True)
         written = []

@@ -20,11 +20,14 @@ def add_parser(sub) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run ``photo3d depth``; returns the exit status."""
-    from photo3d.depth.export import export_depth
+    from photo3d.depth.export import check_depth_output, depth_outputs, export_depth
     from photo3d.files.atomic import check_writable
 
-    check_writable(args.out)  # before a possibly slow depth estimate
+    inputs = [p for p in (args.image, args.depth, args.right, args.depth_model) if p]
+    check_depth_output(args.out, inputs=inputs)  # before a possibly slow depth estimate
+    for out in depth_outputs(args.out):
+        check_writable(out)
     est = depth_from_args(args)
-    png, preview = export_depth(est, args.out)
+    png, preview = export_depth(est, args.out, inputs=inputs)
     print(f"wrote {png} (16-bit normalised disparity, near = bright) and {preview}")
     return 0

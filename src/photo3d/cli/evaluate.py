@@ -32,7 +32,10 @@ def add_parser(sub) -> None:
                     "authors' architectures with random weights)")
     ev.add_argument("--no-lpips", action="store_true", help="skip LPIPS (needs torch)")
     ev.add_argument("-o", "--out", type=Path, default=Path("out/eval"),
-                    help="results folder (default out/eval)")
+                    help="results folder (default out/eval; must not exist or be empty)")
+    ev.add_argument("--overwrite", action="store_true",
+                    help="replace the results eval wrote in an existing --out folder "
+                         "(other files there are left alone)")
     ev.add_argument("-q", "--quiet", action="store_true", help="print nothing")
     ev.set_defaults(run=run)
 
@@ -41,6 +44,7 @@ def run(args: argparse.Namespace) -> int:
     """Run ``photo3d eval``; returns the exit status."""
     from functools import partial
 
+    from photo3d.eval.report import check_results_folder
     from photo3d.eval.report import run as run_eval
     from photo3d.eval.stereo_pair import load_pair, motorcycle_pair
     from photo3d.eval.synthetic import synthetic_pair
@@ -54,8 +58,7 @@ def run(args: argparse.Namespace) -> int:
         raise Photo3DError(f"--methods is empty; methods: {', '.join(_methods())}")
     if args.synthetic is not None and not 1 <= args.synthetic <= 1000:
         raise Photo3DError(f"--synthetic must be between 1 and 1000, got {args.synthetic}")
-    if args.out.exists() and not args.out.is_dir():
-        raise Photo3DError(f"--out {args.out} exists and is not a folder")
+    check_results_folder(args.out, overwrite=args.overwrite)
     if args.pair:
         for given in args.pair:
             if not Path(given).is_file():

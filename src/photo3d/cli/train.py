@@ -72,7 +72,7 @@ def run(args: argparse.Namespace) -> int:
         train,
         write_builtin,
     )
-    from photo3d.train.run import check_resumable, checkpoints
+    from photo3d.train.run import check_run, checkpoints, open_run
 
     options = {k: getattr(args, k) for k in _TRAIN_OPTIONS if getattr(args, k) is not None}
     config = TrainConfig(args.kind, **options)
@@ -87,9 +87,7 @@ def run(args: argparse.Namespace) -> int:
             raise ConfigError(f"--threads must be at least 1, got {args.threads}")
         torch.set_num_threads(args.threads)
     run = args.out
-    if run.exists() and not run.is_dir():
-        raise ConfigError(f"--out {run} exists and is not a folder")
-    check_resumable(run, config)
+    check_run(run, config)  # refuses a folder that is not a photo3d run; writes nothing
     say = (lambda msg: None) if args.quiet else (lambda msg: print(msg, flush=True))
 
     def bar(total: int, desc: str, initial: int = 0):
@@ -98,17 +96,19 @@ def run(args: argparse.Namespace) -> int:
     if args.images == "builtin":
         if args.depth is not None or args.shapes is not None:
             raise ConfigError("--images builtin brings its own depth: drop --depth/--shapes")
+        open_run(run, config)
         folder = run / "builtin"
-        if not (folder / "images").is_dir():
+        if not (folder / "shapes" / "motorcycle.pfm").is_file():  # written last: complete
             side = config.working_size
             with bar(100, "builtin data") as b:
                 write_builtin(folder, scenes=args.builtin_scenes, width=side,
                               height=side * 3 // 4,
                               progress=lambda _, f: b.update(round(100 * f) - b.n))
-        images, depth, shapes = folder / "images", folder / "depth", folder / "shapes"
+        files = find_training_files(folder / "images", depth=folder / "depth",
+                                    shapes=folder / "shapes")
     else:
-        images, depth, shapes = Path(args.images), args.depth, args.shapes
-    files = find_training_files(images, depth=depth, shapes=shapes)
+        files = find_training_files(Path(args.images), depth=args.depth, shapes=args.shapes)
+        open_run(run, config)  # marks the folder as a run before the data is prepared
     with bar(100, "prepare") as b:
         data = prepare_data(files, crop=config.size, region_size=config.working_size,
                             depth_kind=config.depth_kind, seed=config.seed,

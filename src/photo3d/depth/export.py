@@ -17,6 +17,7 @@ only once both are complete.
 from __future__ import annotations
 
 import os
+from collections.abc import Iterable
 from pathlib import Path
 
 import numpy as np
@@ -58,19 +59,69 @@ def colorize(values: np.ndarray) -> np.ndarray:
     return VIRIDIS[np.round(v * 255).astype(np.int64)]
 
 
-def export_depth(estimate: DepthEstimate, out_png: PathLike) -> tuple[Path, Path]:
+def depth_outputs(out_png: PathLike) -> tuple[Path, Path]:
+    """The two files :func:`export_depth` writes for ``out_png``: ``(png, preview)``.
+
+    Example:
+        >>> [p.name for p in depth_outputs("out/d.png")]
+        ['d.png', 'd_preview.png']
+    """
+    out_png = Path(out_png)
+    return out_png, out_png.with_name(out_png.stem + "_preview.png")
+
+
+def check_depth_output(out_png: PathLike, *, inputs: Iterable[PathLike] = ()) -> Path:
+    """Refuse an output that is not a ``.png`` or would replace one of ``inputs``.
+
+    Both files :func:`export_depth` writes are checked (the PNG and its preview),
+    through symbolic and hard links. Returns ``out_png`` as a Path.
+
+    Raises:
+        OutputError: one line naming the output and the input it would replace.
+
+    Example:
+        >>> try:
+        ...     check_depth_output("d.png", inputs=["d.png"])
+        ... except OutputError as err:
+        ...     print(err)
+        depth output d.png is the input d.png; choose another file name
+    """
+    out_png = Path(out_png)
+    if out_png.suffix.lower() != ".png":
+        raise OutputError(f"depth output {out_png} must be a .png file")
+    for out in depth_outputs(out_png):
+        for given in inputs:
+            if _same_file(out, Path(given)):
+                raise OutputError(f"depth output {out} is the input {given}; "
+                                  "choose another file name")
+    return out_png
+
+
+def _same_file(a: Path, b: Path) -> bool:
+    if os.path.realpath(a) == os.path.realpath(b):
+        return True
+    try:
+        return os.path.samefile(a, b)
+    except OSError:  # one of them does not exist
+        return False
+
+
+def export_depth(estimate: DepthEstimate, out_png: PathLike, *,
+                 inputs: Iterable[PathLike] = ()) -> tuple[Path, Path]:
     """Write the normalised disparity as a 16-bit PNG plus a colour preview.
 
     Args:
         estimate: from :func:`photo3d.depth.sources.resolve_depth`.
         out_png: the ``.png`` to write (overwritten); the preview goes beside it as
             ``<stem>_preview.png``. The folder must exist.
+        inputs: files the run read (photo, depth map); neither output may be one.
 
     Returns:
         ``(png_path, preview_path)``.
 
     Raises:
-        OutputError: ``out_png`` is not a ``.png`` or cannot be written; files
+        OutputError: ``out_png`` is not a ``.png``, would replace one of
+            ``inputs`` (:func:`check_depth_output`) or cannot be written; files
             already there are left as they were.
 
     Example:
@@ -81,13 +132,11 @@ def export_depth(estimate: DepthEstimate, out_png: PathLike) -> tuple[Path, Path
         >>> read_depth(png).tolist(), preview.name
         ([[65535.0, 21845.0], [0.0, 0.0]], 'd_preview.png')
     """
-    out_png = Path(out_png)
-    if out_png.suffix.lower() != ".png":
-        raise OutputError(f"depth output {out_png} must be a .png file")
+    out_png = check_depth_output(out_png, inputs=inputs)
     depth = np.asarray(estimate.depth)
     prepared = prepare_depth(depth, depth.shape, kind=estimate.kind)
     norm, _, _ = normalize(prepared.disparity)
-    preview = out_png.with_name(out_png.stem + "_preview.png")
+    _, preview = depth_outputs(out_png)
     # the preview is renamed into place first, the depth last, and only when both exist
     with atomic_path(out_png) as tmp_png, atomic_path(preview) as tmp_preview:
         write_depth_png16(tmp_png, norm, vmin=0.0, vmax=1.0)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -39,6 +40,59 @@ def mean_scores(per_pair: dict[str, dict]) -> dict:
             for m, rs in acc.items()}
 
 
+def written_files(pairs: Sequence[str]) -> list[str]:
+    """The names :func:`run` writes in its folder for ``pairs`` (and nothing else).
+
+    Example:
+        >>> written_files(["motorcycle"])
+        ['results.json', 'results.md', 'grid_motorcycle.png']
+    """
+    return ["results.json", "results.md", *(f"grid_{name}.png" for name in pairs)]
+
+
+def check_results_folder(out: str | Path, *, overwrite: bool) -> Path:
+    """Refuse, before the evaluation, an ``out`` that :func:`run` may not write into.
+
+    A new or empty folder is fine. An existing one needs ``overwrite`` and must be a
+    results folder :func:`run` wrote (its ``results.json`` holds ``methods`` and
+    ``pairs``); then :func:`run` replaces only the files it writes
+    (:func:`written_files`) and leaves every other file alone. Returns ``out``.
+
+    Raises:
+        OutputError: one line: ``out`` is not a folder, is not empty (without
+            ``overwrite``), or is not an evaluation results folder.
+
+    Example:
+        >>> import tempfile
+        >>> folder = Path(tempfile.mkdtemp())
+        >>> _ = (folder / "notes.txt").write_text("mine")
+        >>> try:
+        ...     check_results_folder(folder, overwrite=True)
+        ... except OutputError as err:
+        ...     "has no results.json of photo3d eval" in str(err)
+        True
+    """
+    out = Path(out)
+    if not out.exists():
+        return out
+    if not out.is_dir():
+        raise OutputError(f"--out {out} exists and is not a folder")
+    if not any(out.iterdir()):
+        return out
+    if not overwrite:
+        raise OutputError(f"results folder {out} exists and is not empty (use --overwrite "
+                          "to replace the results photo3d eval wrote)")
+    try:
+        record = json.loads((out / "results.json").read_text())
+        ours = isinstance(record, dict) and {"methods", "pairs"} <= set(record)
+    except (OSError, UnicodeDecodeError, ValueError):
+        ours = False
+    if not ours:
+        raise OutputError(f"--overwrite only replaces results photo3d eval wrote, but {out} "
+                          "has no results.json of photo3d eval: choose a new folder")
+    return out
+
+
 def run(pairs: dict[str, Callable[[], StereoPair]], out: str | Path, *,
         methods: Sequence[str] = METHODS, weights=None, lpips: bool = True,
         progress: Callable[[str], None] | None = None) -> dict:
@@ -46,8 +100,9 @@ def run(pairs: dict[str, Callable[[], StereoPair]], out: str | Path, *,
 
     Writes ``results.json`` (all scores, notes, timings), ``results.md`` (one table
     per pair and the mean over pairs) and ``grid_<pair>.png`` (crops where methods
-    differ most), each atomically (:mod:`photo3d.files.atomic`). Returns the JSON
-    record.
+    differ most), each atomically (:mod:`photo3d.files.atomic`), and nothing else;
+    see :func:`check_results_folder` for the check a command runs first. Returns the
+    JSON record.
 
     Raises:
         OutputError: ``out`` cannot be created or written (checked before the

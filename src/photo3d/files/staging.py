@@ -39,7 +39,7 @@ import errno
 import fnmatch
 import os
 import shutil
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from pathlib import Path
 
 from photo3d.errors import OutputError
@@ -52,16 +52,22 @@ _LIVE: set[Path] = set()
 """Temporary folders not yet committed or discarded (removed at exit as a last resort)."""
 
 
-def owned_by_names(required: str, allowed: Sequence[str]) -> Callable[[Path], list[str]]:
-    """An ``owned`` check: the folder holds ``required`` and only entries matching ``allowed``.
+def owned_by_names(required: str, allowed: Sequence[str], *,
+                   inside: Mapping[str, Sequence[str]] | None = None
+                   ) -> Callable[[Path], list[str]]:
+    """An ``owned`` check: the folder holds ``required`` and only entries the tool writes.
 
     Args:
         required: a file name every folder the tool wrote holds.
         allowed: glob patterns of the top-level names the tool writes.
+        inside: subfolder name -> glob patterns of the files the tool writes in it;
+            such a subfolder must hold only matching files (no folders). Every other
+            allowed entry must be a file (a folder with a file's name is not the
+            tool's).
 
     Returns:
         ``owned(folder) -> list[str]``: the reasons the folder may not be replaced
-        (empty when it may be).
+        (empty when it may be); foreign entries are named relative to ``folder``.
 
     Example:
         >>> import pathlib, tempfile
@@ -69,16 +75,35 @@ def owned_by_names(required: str, allowed: Sequence[str]) -> Callable[[Path], li
         >>> _ = (folder / "notes.txt").write_text("mine")
         >>> owned_by_names("photo3d.npz", ["photo3d.npz", "*.ply"])(folder)
         ['holds notes.txt', 'has no photo3d.npz']
+        >>> (folder / "notes.txt").unlink(); (folder / "video").mkdir()
+        >>> _ = (folder / "video" / "clip.mov").write_text("mine")
+        >>> owned_by_names("video", ["video"], inside={"video": ["*.mp4"]})(folder)
+        ['holds video/clip.mov']
     """
+    inside = dict(inside or {})
 
     def owned(folder: Path) -> list[str]:
         names = sorted(p.name for p in folder.iterdir())
-        foreign = [n for n in names if not any(fnmatch.fnmatchcase(n, a) for a in allowed)]
+        foreign = [n for n in names if _foreign(folder / n, allowed, inside)]
+        for sub in sorted(set(inside) & set(names)):
+            if (folder / sub).is_dir() and not (folder / sub).is_symlink():
+                foreign += [f"{sub}/{p.name}" for p in sorted((folder / sub).iterdir())
+                            if p.is_symlink() or not p.is_file()
+                            or not any(fnmatch.fnmatchcase(p.name, a) for a in inside[sub])]
         reasons = [f"holds {', '.join(foreign[:3])}{', ...' if len(foreign) > 3 else ''}"]
         return (reasons if foreign else []) + ([] if required in names
                                                else [f"has no {required}"])
 
     return owned
+
+
+def _foreign(entry: Path, allowed: Sequence[str], inside: Mapping[str, Sequence[str]]) -> bool:
+    """True if the top-level ``entry`` is not one the tool writes (by name and kind)."""
+    if not any(fnmatch.fnmatchcase(entry.name, a) for a in allowed):
+        return True
+    if entry.name in inside:
+        return entry.is_symlink() or not entry.is_dir()
+    return entry.is_dir() and not entry.is_symlink()
 
 
 class Staging(Pending):

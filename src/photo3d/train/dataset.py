@@ -32,8 +32,8 @@ import numpy as np
 
 from photo3d.config import Config
 from photo3d.depth.normalize import prepare_depth
-from photo3d.errors import InputError
-from photo3d.files.atomic import write_json
+from photo3d.errors import InputError, OutputError
+from photo3d.files.atomic import is_temp_of, write_json
 from photo3d.files.folders import IMAGE_SUFFIXES, depth_by_key, files_in
 from photo3d.io.depth import read_depth
 from photo3d.io.images import read_image
@@ -277,6 +277,40 @@ def _load_pool(path: Path) -> list[RegionPair]:
     return pool
 
 
+def _cache_signature(cache: Path) -> str | None:
+    """The signature of a complete cache in ``cache``, None if there is none."""
+    try:
+        index = json.loads((cache / "index.json").read_text())
+    except (OSError, UnicodeDecodeError, ValueError):  # missing, or not photo3d's
+        return None
+    return index.get("signature") if isinstance(index, dict) else None
+
+
+def _clear_cache(cache: Path) -> None:
+    """Remove the cache folder ``cache`` if it holds only files a preparation writes.
+
+    Raises:
+        OutputError: it holds anything else (named); nothing is removed.
+    """
+    if not cache.exists():
+        return
+    if not cache.is_dir() or cache.is_symlink():
+        raise OutputError(f"data cache {cache} is not a folder photo3d wrote; move it away")
+    targets = cache / "targets"
+    mine = ("index.json", "pool.npz", "targets")
+    foreign = [p.name for p in cache.iterdir() if p.name not in mine
+               and not any(is_temp_of(p.name, name) for name in mine)]
+    if targets.is_dir() and not targets.is_symlink():
+        foreign += [f"targets/{p.name}" for p in targets.iterdir()
+                    if not (p.is_file() and p.suffix == ".npz" and p.stem.isdigit())]
+    elif targets.exists():
+        foreign.append("targets")
+    if foreign:
+        raise OutputError(f"data cache {cache} holds {', '.join(sorted(foreign)[:3])}, "
+                          "which photo3d did not write; move it away")
+    shutil.rmtree(cache)
+
+
 def prepare_data(files: list[TrainingFile], *, crop: int, region_size: int,
                  depth_kind: str = "disparity", max_pairs: int = 3, seed: int = 0,
                  builtin_shapes: int = BUILTIN_SHAPES, cache: str | Path | None = None,
@@ -323,15 +357,13 @@ def prepare_data(files: list[TrainingFile], *, crop: int, region_size: int,
     cache = Path(cache) if cache is not None else None
     names = [f.name for f in photos]
     has_depth = np.array([f.depth is not None for f in photos], bool)
-    if cache is not None and (cache / "index.json").is_file():
-        index = json.loads((cache / "index.json").read_text())
-        if index.get("signature") == sig:
-            report("prepare", 1.0)
-            targets: list[Target | Path] = [cache / "targets" / f"{i:06d}.npz"
-                                            for i in range(len(photos))]
-            return TrainingData(names, has_depth, _load_pool(cache / "pool.npz"), targets)
-        shutil.rmtree(cache)
+    if cache is not None and _cache_signature(cache) == sig:
+        report("prepare", 1.0)
+        targets: list[Target | Path] = [cache / "targets" / f"{i:06d}.npz"
+                                        for i in range(len(photos))]
+        return TrainingData(names, has_depth, _load_pool(cache / "pool.npz"), targets)
     if cache is not None:
+        _clear_cache(cache)  # stale, or left incomplete by an interrupted preparation
         (cache / "targets").mkdir(parents=True)
     pool: list[RegionPair] = []
     targets = []

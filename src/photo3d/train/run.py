@@ -20,6 +20,7 @@ a half-written one; ``losses.csv`` is appended to, one row per step.
 from __future__ import annotations
 
 import csv
+import dataclasses
 import io
 import json
 import shutil
@@ -28,10 +29,10 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
-from photo3d.errors import ConfigError
+from photo3d.errors import ConfigError, InputError, OutputError
 from photo3d.files.atomic import atomic_path, write_bytes, write_json
 from photo3d.files.staging import remove_leftovers, stage_output
-from photo3d.train.dataset import TrainingData
+from photo3d.train.dataset import KINDS, TrainingData
 from photo3d.train.grid import sample_grid
 from photo3d.train.samples import make_batch
 from photo3d.train.trainer import ARCHITECTURE, TrainConfig, Trainer, to_tensors
@@ -79,12 +80,88 @@ def checkpoints(run_dir: str | Path) -> list[tuple[int, Path]]:
     return sorted(found)
 
 
+MARKER = "config.json"
+"""The file that makes a folder a photo3d training run (a :class:`TrainConfig` as JSON)."""
+_MARKER_KEYS = frozenset({"kind", "width", "size", "batch", "steps"})
+
+
+def run_config(run_dir: str | Path) -> dict | None:
+    """The saved config of the photo3d training run in ``run_dir``, None if it holds none.
+
+    A folder is a training run if its :data:`MARKER` is a JSON object of
+    :class:`TrainConfig` fields (at least ``kind``, ``width``, ``size``, ``batch`` and
+    ``steps``, with a known ``kind``).
+
+    Raises:
+        OutputError: ``run_dir`` exists, is not empty and is not a photo3d training
+            run (one line, naming the reason); nothing is written.
+
+    Example:
+        >>> import tempfile
+        >>> run_config(tempfile.mkdtemp()) is None
+        True
+    """
+    run_dir = Path(run_dir)
+    if not run_dir.exists():
+        return None
+    if not run_dir.is_dir():
+        raise OutputError(f"run folder {run_dir} exists and is not a folder")
+    if not any(run_dir.iterdir()):
+        return None
+    path = run_dir / MARKER
+    reason = ""
+    try:
+        old = json.loads(path.read_text())
+    except FileNotFoundError:
+        reason = f"it has no {MARKER}"
+    except (OSError, UnicodeDecodeError, ValueError) as err:
+        reason = f"its {MARKER} cannot be read ({str(err).splitlines()[0]})"
+    else:
+        fields = {f.name for f in dataclasses.fields(TrainConfig)}
+        if (not isinstance(old, dict) or not _MARKER_KEYS <= set(old) <= fields
+                or old["kind"] not in KINDS):
+            reason = f"its {MARKER} is not a photo3d training config"
+    if reason:
+        raise OutputError(f"run folder {run_dir} is not empty and is not a photo3d training run "
+                          f"({reason}); choose a new folder")
+    return old
+
+
+def check_run(run_dir: str | Path, config: TrainConfig) -> None:
+    """Check, writing nothing, that ``run_dir`` can take (or resume) a run of ``config``.
+
+    Raises:
+        OutputError: ``run_dir`` is not a folder, or not empty and not a photo3d
+            training run (:func:`run_config`).
+        ConfigError: it holds a run of another architecture.
+    """
+    old = run_config(run_dir)
+    if old is not None:
+        _check_architecture(Path(run_dir), old, config)
+
+
+def open_run(run_dir: str | Path, config: TrainConfig) -> Path:
+    """:func:`check_run`, then create ``run_dir`` and mark it as a run (its config).
+
+    The marker is written only in a new run (a run being resumed keeps its config
+    until :func:`train` starts), so an interrupted data preparation leaves a folder
+    that the next run recognises and resumes. Returns ``run_dir`` as a Path.
+    """
+    run_dir = Path(run_dir)
+    check_run(run_dir, config)
+    run_dir.mkdir(parents=True, exist_ok=True)
+    if not (run_dir / MARKER).is_file():
+        write_json(run_dir / MARKER, config.to_dict())
+    return run_dir
+
+
 def check_resumable(run_dir: Path, config: TrainConfig) -> None:
-    """Raise :class:`ConfigError` if ``run_dir`` holds a run of another architecture."""
-    path = run_dir / "config.json"
-    if not path.is_file():
-        return
-    old = json.loads(path.read_text())
+    """Raise :class:`ConfigError` if ``run_dir`` holds a run of another architecture
+    (and :class:`OutputError` if it holds anything but a photo3d run)."""
+    check_run(run_dir, config)
+
+
+def _check_architecture(run_dir: Path, old: dict, config: TrainConfig) -> None:
     unused = ("levels", "center") if config.kind == "edge" else ("blocks", "gan")
     if config.kind == "depth":
         unused += ("center",)
@@ -164,13 +241,11 @@ def train(data: TrainingData, run_dir: str | Path, config: TrainConfig, *,
         (2, 'depth.safetensors')
     """
     data.check(config.kind)
-    run_dir = Path(run_dir)
-    run_dir.mkdir(parents=True, exist_ok=True)
-    check_resumable(run_dir, config)
-    write_json(run_dir / "config.json", config.to_dict())
+    run_dir = open_run(run_dir, config)
     trainer = Trainer(config, device=device, features=features)
     saved = checkpoints(run_dir)
-    start = trainer.load(saved[-1][1]) if saved else 0
+    start = _resume(trainer, saved[-1]) if saved else 0
+    write_json(run_dir / MARKER, config.to_dict())
     log = _LossLog(run_dir / "losses.csv", start)
     terms: dict[str, float] = {}
     t_run = time.perf_counter()
@@ -196,6 +271,21 @@ def train(data: TrainingData, run_dir: str | Path, config: TrainConfig, *,
     with atomic_path(weights) as tmp:
         trainer.export(tmp)
     return TrainResult(run_dir, start, max(step, start), weights, terms, seconds)
+
+
+def _resume(trainer: Trainer, checkpoint: tuple[int, Path]) -> int:
+    """Load the checkpoint ``(step, folder)``; a damaged ``state.json`` is one line."""
+    step, folder = checkpoint
+    path = folder / "state.json"
+    try:
+        state = json.loads(path.read_text())
+        ok = isinstance(state, dict) and state.get("step") == step
+    except (OSError, UnicodeDecodeError, ValueError):
+        ok = False
+    if not ok:
+        raise InputError(f"checkpoint {path} is damaged (not the state of step {step}); "
+                         f"remove {folder} to resume from the checkpoint before it")
+    return trainer.load(folder)
 
 
 def _checkpoint(trainer: Trainer, run_dir: Path, step: int) -> None:

@@ -1,0 +1,149 @@
+"""No command deletes or rewrites a file it did not write: it refuses in one line (exit 2)
+before any work, and every file that was there is unchanged (``photo3d train``: see
+tests/train/test_train_no_data_loss.py)."""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+import pytest
+import test_robustness
+from PIL import Image
+from test_robustness import make, run, snapshot
+
+from photo3d.cli import main
+from photo3d.files.staging import owned_by_names
+from photo3d.io.video import video_formats
+from photo3d.output import VIDEO_FILES, owned_photo
+
+photos = test_robustness.photos  # the fixture: tmp/photos/{a.png, a.npy, notes.txt}
+
+# --- make --overwrite: video/ is checked too ---------------------------------------------
+
+
+def test_video_patterns_cover_every_format_photo3d_writes():
+    assert sorted(p.removeprefix("*") for p in VIDEO_FILES) == sorted(video_formats())
+
+
+@pytest.mark.parametrize(("entry", "named"), [
+    ("video/holiday.mov", "video/holiday.mov"), ("video/notes.txt", "video/notes.txt"),
+    ("video/mine/a.mp4", "video/mine"), ("mesh.ply/a.txt", "mesh.ply")])
+def test_make_overwrite_never_deletes_a_users_file_in_the_folder(photos, capsys, entry, named):
+    out = photos.parent / "out"
+    run(capsys, *make(photos, "out"), status=0)
+    if entry.startswith("mesh.ply/"):  # a folder with the name of a file photo3d writes
+        (out / "mesh.ply").unlink()
+    (out / entry).parent.mkdir(parents=True, exist_ok=True)
+    (out / entry).write_text("the user's")
+    run(capsys, *make(photos, "out", "--overwrite"), status=2, message=f"holds {named}")
+
+
+def test_make_overwrite_replaces_the_videos_photo3d_named(photos, capsys):
+    out = photos.parent / "out"
+    run(capsys, *make(photos, "out"), status=0)
+    (out / "video").mkdir()
+    for name in ("circle.mp4", "swing_anaglyph.gif", "zoom-in.webm"):
+        (out / "video" / name).write_bytes(b"a video photo3d wrote")
+    run(capsys, *make(photos, "out", "--overwrite"), status=0)
+    assert not (out / "video").exists()  # this run wrote no video (--no-video)
+
+
+def test_owned_by_names_looks_inside_subfolders(tmp_path):
+    owned = owned_by_names("a.npz", ["a.npz", "video"], inside={"video": ["*.mp4"]})
+    (tmp_path / "a.npz").write_bytes(b"")
+    (tmp_path / "video").mkdir()
+    assert owned(tmp_path) == []
+    (tmp_path / "video" / "x.mp4").write_bytes(b"")
+    assert owned(tmp_path) == []
+    os.symlink(tmp_path / "a.npz", tmp_path / "video" / "y.mp4")
+    (tmp_path / "video" / "z.txt").write_bytes(b"")
+    assert owned(tmp_path) == ["holds video/y.mp4, video/z.txt"]
+    assert owned_photo(tmp_path) == ["holds a.npz, video/y.mp4, video/z.txt",
+                                     "has no photo3d.npz"]
+
+
+# --- depth: the output is never one of the inputs ----------------------------------------
+
+
+@pytest.fixture
+def no_depth(monkeypatch):
+    """Fail the test if the depth is resolved (the output is checked first)."""
+    def refuse(*args, **kwargs):
+        raise AssertionError("the depth was resolved before the output was checked")
+
+    monkeypatch.setattr("photo3d.cli.depth.depth_from_args", refuse)
+
+
+def test_depth_never_replaces_an_input(photos, capsys, no_depth):
+    disp = np.load(photos / "a.npy")
+    Image.fromarray((disp * 1000).astype(np.uint16)).save(photos / "d.png")
+    Image.open(photos / "a.png").save(photos / "b_preview.png")
+    os.symlink("a.png", photos / "link.png")
+    os.link(photos / "d.png", photos / "hard.png")
+    cases = [("a.png", "a.npy", "a.png"),  # onto the photo
+             ("a.png", "d.png", "d.png"),  # onto the depth map
+             ("b_preview.png", "a.npy", "b.png"),  # the preview onto the photo
+             ("a.png", "d.png", "link.png"),  # through a symbolic link
+             ("a.png", "d.png", "hard.png"),  # through a hard link
+             ("link.png", "a.npy", "a.png")]
+    for image, depth, out in cases:
+        run(capsys, "depth", photos / image, "--depth", photos / depth, "-o", photos / out,
+            status=2, message="is the input", root=photos)
+
+
+def test_depth_writes_a_new_file_beside_the_inputs(photos, capsys):
+    run(capsys, "depth", photos / "a.png", "--depth", photos / "a.npy", "-o",
+        photos / "a_depth.png", status=0, root=photos)
+    assert (photos / "a_depth.png").is_file() and (photos / "a_depth_preview.png").is_file()
+
+
+# --- eval -o: an existing folder needs --overwrite; only eval's files are replaced -------
+
+EVAL = ["eval", "--synthetic", "1", "--methods", "forward-warp", "--no-lpips", "-q"]
+
+
+@pytest.fixture
+def no_eval(monkeypatch):
+    def refuse(*args, **kwargs):
+        raise AssertionError("evaluated before the output was checked")
+
+    monkeypatch.setattr("photo3d.eval.report.evaluate", refuse)
+
+
+def test_eval_refuses_an_existing_folder(tmp_path, capsys, monkeypatch, no_eval):
+    monkeypatch.chdir(tmp_path)
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "results.md").write_text("my results")
+    (mine / "results.json").write_text('{"mine": true}')
+    run(capsys, *EVAL, "-o", "mine", status=2, message="not empty (use --overwrite")
+    run(capsys, *EVAL, "-o", "mine", "--overwrite", status=2,
+        message="only replaces results photo3d eval wrote")
+    (mine / "results.json").unlink()
+    run(capsys, *EVAL, "-o", "mine", "--overwrite", status=2,
+        message="only replaces results photo3d eval wrote")
+
+
+def test_eval_overwrite_replaces_only_its_files(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    run(capsys, *EVAL, "-o", "ev", status=0)
+    ev = tmp_path / "ev"
+    assert sorted(os.listdir(ev)) == ["grid_synthetic0.png", "results.json", "results.md"]
+    (ev / "notes.txt").write_text("my notes")
+    (ev / "grid_old.png").write_bytes(b"an older grid")
+    run(capsys, *EVAL, "-o", "ev", status=2, message="use --overwrite")
+    old = {n: (ev / n).stat().st_ino for n in ("results.json", "results.md")}
+    run(capsys, *EVAL, "-o", "ev", "--overwrite", status=0)
+    assert (ev / "notes.txt").read_text() == "my notes"
+    assert (ev / "grid_old.png").read_bytes() == b"an older grid"
+    assert all((ev / n).stat().st_ino != i for n, i in old.items())  # replaced
+
+
+def test_eval_into_an_empty_folder(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "empty").mkdir()
+    before = snapshot(tmp_path)
+    assert main([*EVAL, "-o", "empty"]) == 0, capsys.readouterr().err
+    assert snapshot(tmp_path).keys() - before.keys() == {
+        "empty/grid_synthetic0.png", "empty/results.json", "empty/results.md"}
