@@ -252,4 +252,12 @@ def _inputs(image, depth, right, depth_model, options: MakeOptions) -> list[Path
                  if Path(v.path).suffix.lower() in (".json", ".yaml", ".yml")]
     given = [image, depth, right, depth_model, options.depth_model, options.weights(),
              *keyframes]
-    return [Path(p) for p in given if isinstance(p, str | os.PathLike) and Path(p).exists()]
+    return [Path(p) for p in given if isinstance(p, str | os.PathLike) and _exists(p)]
+
+
+def _exists(path: PathLike) -> bool:
+    """``Path(path).exists()``, False for a name the file system cannot hold."""
+    try:
+        return Path(path).exists()
+    except (OSError, ValueError):  # too long, NUL byte
+        return False

@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING
 
 from photo3d.camera import Camera
 from photo3d.config import Config
+from photo3d.errors import InputError
 from photo3d.mesh.full import build_mesh
 from photo3d.mesh.types import Mesh
 from photo3d.stages.ldi import LDI
@@ -117,7 +118,13 @@ def load(path: str | Path) -> Photo3D:
     """Reload a 3D photo from its folder or its ``photo3d.npz``.
 
     Folders saved before the inpainter's settings and the depth source were
-    recorded load with ``inpainter == {}`` and ``depth_source is None``.
+    recorded load with ``inpainter == {}`` and ``depth_source is None``; so do
+    damaged optional records (``timings``, ``stats``, ``inpainter`` that are not
+    dictionaries).
+
+    Raises:
+        InputError: no 3D photo at ``path``, a damaged ``photo3d.npz`` or a saved
+            configuration that is not a valid :class:`~photo3d.config.Config`.
 
     Example:
         >>> import photo3d, numpy as np, tempfile, pathlib
@@ -131,6 +138,20 @@ def load(path: str | Path) -> Photo3D:
     from photo3d.output import read_folder
 
     ldi, meta = read_folder(path)
-    return Photo3D(ldi=ldi, config=Config.from_dict(meta.get("config", {})),
-                   timings=meta.get("timings", {}), stats=meta.get("stats", {}),
-                   inpainter=meta.get("inpainter") or {}, depth_source=meta.get("depth_source"))
+    config = meta.get("config", {})
+    if not isinstance(config, dict):
+        raise InputError(f"cannot read 3D photo {path}: its saved configuration is a "
+                         f"{type(config).__name__}, not a dictionary")
+    try:
+        config = Config.from_dict(config)
+    except (ValueError, TypeError) as err:
+        raise InputError(f"cannot read 3D photo {path}: {err}") from None
+
+    def table(key: str) -> dict:  # optional records: a damaged one is dropped
+        value = meta.get(key)
+        return value if isinstance(value, dict) else {}
+
+    source = meta.get("depth_source")
+    return Photo3D(ldi=ldi, config=config, timings=table("timings"), stats=table("stats"),
+                   inpainter=table("inpainter"),
+                   depth_source=source if isinstance(source, str) else None)

@@ -10,6 +10,7 @@ cache; photo3d's own downloads go through :mod:`photo3d.files.download`.
 from __future__ import annotations
 
 import os
+import re
 from pathlib import Path
 
 from photo3d.errors import InputError, require
@@ -30,6 +31,50 @@ def default_depth_model() -> str:
     return os.environ.get("PHOTO3D_DEPTH_MODEL") or DEFAULT_MODEL
 
 
+_HUB_NAME = re.compile(r"(?:[A-Za-z0-9][\w.-]{0,94}/)?[A-Za-z0-9][\w.-]{0,95}", re.ASCII)
+
+
+def check_model_name(model: str | Path) -> str:
+    """``model`` as a string once it names something that can exist: a local folder
+    or ``.onnx`` file that exists, or a valid Hugging Face hub name
+    (``[owner/]name``, letters, digits, ``-``, ``_`` and ``.``, at most 96 each, not
+    starting or ending with ``-`` or ``.``, no ``--`` or ``..``).
+
+    Raises:
+        InputError: one line; a local path (``./...``, ``/...``, ``~...``, an
+            ``.onnx`` name) that does not exist, or a name the hub refuses.
+
+    Example:
+        >>> check_model_name("depth-anything/Depth-Anything-V2-Small-hf")
+        'depth-anything/Depth-Anything-V2-Small-hf'
+        >>> check_model_name("./missing_dir")
+        Traceback (most recent call last):
+        photo3d.errors.InputError: depth model ./missing_dir not found: no such folder or .onnx file
+    """
+    name = str(model)
+    shown = name if len(name) <= 60 else name[:57] + "..."
+    shown = shown if shown.isprintable() else repr(shown)
+    if not name:
+        raise InputError("the depth model name is empty")
+    try:
+        if Path(name).exists():
+            return name
+    except (OSError, ValueError) as err:  # too long a name, a NUL byte
+        raise InputError(f"depth model {shown}: not a usable path or name "
+                         f"({getattr(err, 'strerror', None) or err})") from None
+    local = (name.lower().endswith(".onnx") or name.startswith((".", "/", "~"))
+             or os.sep in name.strip("/").replace("/", "", 1) or "\\" in name)
+    if local:
+        raise InputError(f"depth model {shown} not found: no such folder or .onnx file")
+    if not (_HUB_NAME.fullmatch(name) and "--" not in name and ".." not in name
+            and not name.endswith(("-", "."))
+            and not any(part.endswith(("-", ".")) for part in name.split("/"))):
+        raise InputError(f"depth model {shown} is neither an existing folder or .onnx "
+                         "file nor a Hugging Face name (owner/name: letters, digits, "
+                         "'-', '_', '.'; e.g. " + DEFAULT_MODEL + ")")
+    return name
+
+
 def _is_hub_name(name: str) -> bool:
     return not name.lower().endswith(".onnx") and not Path(name).exists()
 
@@ -46,11 +91,16 @@ def _weights_cached(name: str) -> bool:
 def needs_download(model: str | Path) -> bool:
     """True for a hub model whose weights are not in the Hugging Face cache yet.
 
+    Raises:
+        InputError: ``model`` is neither an existing local model nor a valid hub
+            name (:func:`check_model_name`).
+
     Example:
-        >>> needs_download("models/depth.onnx")
+        >>> import tempfile
+        >>> needs_download(tempfile.mkdtemp())  # a local folder
         False
     """
-    name = str(model)
+    name = check_model_name(model)
     if not _is_hub_name(name):
         return False
     try:
@@ -69,11 +119,13 @@ def fetch_model(model: str | Path, *, bar=None) -> None:
 
     Raises:
         MissingExtra: transformers is not installed (extra ``depth``).
-        InputError: offline (``HF_HUB_OFFLINE`` set or the hub not reachable) or the
-            download failed; one line.
+        InputError: ``model`` is not a valid name (:func:`check_model_name`), offline
+            (``HF_HUB_OFFLINE`` set or the hub not reachable) or the download failed;
+            one line.
 
     Example:
-        >>> fetch_model("models/depth.onnx")  # nothing to download
+        >>> import tempfile
+        >>> fetch_model(tempfile.mkdtemp())  # a local folder: nothing to download
     """
     name = str(model)
     if not needs_download(name):

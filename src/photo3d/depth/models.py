@@ -44,7 +44,7 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
-from photo3d.depth.fetch import failure_reason
+from photo3d.depth.fetch import check_model_name, failure_reason
 from photo3d.errors import InputError, require
 from photo3d.io.images import read_image, to_float_image
 
@@ -153,6 +153,7 @@ def run_model(
     if name.lower().endswith(".onnx"):
         raw, model_type, metric = _run_onnx(rgb, Path(name))
     else:
+        check_model_name(name)  # a missing folder or a name the hub refuses: one line
         raw, model_type, metric = _run_transformers(rgb, name, device)
     found, reason = model_kind(model_type, name, metric=metric)
     if kind is not None and kind != found:

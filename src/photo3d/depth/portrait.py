@@ -30,9 +30,13 @@ JPEGs and depth in PNG/WebP containers.
 from __future__ import annotations
 
 import base64
+import binascii
+import contextlib
 import io
 import os
+import warnings
 import xml.etree.ElementTree as ET
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -54,6 +58,10 @@ NS = {
     "DepthMap": "http://ns.google.com/photos/dd/1.0/depthmap/",
 }
 """XMP namespaces read here, by their usual prefixes."""
+
+MAX_DEPTH_PIXELS = 1 << 24
+"""Most pixels an embedded depth map may declare (4096 x 4096; phones write about
+1 megapixel): a larger one is refused from its header, before it is decoded."""
 
 _TRANSPOSE = {2: Image.Transpose.FLIP_LEFT_RIGHT, 3: Image.Transpose.ROTATE_180,
               4: Image.Transpose.FLIP_TOP_BOTTOM, 5: Image.Transpose.TRANSPOSE,
@@ -101,9 +109,11 @@ def read_embedded_depth(path: PathLike) -> EmbeddedDepth | None:
         :class:`EmbeddedDepth`, or None when the file holds no depth map.
 
     Raises:
-        InputError: the file is missing, or holds a depth map that cannot be decoded
-            (the message says which part is broken), or is HEIF and pillow-heif is
-            not installed.
+        InputError: one line; the file is missing, or holds a depth map that cannot
+            be decoded (bad base64, not a PNG/JPEG, more than :data:`MAX_DEPTH_PIXELS`
+            pixels: the message says which part is broken), or is HEIF and
+            pillow-heif is not installed. A broken GImage (the optional unblurred
+            photo of a GDepth JPEG) is no error: it is left out with a warning.
 
     Example:
         >>> import pathlib, tempfile
@@ -237,15 +247,43 @@ def _number(props: dict[str, str], key: str, what: str) -> float:
         raise InputError(f"{what} has no valid {key} (got {props.get(key)!r})") from err
 
 
-def _grey_unit(blob: bytes, what: str) -> np.ndarray:
-    """An 8/16-bit grey PNG or JPEG -> ``(h, w) float64`` in [0, 1]."""
+@contextlib.contextmanager
+def _open_blob(blob: bytes, what: str, *, max_pixels: int) -> Iterator[Image.Image]:
+    """An embedded image, opened (not decoded) and checked to hold at most
+    ``max_pixels`` pixels; any failure, there or while the caller decodes it, is
+    one :class:`InputError` naming ``what``."""
     try:
-        with Image.open(io.BytesIO(blob)) as im:
-            im.load()
-            wide = im.mode.startswith("I")  # 16-bit grey ("I;16", or "I" on old Pillow)
-            arr = np.asarray(im)
-    except (UnidentifiedImageError, OSError, SyntaxError) as err:
-        raise InputError(f"{what} is not a readable PNG/JPEG image: {err}") from err
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", Image.DecompressionBombWarning)  # sized below
+            im = Image.open(io.BytesIO(blob))
+        with im:
+            w, h = im.size
+            if w * h > max_pixels:
+                raise InputError(f"{what} declares {w}x{h} pixels, more than the "
+                                 f"{max_pixels:,} photo3d reads (decompression bomb?)")
+            yield im
+    except (UnidentifiedImageError, OSError, SyntaxError, ValueError, TypeError,
+            Image.DecompressionBombError) as err:
+        if isinstance(err, InputError):
+            raise
+        raise InputError(f"{what} is not a readable PNG/JPEG image: "
+                         f"{' '.join(str(err).split())[:160]}") from err
+
+
+def _base64(text: str, what: str) -> bytes:
+    try:
+        return base64.b64decode(text, validate=False)
+    except (binascii.Error, ValueError) as err:
+        raise InputError(f"{what} is not valid base64 ({err})") from err
+
+
+def _grey_unit(blob: bytes, what: str) -> np.ndarray:
+    """An 8/16-bit grey PNG or JPEG of at most :data:`MAX_DEPTH_PIXELS` pixels ->
+    ``(h, w) float64`` in [0, 1]."""
+    with _open_blob(blob, what, max_pixels=MAX_DEPTH_PIXELS) as im:
+        im.load()
+        wide = im.mode.startswith("I")  # 16-bit grey ("I;16", or "I" on old Pillow)
+        arr = np.asarray(im)
     if arr.ndim == 3:
         arr = arr[..., 0]
     return arr.astype(np.float64) / (65535.0 if wide else 255.0)
@@ -265,20 +303,23 @@ def _decode_gdepth(path: Path, props: dict[str, str], gimage: dict[str, str]) ->
     what = f"GDepth depth map of {path}"
     near, far = _number(props, "Near", what), _number(props, "Far", what)
     fmt = props.get("Format", "RangeInverse")
-    try:
-        blob = base64.b64decode(props["Data"], validate=False)
-    except ValueError as err:
-        raise InputError(f"{what}: GDepth:Data is not base64") from err
+    blob = _base64(props["Data"], f"{what}: GDepth:Data")
     depth = _upright(decode_range(_grey_unit(blob, what), near=near, far=far, fmt=fmt), path)
-    image = None
-    if "Data" in gimage:
-        with Image.open(io.BytesIO(base64.b64decode(gimage["Data"]))) as im:
-            image = to_float_image(np.asarray(im.convert("RGB")))
+    image, notes = None, []
+    if "Data" in gimage:  # the optional unblurred photo: when broken, the photo is used
+        try:
+            colour = f"the GImage colour image of {path.name}"
+            limit = Image.MAX_IMAGE_PIXELS or MAX_DEPTH_PIXELS
+            with _open_blob(_base64(gimage["Data"], colour), colour, max_pixels=limit) as im:
+                image = to_float_image(np.asarray(im.convert("RGB")))
+        except InputError as err:
+            notes.append(f"{err}; the photo itself is used")
     words = "range inverse" if fmt == "RangeInverse" else "range linear"
     units = props.get("Units", "")
     source = (f"embedded GDepth depth map ({words}, near {near:g}, far {far:g}"
               f"{' ' + units if units else ''})")
-    return EmbeddedDepth(depth=depth, kind="depth", source=source, image=image)
+    return EmbeddedDepth(depth=depth, kind="depth", source=source, image=image,
+                         warnings=tuple(notes))
 
 
 def _decode_dynamic_depth(path: Path, data: bytes, dmap: dict[str, str],

@@ -125,9 +125,10 @@ def resolve_depth(
         :class:`DepthEstimate`.
 
     Raises:
-        InputError: several sources given, none given, none embedded and the
-            fallback model not usable (missing extra, offline), or any error of the
-            chosen source.
+        InputError: several sources given, none given, ``depth_model`` neither an
+            existing local model nor a valid hub name, none embedded and the fallback
+            model not usable (missing extra, offline, an invalid name), or any error
+            of the chosen source.
 
     Example:
         >>> est = resolve_depth(np.zeros((8, 8, 3)), depth=np.ones((8, 8)))
@@ -143,6 +144,10 @@ def resolve_depth(
                          "(--depth, --right and --depth-model exclude each other)")
     if kind not in (None, "disparity", "depth"):
         raise InputError(f"depth kind must be 'disparity' or 'depth', got {kind!r}")
+    if depth_model is not None:
+        from photo3d.depth.fetch import check_model_name
+
+        check_model_name(depth_model)  # a missing folder or a bad hub name: at once
     photo = read_photo(image)
     notes: list[str] = []
     better_image = None

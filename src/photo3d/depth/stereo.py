@@ -44,6 +44,11 @@ WORK_SIZE = 1600
 ROW_TOLERANCE = 1.5
 """Largest vertical offset, in pixels at <= 1024 px, of a match in a rectified pair."""
 
+MIN_SIDE = 32
+"""Shortest side, in pixels, of a pair that can be matched, also once reduced for
+feature matching (long side 1024 px) and for SGBM (long side :data:`WORK_SIZE`):
+SGBM needs more columns than its 16 disparities plus its block."""
+
 _REFERENCE_SIDE = 741  # parameters below were tuned on the 741 px Middlebury pair
 
 
@@ -157,6 +162,23 @@ def check_pair(left: np.ndarray, right: np.ndarray) -> PairCheck:
     return PairCheck(len(good), offset / scale, float(row.mean()), swapped, float(hi), float(lo))
 
 
+def _check_size(height: int, width: int) -> None:
+    """Refuse a pair whose short side is below :data:`MIN_SIDE` pixels, as given or
+    once its long side is reduced to 1024 px (features) or :data:`WORK_SIZE` (SGBM).
+
+    Example:
+        >>> _check_size(10, 20000)  # doctest: +ELLIPSIS
+        Traceback (most recent call last):
+        photo3d.errors.InputError: the stereo pair is 20000x10 pixels: too small or too ...
+    """
+    reduced = min(1.0, min(WORK_SIZE, 1024) / max(height, width))
+    if min(height, width) * reduced < MIN_SIDE:
+        ratio = min(WORK_SIZE, 1024) // MIN_SIDE
+        raise InputError(f"the stereo pair is {width}x{height} pixels: too small or too "
+                         f"elongated to match (the short side must be at least {MIN_SIDE} "
+                         f"px, and at least 1/{ratio} of the long side)")
+
+
 def _refuse_unusable(check: PairCheck, side: int) -> None:
     """Raise :class:`InputError` for pairs that are not rectified or are swapped."""
     tolerance = ROW_TOLERANCE * max(1.0, side / 1024.0)  # offsets are in input pixels
@@ -231,8 +253,9 @@ def stereo_disparity(
         :class:`StereoResult` at the input size.
 
     Raises:
-        InputError: shapes differ, the pair is unrectified or swapped, nothing could
-            be matched, or OpenCV (contrib) is not installed.
+        InputError: shapes differ, the pair is too small or too elongated
+            (:data:`MIN_SIDE`), unrectified or swapped, nothing could be matched, or
+            OpenCV (contrib) is not installed.
 
     Example:
         >>> rng = np.random.default_rng(0)
@@ -241,11 +264,12 @@ def stereo_disparity(
         >>> float(np.median(res.disparity)), res.disparity.shape
         (12.0, (120, 160))
     """
-    cv2 = _cv2()
     a, b = _to_uint8(left), _to_uint8(right)
     if a.shape != b.shape:
         raise InputError(f"right image has shape {b.shape} but left image is {a.shape}")
     h, w = a.shape[:2]
+    _check_size(h, w)
+    cv2 = _cv2()
     pair = check_pair(a, b)
     notes = []
     if check:

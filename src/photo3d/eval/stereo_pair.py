@@ -47,6 +47,11 @@ class StereoPair:
 def read_calib(path: str | Path) -> dict:
     """Parse a Middlebury ``calib.txt`` (``cam0=[f 0 cx; 0 f cy; 0 0 1]``, ``doffs=``, ...).
 
+    Raises:
+        InputError: one line; the file is missing or unreadable, a camera matrix is
+            not 3x3 numbers, a required key is missing, or a value is out of range
+            (focal lengths and baseline > 0, all finite, width and height 1 to 65536).
+
     Example:
         >>> import tempfile, pathlib
         >>> p = pathlib.Path(tempfile.mkdtemp()) / "calib.txt"
@@ -60,15 +65,23 @@ def read_calib(path: str | Path) -> dict:
     path = Path(path)
     if not path.is_file():
         raise InputError(f"calibration file not found: {path}")
+    try:
+        text = path.read_text()
+    except (OSError, UnicodeDecodeError) as err:
+        raise InputError(f"cannot read calibration {path}: {err}") from None
     out: dict = {}
-    for line in path.read_text().splitlines():
+    for line in text.splitlines():
         if "=" not in line:
             continue
         key, value = (v.strip() for v in line.split("=", 1))
         if key in ("cam0", "cam1"):
-            nums = [float(v) for v in re.findall(r"[-+0-9.eE]+", value)]
+            try:
+                nums = [float(v) for v in re.split(r"[\s;,\[\]]+", value) if v]
+            except ValueError:
+                nums = []
             if len(nums) != 9:
-                raise InputError(f"{path}: {key} must hold a 3x3 matrix, got {value!r}")
+                raise InputError(f"{path}: {key} must hold a 3x3 matrix of numbers "
+                                 f"([f 0 cx; 0 f cy; 0 0 1]), got {value[:60]!r}")
             out[key] = np.array(nums).reshape(3, 3)
         else:
             try:
@@ -79,7 +92,26 @@ def read_calib(path: str | Path) -> dict:
     if missing:
         raise InputError(f"{path}: missing {', '.join(sorted(missing))}")
     out.setdefault("doffs", float(out["cam1"][0, 2] - out["cam0"][0, 2]))
+    _check_calib(out, path)
     return out
+
+
+def _check_calib(calib: dict, path: Path) -> None:
+    """Refuse values that give no usable geometry: a focal length or baseline that is
+    not a positive finite number, a non-finite matrix or doffs, a size out of range."""
+    for key in ("cam0", "cam1"):
+        k = calib[key]
+        if not (np.isfinite(k).all() and k[0, 0] > 0 and k[1, 1] > 0):
+            raise InputError(f"{path}: {key} needs finite numbers and positive focal "
+                             f"lengths, got f = {k[0, 0]:g}, {k[1, 1]:g}")
+    if not (np.isfinite(calib["baseline"]) and calib["baseline"] > 0):
+        raise InputError(f"{path}: baseline must be a positive number, "
+                         f"got {calib['baseline']:g}")
+    if not np.isfinite(calib["doffs"]):
+        raise InputError(f"{path}: doffs must be a finite number, got {calib['doffs']:g}")
+    for key in ("width", "height"):
+        if not 1 <= calib[key] <= 65536:
+            raise InputError(f"{path}: {key} must be between 1 and 65536, got {calib[key]}")
 
 
 def _cameras(k0: np.ndarray, k1: np.ndarray, width: int, height: int, baseline: float):

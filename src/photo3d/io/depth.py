@@ -25,7 +25,7 @@ import numpy as np
 from PIL import Image, UnidentifiedImageError
 
 from photo3d.errors import InputError, OutputError
-from photo3d.io.images import read_tiff_page
+from photo3d.io.images import load_pixels, open_image, read_tiff_page
 from photo3d.io.npy import read_npy
 
 PathLike = str | os.PathLike[str]
@@ -259,10 +259,10 @@ def _read_tiff(path: Path) -> np.ndarray:
 def _read_tiff_with_pillow(path: Path) -> np.ndarray | None:
     """Single-channel TIFF pixels, or None if Pillow cannot decode them exactly."""
     try:
-        with Image.open(path) as im:
+        with open_image(path) as im:
             if im.mode not in ("F", "I", "L", "I;16", "I;16L", "I;16B", "I;16N"):
                 return None
-            im.load()
+            load_pixels(im)
             return np.asarray(im)
     except UnidentifiedImageError:
         return None  # e.g. float64 or multi-channel float: tifffile reads those

@@ -18,8 +18,13 @@ Example:
 
 from __future__ import annotations
 
+import contextlib
 import os
+import sys
+import tempfile
 import warnings
+import zlib
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -224,14 +229,15 @@ def _to_uint8(image: np.ndarray) -> np.ndarray:
 def _read_pixels(path: Path) -> np.ndarray:
     """Decode ``path`` to an upright array that :func:`to_float_image` accepts."""
     try:
-        with Image.open(path) as im:
+        with open_image(path) as im:
             if _is_wide_colour_tiff(im):
                 return _read_tiff_with_tifffile(path)
+            orientation = orientation_of(im.getexif().get(0x0112))
             if im.format == "PNG" and _is_wide_colour_png(path):
-                wide = _read_png16_colour(path, im.getexif().get(0x0112, 1))
+                wide = _read_png16_colour(path, orientation)
                 if wide is not None:
                     return wide
-            im.load()
+            load_pixels(im)
             im = ImageOps.exif_transpose(im)
             return _pixels_of(im)
     except UnidentifiedImageError as err:
@@ -240,6 +246,100 @@ def _read_pixels(path: Path) -> np.ndarray:
         raise InputError("not a recognised image format") from err
     except (OSError, SyntaxError, Image.DecompressionBombError) as err:
         raise InputError(str(err)) from err
+
+
+@contextlib.contextmanager
+def open_image(path: Path) -> Iterator[Image.Image]:
+    """``Image.open(path)``, with a TIFF orientation tag that Pillow warns holds
+    several values (``(1, 6)``) refused rather than half read; Pillow's other
+    warnings pass through.
+
+    Raises:
+        InputError: such a tag (one line).
+        UnidentifiedImageError, OSError: as ``Image.open``.
+    """
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        im = Image.open(path)
+    with im:
+        for warning in caught:
+            text = str(warning.message)
+            if text.startswith("Metadata Warning") and "tag 274 " in text:  # orientation
+                raise InputError("the orientation tag is damaged "
+                                 f"({text.removeprefix('Metadata Warning, ')})")
+            warnings.warn_explicit(warning.message, warning.category, warning.filename,
+                                   warning.lineno)
+        yield im
+
+
+def orientation_of(value) -> int:
+    """The EXIF/TIFF orientation 1..8 of a tag ``value`` (None: no tag, 1).
+
+    Numbers outside 1..8 (some cameras write 0) mean upright, as in Pillow.
+
+    Raises:
+        InputError: the tag holds text or several values.
+
+    Example:
+        >>> orientation_of(6), orientation_of((3,)), orientation_of(None), orientation_of(0)
+        (6, 3, 1, 1)
+        >>> orientation_of("six")
+        Traceback (most recent call last):
+        photo3d.errors.InputError: the orientation tag holds 'six'; expected one number 1 to 8
+    """
+    if value is None:
+        return 1
+    if isinstance(value, tuple) and len(value) == 1:
+        value = value[0]
+    if isinstance(value, int | np.integer) and not isinstance(value, bool):
+        return int(value) if 1 <= value <= 8 else 1
+    if isinstance(value, tuple) and all(isinstance(v, int) for v in value):
+        value = tuple(int(v) for v in value)  # tifffile's enums, shown as numbers
+    shown = repr(value) if len(repr(value)) <= 40 else repr(value)[:37] + "..."
+    raise InputError(f"the orientation tag holds {shown}; expected one number 1 to 8")
+
+
+def load_pixels(im: Image.Image) -> None:
+    """``im.load()``, keeping what libtiff writes on file descriptor 2 off the terminal:
+    replayed there if the image loads, the reason of the :class:`InputError` if not
+    (so a damaged compressed TIFF gives one line).
+
+    Raises:
+        InputError: the pixels cannot be decoded.
+    """
+    if im.format != "TIFF":
+        im.load()
+        return
+    said: list[bytes] = []
+    try:
+        with _stderr_into(said):
+            im.load()
+    except (OSError, SyntaxError, ValueError, zlib.error) as err:
+        lines = [t for t in b"".join(said).decode(errors="replace").splitlines() if t.strip()]
+        detail = f" ({' '.join(lines[-1].split())[:160]})" if lines else ""
+        raise InputError(f"damaged image data: {err}{detail}") from None
+    if said and said[0]:
+        os.write(2, said[0])
+
+
+@contextlib.contextmanager
+def _stderr_into(said: list[bytes]) -> Iterator[None]:
+    """Redirect file descriptor 2 (where C libraries print) into ``said`` meanwhile."""
+    try:
+        sys.stderr.flush()
+        saved = os.dup(2)
+    except (OSError, ValueError, AttributeError):
+        yield  # no descriptor 2 to redirect
+        return
+    with tempfile.TemporaryFile() as tmp:
+        os.dup2(tmp.fileno(), 2)
+        try:
+            yield
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+            tmp.seek(0)
+            said.append(tmp.read())
 
 
 def _pixels_of(im: Image.Image) -> np.ndarray:
@@ -303,7 +403,9 @@ def read_tiff_page(path: Path) -> tuple[np.ndarray, int]:
 
     Raises:
         MissingExtra: tifffile is not installed.
-        InputError: not a readable TIFF, or too many pixels (:func:`check_pixel_count`).
+        InputError: not a readable TIFF (also damaged compressed data), too many
+            pixels (:func:`check_pixel_count`), or an orientation tag that is not one
+            number (:func:`orientation_of`).
 
     Example:
         >>> import pathlib, tempfile
@@ -323,9 +425,11 @@ def read_tiff_page(path: Path) -> tuple[np.ndarray, int]:
             if page.planarconfig == tifffile.PLANARCONFIG.SEPARATE and array.ndim == 3:
                 array = np.moveaxis(array, 0, -1)  # (C, H, W) planes -> (H, W, C)
             tag = page.tags.get("Orientation")
-    except (OSError, ValueError, IndexError, tifffile.TiffFileError) as err:
-        raise InputError(str(err) or "not a readable TIFF") from err
-    return array, int(tag.value) if tag is not None else 1
+    except (OSError, ValueError, IndexError, KeyError, RuntimeError, zlib.error,
+            tifffile.TiffFileError) as err:  # RuntimeError: imagecodecs' decoder errors
+        text = " ".join(str(err).split())[:200]
+        raise InputError(f"damaged or unreadable TIFF ({text or type(err).__name__})") from err
+    return array, orientation_of(tag.value if tag is not None else None)
 
 
 def _read_tiff_with_tifffile(path: Path) -> np.ndarray:

@@ -27,6 +27,37 @@ MAX_ITEMS = 2 * 89_478_485
 """Default limit on the values of one array (Pillow's decompression-bomb limit)."""
 
 
+def read_npy_header(file: BinaryIO) -> tuple[tuple[int, ...], bool, np.dtype]:
+    """Read the header of one ``.npy`` array, leaving ``file`` at the start of its data.
+
+    Returns:
+        ``(shape, fortran_order, dtype)`` as declared; nothing is allocated, so the
+        caller can check the declared size first.
+
+    Raises:
+        InputError: not a ``.npy`` array, or an object (pickled) dtype.
+
+    Example:
+        >>> import io
+        >>> buf = io.BytesIO()
+        >>> np.save(buf, np.zeros((2, 3), np.float32))
+        >>> _ = buf.seek(0)
+        >>> read_npy_header(buf)
+        ((2, 3), False, dtype('float32'))
+    """
+    try:
+        version = np.lib.format.read_magic(file)
+        if version == (1, 0):
+            shape, fortran, dtype = np.lib.format.read_array_header_1_0(file)
+        else:
+            shape, fortran, dtype = np.lib.format.read_array_header_2_0(file)
+    except (ValueError, OSError, EOFError, SyntaxError) as err:
+        raise InputError(f"not a .npy array ({err})") from None
+    if dtype.hasobject:
+        raise InputError("not a plain numeric array (pickled and object arrays are refused)")
+    return shape, fortran, dtype
+
+
 def read_npy(file: BinaryIO, *, max_items: int = MAX_ITEMS, size: int | None = None) -> np.ndarray:
     """Read one ``.npy`` array from an open binary file, checking its header first.
 
@@ -43,16 +74,7 @@ def read_npy(file: BinaryIO, *, max_items: int = MAX_ITEMS, size: int | None = N
         InputError: not a ``.npy`` array, an object (pickled) dtype, more than
             ``max_items`` values, or truncated data.
     """
-    try:
-        version = np.lib.format.read_magic(file)
-        if version == (1, 0):
-            shape, fortran, dtype = np.lib.format.read_array_header_1_0(file)
-        else:
-            shape, fortran, dtype = np.lib.format.read_array_header_2_0(file)
-    except (ValueError, OSError, EOFError, SyntaxError) as err:
-        raise InputError(f"not a .npy array ({err})") from None
-    if dtype.hasobject:
-        raise InputError("not a plain numeric array (pickled and object arrays are refused)")
+    shape, fortran, dtype = read_npy_header(file)
     count = int(np.prod(shape, dtype=np.float64)) if shape else 1
     if count > max_items:
         shown = "x".join(str(s) for s in shape)

@@ -16,7 +16,7 @@ import numpy as np
 
 from photo3d.camera import DepthMapping, Intrinsics
 from photo3d.errors import InputError
-from photo3d.io.npy import read_npy
+from photo3d.io.npy import read_npy, read_npy_header
 from photo3d.stages.ldi import LDI
 
 FORMAT_VERSION = 2
@@ -84,10 +84,7 @@ def load_npz(path: str | Path) -> tuple[LDI, dict]:
         raise InputError(f"cannot read 3D photo {path}: not a photo3d file "
                          "(a photo3d.npz written by photo3d make)")
     try:
-        arrays = _read_arrays(path)
-        header = json.loads(arrays.pop("header").tobytes().decode())
-        if not isinstance(header, dict) or header.get("format") != "photo3d-ldi":
-            raise InputError("not a photo3d file (its header is not a photo3d LDI header)")
+        arrays, header = _read_arrays(path)
         ldi = _checked_ldi(arrays, header)
         meta = header.get("meta", {})
     except (OSError, ValueError, KeyError, TypeError, EOFError, RuntimeError,
@@ -97,7 +94,13 @@ def load_npz(path: str | Path) -> tuple[LDI, dict]:
 
 
 _ARRAYS = ("y", "x", "color", "disparity", "links", "label")
-_LIMIT = 1 << 26  # LDI pixels (a 1024 px photo has ~1.5M)
+_COLUMNS = {"y": (), "x": (), "color": (3,), "disparity": (), "links": (4,), "label": ()}
+MAX_LAYERS = 16
+"""Most LDI pixels a file may declare per position of the image plus its border:
+``n <= MAX_LAYERS * (H + 2 * border) * (W + 2 * border)``. photo3d writes about two
+(the image and the inpainted layers behind its depth edges), so 16 is generous; the
+bound is checked on the declared ``.npy`` shapes before any data is decompressed."""
+_HEADER_BYTES = 1 << 24  # the JSON header and its metadata
 
 
 def _relative_links(links: np.ndarray) -> np.ndarray:
@@ -134,22 +137,52 @@ def _reason(err: BaseException) -> str:
     return f"not a valid photo3d file ({type(err).__name__}: {err})"
 
 
-def _read_arrays(path: Path) -> dict[str, np.ndarray]:
-
-    arrays = {}
+def _read_arrays(path: Path) -> tuple[dict[str, np.ndarray], dict]:
+    """The six arrays and the header of a photo3d zip; the header and every declared
+    shape are checked (the pixel count within :data:`MAX_LAYERS`) before the arrays'
+    data is read."""
     with zipfile.ZipFile(path) as zf:
-        for name in (*_ARRAYS, "header"):
-            info = zf.getinfo(f"{name}.npy")
-            with zf.open(info) as f:
+        header = json.loads(_read_member(zf, "header", _HEADER_BYTES).tobytes().decode())
+        if not isinstance(header, dict) or header.get("format") != "photo3d-ldi":
+            raise InputError("not a photo3d file (its header is not a photo3d LDI header)")
+        w, h, border = _checked_frame(header)
+        limit = MAX_LAYERS * (h + 2 * border) * (w + 2 * border)
+        declared = {}
+        for name in _ARRAYS:
+            with zf.open(f"{name}.npy") as f:
                 try:
-                    arrays[name] = read_npy(f, max_items=4 * _LIMIT, size=info.file_size)
+                    shape, _, dtype = read_npy_header(f)
                 except InputError as err:
                     raise InputError(f"{name}: {err}") from None
-    return arrays
+            declared[name] = shape, dtype
+        n = declared["y"][0][0] if len(declared["y"][0]) == 1 else -1
+        for name, (shape, dtype) in declared.items():
+            expected = (n, *_COLUMNS[name])
+            kind = "f" if name in ("color", "disparity") else "iu"
+            if shape != expected or dtype.kind not in kind:
+                raise InputError(f"{name} has shape {shape} and dtype {dtype}; expected "
+                                 f"{expected} {'float' if kind == 'f' else 'integer'}")
+            if name == "y" and not w * h <= n <= limit:  # y comes first
+                raise InputError(f"{n} pixels declared for a {w}x{h} image with a {border} "
+                                 f"px border; expected {w * h} to {limit:,} "
+                                 f"({MAX_LAYERS} layers)")
+        arrays = {name: _read_member(zf, name, int(np.prod(shape)))
+                  for name, (shape, _) in declared.items()}
+    return arrays, header
 
 
-def _checked_ldi(arrays: dict[str, np.ndarray], header: dict) -> LDI:
-    """An LDI from untrusted arrays and header, or InputError naming what is wrong."""
+def _read_member(zf: zipfile.ZipFile, name: str, max_items: int) -> np.ndarray:
+    info = zf.getinfo(f"{name}.npy")
+    with zf.open(info) as f:
+        try:
+            return read_npy(f, max_items=max_items, size=info.file_size)
+        except InputError as err:
+            raise InputError(f"{name}: {err}") from None
+
+
+def _checked_frame(header: dict) -> tuple[int, int, int]:
+    """``(width, height, border)`` of an untrusted header, after checking its
+    intrinsics, depth mapping and border."""
     values = [float(v) for v in header["intrinsics"]]
     mapping = [float(v) for v in header["mapping"]]
     if len(values) != 6 or len(mapping) != 3 or not np.all(np.isfinite(values + mapping)):
@@ -165,17 +198,16 @@ def _checked_ldi(arrays: dict[str, np.ndarray], header: dict) -> LDI:
         raise InputError(f"principal point ({cx:g}, {cy:g}) lies far outside the image")
     if not (isinstance(border, int) and 0 <= border <= max(w, h)):
         raise InputError(f"border {border!r} is not between 0 and the image size")
-    n = arrays["y"].shape[0] if arrays["y"].ndim == 1 else -1
-    shapes = {"y": (n,), "x": (n,), "color": (n, 3), "disparity": (n,), "links": (n, 4),
-              "label": (n,)}
-    for name, shape in shapes.items():
-        a = arrays[name]
-        kind = "f" if name in ("color", "disparity") else "iu"
-        if a.shape != shape or a.dtype.kind not in kind:
-            raise InputError(f"{name} has shape {a.shape} and dtype {a.dtype}; expected "
-                             f"{shape} {'float' if kind == 'f' else 'integer'}")
-    if n < w * h:
-        raise InputError(f"{n} pixels for a {w}x{h} image (the first H * W are the image)")
+    return w, h, border
+
+
+def _checked_ldi(arrays: dict[str, np.ndarray], header: dict) -> LDI:
+    """An LDI from untrusted arrays and header (both checked by :func:`_read_arrays`:
+    header values, shapes, dtypes, pixel count), or InputError naming what is wrong."""
+    fx, fy, cx, cy, w, h = [float(v) for v in header["intrinsics"]]
+    w, h, border = int(w), int(h), header["border"]
+    mapping = [float(v) for v in header["mapping"]]
+    n = len(arrays["y"])
     y, x, links = arrays["y"], arrays["x"], arrays["links"]
     version = header.get("version", 1)
     if version not in (1, FORMAT_VERSION):

@@ -182,6 +182,9 @@ def keyframe_path(keyframes: list[dict], intrinsics: Intrinsics, *, frames: int)
     if positions.ndim != 2 or positions.shape[1:] != (3,) or not finite or \
             np.any(np.diff(times) <= 0) or np.any(fovs <= 0) or np.any(fovs >= 180):
         raise InputError("keyframes need 3-D positions, increasing times and 0 < fov < 180")
+    if use_look:
+        for i, (p, q) in enumerate(zip(positions, targets, strict=True)):
+            _check_view_direction(q - p, f"keyframe {i}")
     t = np.linspace(times[0], times[-1], frames)
     pos = _catmull_rom(times, positions, t)
     look = _catmull_rom(times, targets, t) if use_look else None
@@ -190,7 +193,8 @@ def keyframe_path(keyframes: list[dict], intrinsics: Intrinsics, *, frames: int)
     for i in range(frames):
         k = _with_fov(intrinsics, math.radians(fov[i]))
         if use_look:
-            cameras.append(Camera.look_at(k, pos[i], look[i]))
+            _check_view_direction(look[i] - pos[i], f"frame {i} (between keyframes)")
+            cameras.append(Camera.look_at(k, pos[i], look[i], up=_UP))
             continue
         j = int(np.clip(np.searchsorted(times, t[i], side="right") - 1, 0, len(times) - 1))
         if j == len(times) - 1:
@@ -205,6 +209,28 @@ def keyframe_path(keyframes: list[dict], intrinsics: Intrinsics, *, frames: int)
     return cameras
 
 
+_UP = (0.0, -1.0, 0.0)  # world up of look_at keyframes (OpenCV: -y)
+
+
+def _check_view_direction(direction: np.ndarray, where: str) -> None:
+    """Refuse a ``look_at`` view ``direction`` (target - position, ``(3,)`` float) that
+    is zero or (within ~0.06 degrees) parallel to world up, where no roll is defined.
+
+    Example:
+        >>> _check_view_direction(np.array([0.0, -2.0, 0.0]), "keyframe 1")
+        ... # doctest: +ELLIPSIS
+        Traceback (most recent call last):
+        photo3d.errors.InputError: keyframe 1 looks straight up or down (look_at - ...
+    """
+    length = float(np.linalg.norm(direction))
+    if not length > 1e-9:
+        raise InputError(f"{where} looks at its own position (look_at == position)")
+    if np.linalg.norm(np.cross(_UP, direction / length)) < 1e-3:
+        shown = ", ".join(f"{v:g}" for v in direction)
+        raise InputError(f"{where} looks straight up or down (look_at - position = [{shown}] "
+                         "is parallel to world up -y); tilt it a little")
+
+
 def _with_fov(k: Intrinsics, vfov: float) -> Intrinsics:
     f = k.height / (2.0 * math.tan(vfov / 2.0))
     scale = f / k.fy
@@ -216,6 +242,11 @@ def load_path(path: str | Path, intrinsics: Intrinsics, *, frames: int) -> list[
 
     The file holds a list of keyframes or ``{"keyframes": [...]}`` (see
     :func:`keyframe_path`).
+
+    Raises:
+        InputError: one line; the file is missing, unreadable, not JSON/YAML (also
+            nested too deeply), or its keyframes are invalid (including a ``look_at``
+            equal to the position or straight up/down: checked here, before any work).
     """
     path = Path(path)
     if not path.is_file():
@@ -232,11 +263,14 @@ def load_path(path: str | Path, intrinsics: Intrinsics, *, frames: int) -> list[
             try:
                 data = yaml.safe_load(text)
             except yaml.YAMLError as err:
-                raise InputError(f"cannot parse camera path {path}: {err}") from None
+                raise InputError(f"cannot parse camera path {path}: "
+                                 f"{' '.join(str(err).split())}") from None
         else:
             data = json.loads(text)
     except (ValueError, AttributeError) as err:
         raise InputError(f"cannot parse camera path {path}: {err}") from None
+    except RecursionError:
+        raise InputError(f"cannot parse camera path {path}: nested too deeply") from None
     if isinstance(data, dict):
         data = data.get("keyframes")
     if not isinstance(data, list):
