@@ -17,7 +17,7 @@ from photo3d.errors import InputError
 from photo3d.files.folders import IMAGE_SUFFIXES, depth_by_key, file_key, files_in
 from photo3d.folder import MakeOptions
 
-__all__ = ["PHOTO_SUFFIXES", "MakeOptions", "PhotoJob", "find_photos"]
+__all__ = ["PHOTO_SUFFIXES", "MakeOptions", "PhotoJob", "find_photos", "output_problem"]
 
 PHOTO_SUFFIXES = IMAGE_SUFFIXES + HEIF_SUFFIXES
 """Files a batch takes as photos."""
@@ -33,11 +33,38 @@ class PhotoJob:
         image: the photo file.
         depth: its depth map from the depth folder (same name), or None (then the
             embedded depth map, else the depth model).
+        redo: make it even if its output folder is finished (its manifest record
+            was unreadable).
     """
 
     name: str
     image: Path
     depth: Path | None = None
+    redo: bool = False
+
+
+def output_problem(name: str) -> str | None:
+    """Why ``name`` cannot be a photo's output folder under OUT, or None if it can.
+
+    A name must stay inside OUT (no empty, ``.`` or ``..`` part), must not be
+    hidden (``.NAME.XXXXXXXX.tmp`` are the temporary folders of the writers) and
+    must not be the batch's own files (``batch.jsonl``, ``batch.lock``, in any case).
+
+    Example:
+        >>> [output_problem(n) is None for n in ("a", "trip/b", ".", "batch.jsonl", ".x")]
+        [True, True, False, False, False]
+    """
+    from photo3d.batch.lock import LOCK
+    from photo3d.batch.manifest import MANIFEST
+
+    parts = name.split("/")
+    if any(part in ("", ".", "..") for part in parts):
+        return f"its output folder {name!r} would not be a folder inside the output folder"
+    if any(part.startswith(".") for part in parts):
+        return f"its output folder {name!r} would be hidden (reserved for temporary folders)"
+    if parts[0].lower() in (MANIFEST, LOCK):
+        return f"its output folder {name!r} is the name of the batch's own {parts[0]}"
+    return None
 
 
 def find_photos(folder: str | Path, *, depth: str | Path | None = None,

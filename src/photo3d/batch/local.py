@@ -5,8 +5,12 @@ nothing of the parent's threads or torch state is forked). Each worker builds on
 :class:`~photo3d.batch.worker.PhotoMaker` in its initializer and gets
 ``cores // workers`` numba/torch threads, so the pool does not oversubscribe the
 CPU. At most ``workers`` photos are in flight, so when a worker dies (killed for
-memory, a crash in native code) the photos it may have held are known: they are
-tried once more, then recorded as failed, and a new pool carries on.
+memory, a crash in native code) the photos it may have held are known: a new
+pool makes them again one at a time, and a photo that kills its worker twice
+alone is recorded as failed. What the dead worker had staged is removed.
+
+Workers exit when the batch process dies, even of SIGKILL
+(:func:`exit_with_parent`).
 
 Ctrl-C: workers ignore SIGINT; the parent stops submitting, sends SIGTERM to its
 workers, and each worker busy with a photo removes its temporary output folder
@@ -21,6 +25,10 @@ from __future__ import annotations
 
 import multiprocessing
 import os
+import signal
+import sys
+import threading
+import time
 from collections import deque
 from collections.abc import Callable, Sequence
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
@@ -32,6 +40,7 @@ from photo3d.batch.manifest import PhotoResult
 from photo3d.batch.worker import PhotoMaker, discard_partial, one_line
 from photo3d.files.signals import Interrupted, sigint_ignored, worker_signals
 
+_PR_SET_PDEATHSIG = 1  # linux/prctl.h
 _maker: PhotoMaker | None = None
 _init_error: str | None = None
 _busy = False
@@ -62,9 +71,34 @@ def _is_busy() -> bool:
     return _busy
 
 
-def _init(options: MakeOptions, threads: int) -> None:
+def exit_with_parent(parent: int, *, poll: float = 1.0) -> None:
+    """Have this worker process get SIGTERM when ``parent`` (the batch) dies.
+
+    On Linux the kernel sends it (``prctl(PR_SET_PDEATHSIG)``); everywhere a
+    daemon thread also checks every ``poll`` seconds that the parent is still
+    ``parent``. SIGTERM makes a busy worker remove its temporary output first
+    (:func:`~photo3d.files.signals.worker_signals`).
+    """
+    if sys.platform.startswith("linux"):
+        import ctypes
+
+        try:
+            ctypes.CDLL(None, use_errno=True).prctl(_PR_SET_PDEATHSIG, signal.SIGTERM)
+        except (OSError, AttributeError):  # no prctl: the thread below is enough
+            pass
+
+    def watch() -> None:
+        while os.getppid() == parent:
+            time.sleep(poll)
+        os.kill(os.getpid(), signal.SIGTERM)
+
+    threading.Thread(target=watch, name="photo3d-parent-watch", daemon=True).start()
+
+
+def _init(options: MakeOptions, threads: int, parent: int) -> None:
     global _maker, _init_error
     worker_signals(busy=_is_busy)  # SIGTERM raises Interrupted in _run, else exits
+    exit_with_parent(parent)  # also when it died before this line: getppid() differs
     set_threads(threads)
     try:
         _maker = PhotoMaker(options)
@@ -87,7 +121,11 @@ def _run(job: PhotoJob, out_dir: Path) -> PhotoResult:
 
 def run_local(jobs: Sequence[PhotoJob], out_dir: Path, options: MakeOptions, *,
               workers: int, on_result: Callable[[PhotoResult], None]) -> None:
-    """Make every job on a pool of ``workers`` processes; ``on_result`` for each.
+    """Make every job on a pool of ``workers`` processes; ``on_result`` once for each.
+
+    When a worker dies, the photos in flight are made again, each alone, so the
+    one that kills its worker is known; a photo whose worker died while making it
+    alone is tried once more, then recorded as failed.
 
     Raises:
         KeyboardInterrupt: after stopping the workers cleanly.
@@ -95,30 +133,45 @@ def run_local(jobs: Sequence[PhotoJob], out_dir: Path, options: MakeOptions, *,
     threads = max(1, cpu_count() // workers)
     queue = deque(jobs)
     crashes: dict[str, int] = {}
+    alone: set[str] = set()  # in flight when a worker died: made one at a time
     context = multiprocessing.get_context("spawn")
     while queue:
         pool = ProcessPoolExecutor(workers, mp_context=context, initializer=_init,
-                                   initargs=(options, threads))
+                                   initargs=(options, threads, os.getpid()))
         running: dict = {}
         try:
             while queue or running:
-                while queue and len(running) < workers:
-                    job = queue.popleft()
+                while queue and len(running) < workers and not (
+                        running and (queue[0].name in alone
+                                     or any(j.name in alone for j in running.values()))):
                     with sigint_ignored():  # workers start with it ignored
-                        running[pool.submit(_run, job, out_dir)] = job
+                        future = pool.submit(_run, queue[0], out_dir)
+                    running[future] = queue.popleft()
                 done, _ = wait(running, return_when=FIRST_COMPLETED)
                 for future in done:
-                    job = running.pop(future)
-                    on_result(future.result())
+                    result = future.result()  # BrokenProcessPool: a worker died
+                    running.pop(future)
+                    on_result(result)
         except BrokenProcessPool:
-            for job in running.values():  # one of these killed its worker
-                crashes[job.name] = crashes.get(job.name, 0) + 1
-                if crashes[job.name] >= 2:
+            pool.shutdown(wait=True, cancel_futures=True)  # every worker of it is gone
+            lost = []
+            for future, job in running.items():
+                if future.done() and not future.cancelled() and future.exception() is None:
+                    on_result(future.result())  # finished before the pool broke
+                else:
+                    lost.append(job)
+            for job in reversed(lost):
+                discard_partial(Path(out_dir) / job.name)
+                if len(lost) == 1:  # alone: its own crash (with others: not known whose)
+                    crashes[job.name] = crashes.get(job.name, 0) + 1
+                if crashes.get(job.name, 0) >= 2:
                     on_result(PhotoResult(job.name, "failed", "the worker process making "
-                                          "this photo died (out of memory?)", 0.0,
+                                          "this photo died twice (out of memory?)", 0.0,
                                           str(Path(out_dir) / job.name)))
                 else:
+                    alone.add(job.name)  # made again, alone, so a culprit is known
                     queue.appendleft(job)
+            running = {}
         except BaseException:
             _stop(pool)
             for job in running.values():  # belt and braces: all workers are gone now

@@ -8,6 +8,12 @@ While a batch runs, each result is appended and flushed as soon as it is known (
 crash loses nothing already done); at the end, or when interrupted, the file is
 rewritten atomically (:mod:`photo3d.files.atomic`) with one line per photo, the
 newest result of each.
+
+File names are bytes on POSIX: a name that is not UTF-8 (``caf\\xe9.jpg`` from an
+old Latin-1 disk) is written with its undecodable bytes as ``\\xNN`` escapes
+(:func:`json_text`), so the manifest stays valid UTF-8 JSON. The manifest is read
+leniently (:func:`read_records`): a line that is not a well-formed record is left
+out and reported, and its photo is made again.
 """
 
 from __future__ import annotations
@@ -21,6 +27,29 @@ from photo3d.errors import OutputError
 from photo3d.files.atomic import write_text
 
 MANIFEST = "batch.jsonl"
+STATUSES = ("ok", "failed", "skipped")
+
+
+def json_text(text: str) -> str:
+    """``text`` with the undecodable bytes of a file name as ``\\xNN`` escapes.
+
+    Names from the file system hold such bytes as lone surrogates
+    (:func:`os.fsdecode`), which UTF-8 cannot encode; every other string is
+    returned unchanged.
+
+    Example:
+        >>> json_text(os.fsdecode(b"caf\\xe9")), json_text("café")
+        ('caf\\\\xe9', 'café')
+    """
+    try:
+        text.encode("utf-8")
+        return text
+    except UnicodeEncodeError:
+        try:
+            raw = os.fsencode(text)
+        except UnicodeEncodeError:
+            raw = text.encode("utf-8", "backslashreplace")
+        return raw.decode("utf-8", "backslashreplace")
 
 
 @dataclass(frozen=True)
@@ -48,7 +77,7 @@ class PhotoResult:
     worker: str | None = None
 
     def to_json(self) -> str:
-        """One manifest line (no newline).
+        """One manifest line (no newline); strings go through :func:`json_text`.
 
         Example:
             >>> PhotoResult("a", "ok", None, 1.234567, "out/a").to_json()
@@ -56,36 +85,135 @@ class PhotoResult:
         """  # noqa: E501
         record = asdict(self)
         record["seconds"] = round(self.seconds, 3)
-        record["warnings"] = list(self.warnings)
+        record["warnings"] = [json_text(w) for w in self.warnings]
+        for key, value in record.items():
+            if isinstance(value, str):
+                record[key] = json_text(value)
         return json.dumps(record, ensure_ascii=False)
 
 
-def read_manifest(path: str | Path) -> dict[str, dict]:
-    """The newest record of each photo in a manifest (``{}`` if there is none).
+def record_problem(record: object) -> str | None:
+    """Why ``record`` (one parsed manifest line) is not a well-formed record, or None.
 
-    Lines that are not JSON objects with a name (a line cut short by a crash) are
-    ignored.
+    Example:
+        >>> record_problem({"name": "a", "status": "ok", "error": None, "seconds": 1,
+        ...                 "output": "o/a", "depth": None, "warnings": None, "worker": None})
+        "'warnings' is null, not a list of strings"
+    """
+    if not isinstance(record, dict):
+        return f"a JSON {type(record).__name__}, not an object"
+    checks = (("name", str, False), ("status", str, False), ("error", str, True),
+              ("seconds", (int, float), False), ("output", str, False),
+              ("depth", str, True), ("worker", str, True))
+    for key, kind, nullable in checks:
+        value = record.get(key)
+        if key not in record:
+            return f"no {key!r}"
+        if not (isinstance(value, kind) and not isinstance(value, bool)
+                or nullable and value is None):
+            return f"{key!r} is {json.dumps(value)[:40]}, not {_describe(kind, nullable)}"
+    if record["status"] not in STATUSES:
+        return f"'status' is {json.dumps(record['status'])[:40]}, not one of {', '.join(STATUSES)}"
+    warnings = record.get("warnings")
+    if not isinstance(warnings, list) or not all(isinstance(w, str) for w in warnings):
+        return f"'warnings' is {json.dumps(warnings)[:40]}, not a list of strings"
+    return None
+
+
+def _describe(kind, nullable: bool) -> str:
+    name = "a string" if kind is str else "a number"
+    return name + (" or null" if nullable else "")
+
+
+@dataclass(frozen=True)
+class ManifestRecords:
+    """What a manifest holds (see :func:`read_records`).
+
+    Attributes:
+        records: the newest well-formed record of each photo, by (JSON) name.
+        bad: names whose newest record is not well-formed (to make again).
+        problems: one line per line left out (``line 3: not JSON``).
+    """
+
+    records: dict[str, dict]
+    bad: frozenset[str] = frozenset()
+    problems: tuple[str, ...] = ()
+
+
+def read_records(path: str | Path) -> ManifestRecords:
+    """Read a manifest leniently: bad lines are left out and described.
+
+    A line that is not JSON (cut short by a crash, edited by hand) or not a
+    well-formed record (:func:`record_problem`) is a problem; if it names a photo,
+    that photo is in ``bad`` unless a later good line replaces it.
 
     Example:
         >>> import tempfile
         >>> p = Path(tempfile.mkdtemp()) / "batch.jsonl"
-        >>> lines = ['{"name": "a", "status": "failed"}', '{"name": "a", "status": "ok"}', '{"na']
+        >>> good = PhotoResult("a", "ok", None, 1.0, "o/a").to_json()
+        >>> _ = p.write_text(good + '\\n{"name": "b", "status": "ok"}\\n{"na\\n')
+        >>> m = read_records(p)
+        >>> sorted(m.records), sorted(m.bad), m.problems
+        (['a'], ['b'], ("line 2: no 'error'", 'line 3: not JSON'))
+    """
+    path = Path(path)
+    records: dict[str, dict] = {}
+    bad: set[str] = set()
+    problems: list[str] = []
+    if not path.is_file() or path.is_symlink():
+        return ManifestRecords(records)
+    try:
+        text = path.read_text(encoding="utf-8", errors="replace")
+    except OSError as err:
+        raise OutputError(f"cannot read the manifest {path}: {err.strerror or err}") from None
+    for number, line in enumerate(text.splitlines(), 1):
+        if not line.strip():
+            continue
+        try:
+            record = json.loads(line)
+        except ValueError:
+            problems.append(f"line {number}: not JSON")
+            continue
+        problem = record_problem(record)
+        name = record.get("name") if isinstance(record, dict) else None
+        if problem is None:
+            records[name] = record
+            bad.discard(name)
+        else:
+            problems.append(f"line {number}: {problem}")
+            if isinstance(name, str):
+                records.pop(name, None)
+                bad.add(name)
+    return ManifestRecords(records, frozenset(bad), tuple(problems))
+
+
+def read_manifest(path: str | Path) -> dict[str, dict]:
+    """The newest well-formed record of each photo in a manifest (``{}`` if there is none).
+
+    Lines that are not well-formed records (a line cut short by a crash) are
+    ignored (:func:`read_records` says which).
+
+    Example:
+        >>> import tempfile
+        >>> p = Path(tempfile.mkdtemp()) / "batch.jsonl"
+        >>> lines = [PhotoResult("a", "failed", "bad", 0.0, "o/a").to_json(),
+        ...          PhotoResult("a", "ok", None, 1.0, "o/a").to_json(), '{"na']
         >>> _ = p.write_text("\\n".join(lines))
         >>> read_manifest(p)["a"]["status"]
         'ok'
     """
-    path = Path(path)
-    records: dict[str, dict] = {}
-    if not path.is_file():
-        return records
-    for line in path.read_text(encoding="utf-8", errors="replace").splitlines():
-        try:
-            record = json.loads(line)
-        except ValueError:
-            continue
-        if isinstance(record, dict) and isinstance(record.get("name"), str):
-            records[record["name"]] = record
-    return records
+    return read_records(path).records
+
+
+def refuse_symlink(path: Path) -> None:
+    """Refuse a manifest that is a symbolic link (it would be written through it).
+
+    Raises:
+        OutputError: ``path`` is a symbolic link.
+    """
+    if os.path.islink(path):
+        raise OutputError(f"the manifest {path} is a symbolic link; photo3d batch does not "
+                          "write through links (remove it, or choose another output folder)")
 
 
 class ManifestWriter:
@@ -93,15 +221,20 @@ class ManifestWriter:
 
     Use as a context manager; :meth:`add` after each photo. On exit (also after
     an error or Ctrl-C) the manifest is rewritten with one line per photo: the
-    records of earlier runs, updated with this run's.
+    well-formed records of earlier runs, updated with this run's.
+
+    Attributes:
+        previous: the earlier runs' records (:class:`ManifestRecords`).
 
     Raises:
-        OutputError: the manifest cannot be opened or rewritten.
+        OutputError: the manifest is a symbolic link, or cannot be opened, appended
+            to (full disk) or rewritten.
 
     Example:
         >>> import tempfile
         >>> p = Path(tempfile.mkdtemp()) / "batch.jsonl"
-        >>> _ = p.write_text('{"name": "b", "status": "failed"}\\n{"name": "a", "status": "ok"}\\n')
+        >>> _ = p.write_text(PhotoResult("b", "failed", "x", 0.0, "o/b").to_json() + "\\n"
+        ...                  + PhotoResult("a", "ok", None, 0.0, "o/a").to_json() + "\\n")
         >>> with ManifestWriter(p) as manifest:
         ...     manifest.add(PhotoResult("b", "ok", None, 1.0, "out/b"))
         >>> [(r["name"], r["status"]) for r in map(json.loads, p.read_text().splitlines())]
@@ -110,27 +243,51 @@ class ManifestWriter:
 
     def __init__(self, path: str | Path) -> None:
         self.path = Path(path)
-        self.previous = read_manifest(self.path)
+        refuse_symlink(self.path)
+        self.previous = read_records(self.path)
         self.current: dict[str, dict] = {}
         self._file = None
 
     def __enter__(self) -> ManifestWriter:
         try:
-            self._file = open(self.path, "a", encoding="utf-8")  # noqa: SIM115
+            fd = os.open(self.path, os.O_WRONLY | os.O_APPEND | os.O_CREAT | os.O_NOFOLLOW,
+                         0o666)
+            self._file = open(fd, "a", encoding="utf-8")  # noqa: SIM115
         except OSError as err:
             raise OutputError(f"cannot write the manifest {self.path}: "
                               f"{err.strerror or err}") from None
         return self
 
     def add(self, result: PhotoResult) -> None:
-        """Record one result now (appended and flushed to disk)."""
-        self.current[result.name] = json.loads(result.to_json())
-        self._file.write(result.to_json() + "\n")
-        self._file.flush()
-        os.fsync(self._file.fileno())
+        """Record one result now (appended and flushed to disk).
 
-    def __exit__(self, *exc) -> None:
-        self._file.close()
-        merged = {**self.previous, **self.current}
-        write_text(self.path, "".join(json.dumps(merged[name], ensure_ascii=False) + "\n"
-                                      for name in sorted(merged)))
+        Raises:
+            OutputError: the line cannot be written (full disk, ...).
+        """
+        line = result.to_json()
+        self.current[json.loads(line)["name"]] = json.loads(line)
+        try:
+            self._file.write(line + "\n")
+            self._file.flush()
+            os.fsync(self._file.fileno())
+        except OSError as err:
+            raise OutputError(f"cannot write the manifest {self.path}: "
+                              f"{err.strerror or err}") from None
+
+    def __exit__(self, exc_type, exc, tb) -> None:
+        try:
+            self._file.close()
+        except OSError:
+            pass  # the buffered tail is rewritten just below
+        merged = {**self.previous.records, **self.current}
+        text = "".join(json.dumps(merged[name], ensure_ascii=False) + "\n"
+                       for name in sorted(merged))
+        try:
+            refuse_symlink(self.path)
+            write_text(self.path, text)
+        except (OSError, OutputError) as err:
+            if exc is None:  # else the error already on its way says what went wrong
+                if isinstance(err, OutputError):
+                    raise
+                raise OutputError(f"cannot write the manifest {self.path}: "
+                                  f"{err.strerror or err}") from None

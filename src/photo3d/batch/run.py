@@ -5,11 +5,20 @@ from __future__ import annotations
 import os
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
-from photo3d.batch.jobs import MakeOptions, PhotoJob
-from photo3d.batch.manifest import MANIFEST, ManifestWriter, PhotoResult
+from photo3d.batch.jobs import MakeOptions, PhotoJob, output_problem
+from photo3d.batch.lock import batch_lock
+from photo3d.batch.manifest import (
+    MANIFEST,
+    ManifestRecords,
+    ManifestWriter,
+    PhotoResult,
+    json_text,
+    refuse_symlink,
+)
+from photo3d.batch.worker import discard_partial
 from photo3d.errors import ConfigError, OutputError
 from photo3d.output import is_complete
 
@@ -30,6 +39,7 @@ class BatchSummary:
         seconds: wall time of the run.
         manifest: the manifest file.
         failures: ``(name, error)`` of each failed photo.
+        notes: one-line warnings about the batch itself (bad manifest lines).
     """
 
     ok: int
@@ -38,10 +48,12 @@ class BatchSummary:
     seconds: float
     manifest: Path
     failures: tuple[tuple[str, str], ...] = ()
+    notes: tuple[str, ...] = ()
 
 
 def check_out_dir(out: Path) -> Path:
-    """Create the batch's output folder if needed; refuse one that cannot be written."""
+    """Create the batch's output folder if needed; refuse one that cannot be written,
+    or whose manifest is a symbolic link."""
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise OutputError(f"output {out} exists and is not a folder")
@@ -51,6 +63,7 @@ def check_out_dir(out: Path) -> Path:
         raise OutputError(f"cannot create output folder {out}: {err.strerror or err}") from None
     if not os.access(out, os.W_OK | os.X_OK):
         raise OutputError(f"output folder {out} is not writable")
+    refuse_symlink(out / MANIFEST)
     return out
 
 
@@ -64,6 +77,12 @@ def run_batch(jobs: Sequence[PhotoJob], out: str | Path, options: MakeOptions | 
     atomically, so an interrupted photo leaves none); failed photos are tried again
     on the next run. Every result is recorded in ``out/batch.jsonl`` as soon as it
     is known.
+
+    Every job gets exactly one result: a job whose name cannot be an output folder
+    inside ``out`` (:func:`~photo3d.batch.jobs.output_problem`) fails alone, a
+    photo whose manifest record is unreadable is made again (``notes`` says so),
+    and the temporary folders that killed workers of an earlier run left are
+    removed first.
 
     Args:
         jobs: from :func:`photo3d.batch.find_photos`.
@@ -79,6 +98,8 @@ def run_batch(jobs: Sequence[PhotoJob], out: str | Path, options: MakeOptions | 
         :class:`BatchSummary`.
 
     Raises:
+        OutputError: another batch is writing ``out`` (``out/batch.lock``), the
+            manifest is a symbolic link or cannot be written (full disk).
         KeyboardInterrupt: Ctrl-C; the workers are stopped, nothing partial is
             left and the manifest holds every photo finished so far.
 
@@ -105,25 +126,36 @@ def run_batch(jobs: Sequence[PhotoJob], out: str | Path, options: MakeOptions | 
     options = options or MakeOptions()
     out = check_out_dir(Path(out))
     start = time.perf_counter()
-    counts = {"ok": 0, "failed": 0, "skipped": 0}
-    failures: list[tuple[str, str]] = []
-    todo = [j for j in jobs if options.overwrite or not is_complete(out / j.name)]
-    names = {j.name for j in todo}
-    finished = [j for j in jobs if j.name not in names]
+    results: dict[str, PhotoResult] = {}  # by job name: every photo ends up here once
 
-    with ManifestWriter(out / MANIFEST) as manifest:
+    with batch_lock(out), ManifestWriter(out / MANIFEST) as manifest:
         def record(result: PhotoResult) -> None:
             manifest.add(result)
-            counts[result.status] += 1
-            if result.status == "failed":
-                failures.append((result.name, result.error or ""))
+            results[result.name] = result
             if progress:
-                progress(result, sum(counts.values()), len(jobs))
+                progress(result, len(results), len(jobs))
 
-        for job in finished:
-            earlier = manifest.previous.get(job.name, {})
-            record(PhotoResult(job.name, "skipped", None, 0.0, str(out / job.name),
-                               earlier.get("depth"), tuple(earlier.get("warnings", ()))))
+        notes = _notes(manifest.previous)
+        good = []
+        for job in jobs:
+            problem = output_problem(job.name)
+            if problem is None:
+                good.append(job)
+            else:
+                record(PhotoResult(job.name, "failed", f"{job.image.name}: {problem} "
+                                   "(rename the photo)", 0.0, ""))
+        for job in good:  # what workers killed in an earlier run left (the lock: none run)
+            if _inside(out / job.name, out):
+                discard_partial(out / job.name)
+        bad = manifest.previous.bad
+        todo = [replace(j, redo=json_text(j.name) in bad) for j in good
+                if options.overwrite or json_text(j.name) in bad or not is_complete(out / j.name)]
+        names = {j.name for j in todo}
+        for job in good:
+            if job.name not in names:
+                earlier = manifest.previous.records.get(json_text(job.name), {})
+                record(PhotoResult(job.name, "skipped", None, 0.0, str(out / job.name),
+                                   earlier.get("depth"), tuple(earlier.get("warnings", ()))))
         if todo:
             if engine == "ray":
                 from photo3d.batch.ray_engine import run_ray
@@ -135,5 +167,27 @@ def run_batch(jobs: Sequence[PhotoJob], out: str | Path, options: MakeOptions | 
 
                 count = min(workers or cpu_count(), len(todo))
                 run_local(todo, out, options, workers=count, on_result=record)
+        for job in todo:  # an engine that lost a photo must not hide it
+            if job.name not in results:
+                record(PhotoResult(job.name, "failed", "no result came back for this photo",
+                                   0.0, str(out / job.name)))
+    counts = {status: sum(r.status == status for r in results.values())
+              for status in ("ok", "failed", "skipped")}
+    failures = tuple((r.name, r.error or "") for r in results.values() if r.status == "failed")
     return BatchSummary(counts["ok"], counts["failed"], counts["skipped"],
-                        time.perf_counter() - start, out / MANIFEST, tuple(failures))
+                        time.perf_counter() - start, out / MANIFEST, failures, notes)
+
+
+def _notes(previous: ManifestRecords) -> tuple[str, ...]:
+    """One line about the earlier manifest's bad lines, if any."""
+    if not previous.problems:
+        return ()
+    shown = "; ".join(previous.problems[:3]) + ("; ..." if len(previous.problems) > 3 else "")
+    return (f"{MANIFEST}: {len(previous.problems)} bad line(s) left out ({shown}); "
+            "the photos they name are made again",)
+
+
+def _inside(path: Path, out: Path) -> bool:
+    """Whether ``path``'s folder is really inside ``out`` (no link leads elsewhere)."""
+    real = os.path.realpath(path.parent)
+    return os.path.commonpath([real, os.path.realpath(out)]) == os.path.realpath(out)

@@ -102,6 +102,8 @@ class PhotoMaker:
         options = self.options
         if job.depth is None:  # --depth-kind describes the depth folder's maps
             options = dataclasses.replace(options, depth_kind=None)
+        if job.redo:  # its manifest record was unreadable: made again
+            options = dataclasses.replace(options, overwrite=True)
         try:
             if is_complete(out) and not options.overwrite:
                 return PhotoResult(job.name, "skipped", None, 0.0, str(out))

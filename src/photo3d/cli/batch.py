@@ -17,7 +17,8 @@ def add_parser(sub) -> None:
         "batch", help="make a 3D photo of every photo in a folder (resumable; local or Ray)",
         description="Make OUT_DIR/<name>/ for every photo of IN_DIR, exactly what make "
                     "writes. Running the same command again skips finished photos and "
-                    "retries failed ones; OUT_DIR/batch.jsonl records every photo.")
+                    "retries failed ones; OUT_DIR/batch.jsonl records every photo; one "
+                    "batch at a time per OUT_DIR (OUT_DIR/batch.lock).")
     bt.add_argument("input", type=Path, metavar="IN_DIR", help="folder of photos")
     bt.add_argument("--recursive", action="store_true", help="also take photos in subfolders "
                     "(output folders keep the subfolder names)")
@@ -48,11 +49,13 @@ def _prefetch(jobs, out: Path, options, quiet: bool) -> None:
     """Download the depth model once, here, before the workers may need it (for photos
     to make that have no depth map; those with an embedded map will not use it)."""
     from photo3d.batch import is_complete
+    from photo3d.batch.jobs import output_problem
     from photo3d.depth.fetch import default_depth_model, fetch_model, needs_download
     from photo3d.errors import InputError
 
     model = options.depth_model or default_depth_model()
-    todo = [j for j in jobs if options.overwrite or not is_complete(out / j.name)]
+    todo = [j for j in jobs if output_problem(j.name) is None
+            and (options.overwrite or not is_complete(out / j.name))]
     if all(j.depth is not None for j in todo) or not needs_download(model):
         return
     try:
@@ -92,6 +95,8 @@ def run_batch_command(args: argparse.Namespace) -> int:
         os._exit(130)
     finally:
         bar.close()
+    for note in summary.notes:  # bad manifest lines: their photos were made again
+        print(f"photo3d: warning: {note}", file=sys.stderr)
     if not args.quiet:
         rate = (summary.ok + summary.failed) / max(summary.seconds, 1e-9)
         print(f"batch: {summary.ok} ok, {summary.failed} failed, {summary.skipped} skipped "

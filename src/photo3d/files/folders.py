@@ -22,6 +22,10 @@ def files_in(folder: Path, suffixes: tuple[str, ...], *, recursive: bool = False
              skip: Path | None = None) -> list[Path]:
     """Files of ``folder`` with one of ``suffixes`` (any case), sorted.
 
+    With ``recursive``, each real folder is entered once: a symbolic link to a
+    folder already visited (a link loop, two links to one folder) is not followed
+    again.
+
     Args:
         folder: the folder.
         suffixes: lower-case extensions with their dot.
@@ -29,10 +33,14 @@ def files_in(folder: Path, suffixes: tuple[str, ...], *, recursive: bool = False
             ``skip`` are left out).
         skip: a subfolder never entered (e.g. the output folder of a batch).
 
+    Raises:
+        InputError: a folder cannot be listed (permissions).
+
     Example:
         >>> import tempfile
         >>> d = Path(tempfile.mkdtemp()); (d / "s").mkdir()
         >>> for name in ("b.PNG", "a.jpg", "notes.txt", "s/c.png"): (d / name).touch()
+        >>> (d / "s" / "loop").symlink_to(d)
         >>> [p.name for p in files_in(d, (".jpg", ".png"))]
         ['a.jpg', 'b.PNG']
         >>> [str(p.relative_to(d)) for p in files_in(d, (".png",), recursive=True)]
@@ -40,16 +48,36 @@ def files_in(folder: Path, suffixes: tuple[str, ...], *, recursive: bool = False
     """
     folder = Path(folder)
     if not recursive:
-        return sorted(p for p in folder.iterdir() if p.is_file() and p.suffix.lower() in suffixes)
-    skip = skip.resolve() if skip is not None else None
-    found = []
-    for p in folder.iterdir():
+        return sorted(p for p in _entries(folder) if p.is_file() and p.suffix.lower() in suffixes)
+    seen: set[tuple[int, int]] = set()
+    if skip is not None and skip.is_dir():
+        seen.add(_identity(skip))
+    found: list[Path] = []
+    _walk(folder, suffixes, seen, found)
+    return sorted(found, key=lambda p: p.relative_to(folder).parts)
+
+
+def _identity(folder: Path) -> tuple[int, int]:
+    st = folder.stat()
+    return st.st_dev, st.st_ino
+
+
+def _entries(folder: Path) -> list[Path]:
+    try:
+        return list(folder.iterdir())
+    except OSError as err:
+        raise InputError(f"cannot list folder {folder}: {err.strerror or err}") from None
+
+
+def _walk(folder: Path, suffixes: tuple[str, ...], seen: set, found: list[Path]) -> None:
+    seen.add(_identity(folder))
+    # real subfolders before links to folders, so a folder keeps its own name if it can
+    for p in sorted(_entries(folder), key=lambda p: (p.is_symlink(), p.name)):
         if p.is_dir():
-            if not p.name.startswith(".") and (skip is None or p.resolve() != skip):
-                found += files_in(p, suffixes, recursive=True, skip=skip)
+            if not p.name.startswith(".") and _identity(p) not in seen:
+                _walk(p, suffixes, seen, found)
         elif p.is_file() and p.suffix.lower() in suffixes:
             found.append(p)
-    return sorted(found, key=lambda p: p.relative_to(folder).parts)
 
 
 def file_key(path: Path, folder: Path) -> str:
