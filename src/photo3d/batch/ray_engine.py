@@ -1,31 +1,43 @@
 """The Ray engine: the same batch on a Ray cluster (or a local Ray), extra ``photo3d[ray]``.
 
 Workers are Ray actors (one CPU each by default), each holding one
-:class:`~photo3d.batch.worker.PhotoMaker`, so models load once per actor; Ray's
-:class:`ray.util.ActorPool` hands the photos out (no scheduler of ours). Photos
-are read and written through their paths: on a cluster, the input, depth and
-output folders must be on a file system every node sees at the same path (NFS,
-a mounted bucket, ...), and photo3d must be installed on every node.
+:class:`~photo3d.batch.worker.PhotoMaker`, so models load once per actor; each
+actor makes one photo at a time. Photos are read and written through their
+paths: on a cluster, the input, depth and output folders must be on a file
+system every node sees at the same path (NFS, a mounted bucket, ...), and
+photo3d must be installed on every node.
 
 Connects to ``address`` (``--ray-address``), else to ``RAY_ADDRESS``, else starts
-a local Ray on this machine. Ctrl-C kills the actors (actor tasks cannot be
-interrupted) and removes the temporary folders of the photos they were making. An
-actor that dies (out of memory, a crash) stops the batch with a one-line error;
-the same command resumes it.
+a local Ray on this machine. Connecting leaves this process' signal
+handlers (and :mod:`faulthandler`) as they were, so Ctrl-C, SIGTERM and SIGHUP
+act as with the local engine (:mod:`photo3d.files.signals`): the actors are
+killed (actor tasks cannot be interrupted), the photos that had finished are
+recorded, and the temporary folders of the photos being made are removed.
+
+An actor that dies (killed for memory, a crash in native code) costs only its
+photo: a new actor makes it again, and a photo whose actor dies twice is
+recorded as failed, as the local engine does.
 """
 
 from __future__ import annotations
 
+import faulthandler
 import logging
 import os
+import re
+import signal
 import time
+from collections import deque
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
 from photo3d.batch.jobs import MakeOptions, PhotoJob
 from photo3d.batch.manifest import PhotoResult
-from photo3d.batch.worker import PhotoMaker, discard_partial
+from photo3d.batch.worker import PhotoMaker, discard_partial, one_line
 from photo3d.errors import ConfigError, Photo3DError, require
+
+_SIGNALS = tuple(getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP")
+                 if hasattr(signal, name))
 
 
 def _ray():
@@ -39,23 +51,35 @@ class _Actor:
         from photo3d.batch.local import set_threads
 
         set_threads(threads)
-        self.maker = PhotoMaker(options)
+        self.error: str | None = None
+        try:
+            self.maker = PhotoMaker(options)
+        except Exception as err:  # each photo then fails with this message
+            self.error = one_line(err)
 
     def make(self, job: PhotoJob, out_dir: str) -> PhotoResult:
+        if self.error is not None:
+            return PhotoResult(job.name, "failed", self.error, 0.0, str(Path(out_dir) / job.name))
         return self.maker(job, Path(out_dir))
 
 
 def connect(address: str | None = None, *, local_cpus: int | None = None) -> str:
     """Connect to Ray (``address``, else ``RAY_ADDRESS``, else a new local Ray).
 
+    ``ray.init`` sets its own SIGTERM handler (``sys.exit``) and turns on
+    :mod:`faulthandler`; both are put back as they were.
+
     Returns:
-        ``"local"`` or the address connected to.
+        ``"running"`` (Ray was initialized already), ``"local"`` or the address
+        connected to.
     """
     ray = _ray()
     address = address or os.environ.get("RAY_ADDRESS") or None
     if ray.is_initialized():
         return "running"
     options = dict(logging_level=logging.ERROR, log_to_driver=False, include_dashboard=False)
+    handlers = {signum: signal.getsignal(signum) for signum in _SIGNALS}
+    fault = faulthandler.is_enabled()
     try:
         if address:
             ray.init(address=address, **options)
@@ -65,15 +89,35 @@ def connect(address: str | None = None, *, local_cpus: int | None = None) -> str
         text = " ".join(str(err).split())[:200]
         raise Photo3DError(f"cannot connect to Ray at {address or 'a new local Ray'}: "
                            f"{text}") from None
+    finally:
+        _restore(handlers, fault)
     return "local"
+
+
+def _restore(handlers: dict, fault: bool) -> None:
+    """Put back the signal handlers (main thread only) and faulthandler's state."""
+    try:
+        for signum, handler in handlers.items():
+            if handler is not None:  # None: set outside Python, cannot be put back
+                signal.signal(signum, handler)
+    except ValueError:  # not the main thread: Ray set none either
+        pass
+    if not fault and faulthandler.is_enabled():
+        faulthandler.disable()
 
 
 def run_ray(jobs: Sequence[PhotoJob], out_dir: Path, options: MakeOptions, *,
             workers: int | None, address: str | None,
             on_result: Callable[[PhotoResult], None]) -> None:
-    """Make every job on Ray actors; ``on_result`` for each (in the driver).
+    """Make every job on Ray actors; ``on_result`` once for each (in the driver).
 
-    ``workers``: number of actors (default: the cluster's CPUs, at most one per photo).
+    ``workers``: number of actors (default: the cluster's CPUs, at most one per
+    photo). A photo whose actor dies is made again on a new actor; when that one
+    dies too, the photo is recorded as failed.
+
+    Raises:
+        KeyboardInterrupt: after killing the actors, recording the photos that had
+            finished and removing what the others had staged.
     """
     if workers is not None and workers < 1:
         raise ConfigError(f"--workers must be at least 1, got {workers}")
@@ -83,33 +127,93 @@ def run_ray(jobs: Sequence[PhotoJob], out_dir: Path, options: MakeOptions, *,
         cpus = int(ray.cluster_resources().get("CPU", 1))
         count = max(1, min(workers or cpus, len(jobs)))
         threads = max(1, cpus // count) if started == "local" else 1
-        actor = ray.remote(num_cpus=1)(_Actor)
-        actors = [actor.remote(options, threads) for _ in range(count)]
-        pool = ray.util.ActorPool(actors)
-        out = str(Path(out_dir).resolve())
-        # absolute paths: actors may run elsewhere, in another working directory
-        jobs = [PhotoJob(j.name, j.image.resolve(), j.depth.resolve() if j.depth else None)
-                for j in jobs]
-        pending = {job.name: job for job in jobs}
-        try:
-            for job in jobs:
-                pool.submit(lambda a, j: a.make.remote(j, out), job)
-            while pool.has_next():
-                try:
-                    result = pool.get_next_unordered()
-                except ray.exceptions.RayError as err:  # an actor died (memory, crash)
-                    text = " ".join(str(err).split())[:200]
-                    raise Photo3DError(f"a Ray worker died ({text}); run the same command "
-                                       "again to resume") from None
-                pending.pop(result.name, None)
-                on_result(result)
-        except BaseException:
-            for a in actors:
-                ray.kill(a)
-            time.sleep(1.0)  # ray.kill returns before the actor processes are gone
-            for job in pending.values():
-                discard_partial(Path(out) / job.name)
-            raise
+        out = Path(out_dir).resolve()  # absolute: actors may run elsewhere, in another cwd
+        jobs = [PhotoJob(j.name, j.image.resolve(), j.depth.resolve() if j.depth else None,
+                         j.redo) for j in jobs]
+        _Pool(ray, ray.remote(num_cpus=1)(_Actor), count,
+              (options, threads)).run(jobs, out, on_result)
     finally:
         if started == "local":
             ray.shutdown()
+
+
+def _why(err: BaseException) -> str:
+    """Ray's error about a dead actor in short: its first sentence and the exit type.
+
+    Example:
+        >>> _why(RuntimeError("It died. class_name: A ... Worker exit type: SYSTEM_ERROR x"))
+        'RuntimeError: It died. (exit type SYSTEM_ERROR)'
+    """
+    text = one_line(err)
+    kind = re.search(r"Worker exit type: (\w+)", text)
+    cut = text.find(". ")
+    text = text[:cut + 1] if cut > 0 else text
+    return text[:200] + (f" (exit type {kind.group(1)})" if kind else "")
+
+
+class _Pool:
+    """``count`` actors, one photo at a time each; a dead actor is replaced."""
+
+    def __init__(self, ray, actor, count: int, args: tuple) -> None:
+        self.ray, self.actor, self.count, self.args = ray, actor, count, args
+
+    def run(self, jobs: Sequence[PhotoJob], out: Path,
+            on_result: Callable[[PhotoResult], None]) -> None:
+        ray = self.ray
+        queue = deque(jobs)
+        idle = [self.actor.remote(*self.args) for _ in range(self.count)]
+        running: dict = {}  # ObjectRef -> (actor, job)
+        deaths: dict[str, int] = {}
+        try:
+            while queue or running:
+                while queue and idle:
+                    actor, job = idle.pop(), queue.popleft()
+                    running[actor.make.remote(job, str(out))] = (actor, job)
+                done, _ = ray.wait(list(running), num_returns=1)
+                for ref in done:
+                    actor, job = running[ref]  # until recorded: see _stop
+                    try:
+                        result = ray.get(ref)
+                    except ray.exceptions.RayError as err:  # its actor died (memory, crash)
+                        del running[ref]
+                        ray.kill(actor)
+                        discard_partial(out / job.name)
+                        idle.append(self.actor.remote(*self.args))
+                        deaths[job.name] = deaths.get(job.name, 0) + 1
+                        if deaths[job.name] < 2:
+                            queue.appendleft(job)  # again, on a new actor
+                            continue
+                        result = PhotoResult(job.name, "failed", "the Ray actor making this "
+                                             f"photo died twice (out of memory?): {_why(err)}",
+                                             0.0, str(out / job.name))
+                    else:
+                        del running[ref]
+                        idle.append(actor)
+                    on_result(result)
+        except BaseException:
+            self._stop(running, out, on_result)
+            for actor in idle:
+                ray.kill(actor)
+            raise
+
+    def _stop(self, running: dict, out: Path, on_result: Callable[[PhotoResult], None]) -> None:
+        """Record the photos that finished meanwhile, kill the actors, clean up the rest."""
+        ray = self.ray
+        actors = [actor for actor, _ in running.values()]
+        try:
+            refs = list(running)
+            done = ray.wait(refs, num_returns=len(refs), timeout=0)[0] if refs else []
+            for ref in done:
+                try:
+                    result = ray.get(ref, timeout=0)
+                except ray.exceptions.RayError:  # died: cleaned up below
+                    continue
+                running.pop(ref)
+                on_result(result)
+        finally:
+            for actor in actors:
+                ray.kill(actor)
+            if running:
+                time.sleep(1.0)  # ray.kill returns before the actor processes are gone
+            for _, job in running.values():
+                discard_partial(out / job.name)
