@@ -98,6 +98,27 @@ def test_depth_writes_a_new_file_beside_the_inputs(photos, capsys):
     assert (photos / "a_depth.png").is_file() and (photos / "a_depth_preview.png").is_file()
 
 
+def test_depth_replaces_an_existing_output_only_with_overwrite(photos, capsys, tmp_path):
+    """An existing OUT.png or OUT_preview.png is refused before the work without
+    --overwrite; never written through a symbolic link, even with it."""
+    (photos / "mine.png").write_bytes(b"my picture")
+    (photos / "other_preview.png").write_bytes(b"my preview")
+    outside = tmp_path / "outside.png"
+    outside.write_bytes(b"outside")
+    os.symlink(outside, photos / "linked.png")
+    os.symlink(tmp_path / "nowhere.png", photos / "dangling.png")
+    for out in ("mine.png", "other.png", "linked.png", "dangling.png"):
+        run(capsys, "depth", photos / "a.png", "--depth", photos / "a.npy", "-o",
+            photos / out, status=2, message="exists; pass --overwrite", root=tmp_path)
+    for out in ("linked.png", "dangling.png"):
+        run(capsys, "depth", photos / "a.png", "--depth", photos / "a.npy", "-o",
+            photos / out, "--overwrite", status=2, message="symbolic link", root=tmp_path)
+    run(capsys, "depth", photos / "a.png", "--depth", photos / "a.npy", "-o",
+        photos / "mine.png", "--overwrite", status=0, root=photos)
+    assert (photos / "mine.png").read_bytes()[:4] == b"\x89PNG"
+    assert outside.read_bytes() == b"outside" and not (tmp_path / "nowhere.png").exists()
+
+
 # --- eval -o: an existing folder needs --overwrite; only eval's files are replaced -------
 
 EVAL = ["eval", "--synthetic", "1", "--methods", "forward-warp", "--no-lpips", "-q"]

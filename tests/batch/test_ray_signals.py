@@ -103,9 +103,7 @@ _SLOW_BATCH = textwrap.dedent("""
 
 
 @pytest.mark.parametrize(("sig", "status", "line"), [
-    pytest.param(signal.SIGTERM, 143, "photo3d: interrupted (SIGTERM)", marks=pytest.mark.xfail(
-        strict=True, reason="cli/batch.py still ends every interrupted Ray batch with "
-        "os._exit(130); drop that branch (the engine shuts Ray down cleanly now)")),
+    (signal.SIGTERM, 143, "photo3d: interrupted (SIGTERM)"),
     (signal.SIGINT, 130, "photo3d: interrupted")])
 def test_signals_stop_the_batch_as_the_local_engine_does(tmp_path, sig, status, line):
     src, depth, out = _folders(tmp_path, 3)

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 from pathlib import Path
 
@@ -45,18 +44,32 @@ def add_parser(sub) -> None:
     bt.set_defaults(run=run_batch_command)
 
 
-def _prefetch(jobs, out: Path, options, quiet: bool) -> None:
-    """Download the depth model once, here, before the workers may need it (for photos
-    to make that have no depth map; those with an embedded map will not use it)."""
+def _model_to_fetch(jobs, out: Path, options) -> str | None:
+    """The depth model to download before the workers may need it (for photos to make
+    that have no depth map; those with an embedded map will not use it), or None.
+
+    Raises:
+        InputError: the model names nothing (a missing folder, a name the hub refuses);
+            checked before the output folder is created.
+    """
     from photo3d.batch import is_complete
     from photo3d.batch.jobs import output_problem
-    from photo3d.depth.fetch import default_depth_model, fetch_model, needs_download
-    from photo3d.errors import InputError
+    from photo3d.depth.fetch import default_depth_model, needs_download
 
     model = options.depth_model or default_depth_model()
     todo = [j for j in jobs if output_problem(j.name) is None
             and (options.overwrite or not is_complete(out / j.name))]
     if all(j.depth is not None for j in todo) or not needs_download(model):
+        return None
+    return str(model)
+
+
+def _prefetch(model: str | None, quiet: bool) -> None:
+    """Download ``model`` once, here (nothing for None)."""
+    from photo3d.depth.fetch import fetch_model
+    from photo3d.errors import InputError
+
+    if model is None:
         return
     try:
         fetch_model(model, bar=download_bar(quiet))
@@ -78,21 +91,13 @@ def run_batch_command(args: argparse.Namespace) -> int:
     options = make_options(args)  # the same options as make, read in the same place
     prepare(options)  # bad names, weights, memory or OpenGL: refused before any work
     jobs = find_photos(args.input, depth=args.depth, recursive=args.recursive, skip=args.out)
+    model = _model_to_fetch(jobs, args.out, options)  # a bad name: before creating --out
     check_out_dir(args.out)
-    _prefetch(jobs, args.out, options, args.quiet)
+    _prefetch(model, args.quiet)
     bar = PhotoBar(len(jobs), quiet=args.quiet)
     try:  # SIGTERM and SIGHUP arrive as KeyboardInterrupt too (photo3d.files.signals, main)
         summary = run_batch(jobs, args.out, options, engine=args.engine, workers=args.workers,
                             ray_address=args.ray_address, progress=bar)
-    except KeyboardInterrupt:
-        if args.engine != "ray":
-            raise
-        # Everything is stopped and recorded by now, but Ray's core worker can crash
-        # (SIGSEGV) in interpreter teardown after an interrupted wait: leave at once.
-        bar.close()
-        print("photo3d: interrupted", file=sys.stderr, flush=True)
-        sys.stdout.flush()
-        os._exit(130)
     finally:
         bar.close()
     for note in summary.notes:  # bad manifest lines: their photos were made again

@@ -15,18 +15,23 @@ def add_parser(sub) -> None:
     dp.add_argument("image", type=Path, help="JPEG, PNG, TIFF, WebP or HEIC photo")
     add_depth_sources(dp)
     dp.add_argument("-o", "--out", type=Path, required=True, help="output PNG (16-bit)")
+    dp.add_argument("--overwrite", action="store_true",
+                    help="replace OUT.png and OUT_preview.png if they exist")
     dp.set_defaults(run=run)
 
 
 def run(args: argparse.Namespace) -> int:
     """Run ``photo3d depth``; returns the exit status."""
     from photo3d.depth.export import check_depth_output, depth_outputs, export_depth
+    from photo3d.errors import OutputError
     from photo3d.files.atomic import check_writable
 
     inputs = [p for p in (args.image, args.depth, args.right, args.depth_model) if p]
     check_depth_output(args.out, inputs=inputs)  # before a possibly slow depth estimate
     for out in depth_outputs(args.out):
-        check_writable(out)
+        if (out.exists() or out.is_symlink()) and not args.overwrite:
+            raise OutputError(f"depth output {out} exists; pass --overwrite to replace it")
+        check_writable(out, follow_symlinks=False)
     est = depth_from_args(args)
     png, preview = export_depth(est, args.out, inputs=inputs)
     print(f"wrote {png} (16-bit normalised disparity, near = bright) and {preview}")

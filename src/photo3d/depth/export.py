@@ -112,8 +112,8 @@ def export_depth(estimate: DepthEstimate, out_png: PathLike, *,
 
     Args:
         estimate: from :func:`photo3d.depth.sources.resolve_depth`.
-        out_png: the ``.png`` to write (overwritten); the preview goes beside it as
-            ``<stem>_preview.png``. The folder must exist.
+        out_png: the ``.png`` to write (replaced, never through a symbolic link); the
+            preview goes beside it as ``<stem>_preview.png``. The folder must exist.
         inputs: files the run read (photo, depth map); neither output may be one.
 
     Returns:
@@ -138,7 +138,8 @@ def export_depth(estimate: DepthEstimate, out_png: PathLike, *,
     norm, _, _ = normalize(prepared.disparity)
     _, preview = depth_outputs(out_png)
     # the preview is renamed into place first, the depth last, and only when both exist
-    with atomic_path(out_png) as tmp_png, atomic_path(preview) as tmp_preview:
+    with (atomic_path(out_png, follow_symlinks=False) as tmp_png,
+          atomic_path(preview, follow_symlinks=False) as tmp_preview):
         write_depth_png16(tmp_png, norm, vmin=0.0, vmax=1.0)
         Image.fromarray(colorize(norm)).save(tmp_preview, format="PNG")
     return out_png, preview

@@ -93,6 +93,18 @@ def check_results_folder(out: str | Path, *, overwrite: bool) -> Path:
     return out
 
 
+def _text(name: str) -> str:
+    """A pair ``name`` (a file stem) for UTF-8 text: bytes of a file name that is not
+    UTF-8 (held as lone surrogates, :func:`os.fsdecode`) become ``\\xNN`` escapes.
+
+    Example:
+        >>> import os
+        >>> _text(os.fsdecode(b"caf\\xe9")), _text("café")
+        ('caf\\\\xe9', 'café')
+    """
+    return name.encode("utf-8", "surrogateescape").decode("utf-8", "backslashreplace")
+
+
 def run(pairs: dict[str, Callable[[], StereoPair]], out: str | Path, *,
         methods: Sequence[str] = METHODS, weights=None, lpips: bool = True,
         progress: Callable[[str], None] | None = None) -> dict:
@@ -142,9 +154,10 @@ def run(pairs: dict[str, Callable[[], StereoPair]], out: str | Path, *,
         }
         with atomic_path(out / f"grid_{name}.png") as tmp:
             write_image(tmp, grid(pair, result))
-        md += [f"### {name}", "", table(result), "",
+        shown = _text(name)
+        md += [f"### {shown}", "", table(result), "",
                f"Disoccluded: {100 * result.regions['disoccluded'].mean():.1f} % of the view; "
-               f"crops: `grid_{name}.png`.", ""]
+               f"crops: `grid_{shown}.png`.", ""]
     if len(record["pairs"]) > 1:
         record["mean"] = mean_scores({k: v["scores"] for k, v in record["pairs"].items()})
         from photo3d.eval.evaluate import Evaluation

@@ -140,6 +140,11 @@ def _slerp(q0: np.ndarray, q1: np.ndarray, s: float) -> np.ndarray:
     return (math.sin((1 - s) * theta) * q0 + math.sin(s * theta) * q1) / math.sin(theta)
 
 
+MAX_COORDINATE = 1e9
+"""Largest coordinate of a keyframe's position or look_at point (depth units): far
+beyond any scene, small enough that the spline and the view direction cannot overflow."""
+
+
 def keyframe_path(keyframes: list[dict], intrinsics: Intrinsics, *, frames: int) -> list[Camera]:
     """Smoothly interpolated path through keyframes.
 
@@ -151,6 +156,8 @@ def keyframe_path(keyframes: list[dict], intrinsics: Intrinsics, *, frames: int)
     degrees of the camera-to-world rotation; default no rotation). Positions and
     look-at points follow a Catmull-Rom spline, rotations a spherical linear
     interpolation, fields of view a linear one; frames are evenly spaced in time.
+    Coordinates beyond :data:`MAX_COORDINATE`, non-finite numbers and rotations that are
+    not three angles raise :class:`~photo3d.errors.InputError` (one line).
 
     Example:
         >>> k = Intrinsics.default(64, 48)
@@ -174,14 +181,22 @@ def keyframe_path(keyframes: list[dict], intrinsics: Intrinsics, *, frames: int)
         if any("look_at" in k for k in keyframes) and not use_look:
             raise InputError("give look_at in every keyframe or in none")
         targets = np.array([k["look_at"] for k in keyframes], float) if use_look else None
-        quats = [_to_quat(_euler_to_matrix(k.get("rotation", (0, 0, 0)))) for k in keyframes]
+        rotations = np.array([k.get("rotation", (0, 0, 0)) for k in keyframes], float)
     except (KeyError, TypeError, ValueError, IndexError) as err:
         raise InputError(f"bad keyframe: {err}") from None
-    finite = all(np.isfinite(a).all() for a in (times, positions, fovs)) and (
-        targets is None or np.isfinite(targets).all())
+    points = [positions] + ([] if targets is None else [targets])
+    with np.errstate(over="ignore", invalid="ignore"):  # -1e308 to 1e308: refused below
+        steps = np.diff(times)
+    finite = all(np.isfinite(a).all() for a in (times, steps, fovs)) and all(
+        (np.abs(a) <= MAX_COORDINATE).all() for a in points)  # also False for NaN
     if positions.ndim != 2 or positions.shape[1:] != (3,) or not finite or \
-            np.any(np.diff(times) <= 0) or np.any(fovs <= 0) or np.any(fovs >= 180):
-        raise InputError("keyframes need 3-D positions, increasing times and 0 < fov < 180")
+            np.any(steps <= 0) or np.any(fovs <= 0) or np.any(fovs >= 180):
+        raise InputError(f"keyframes need 3-D positions and look_at points within "
+                         f"{MAX_COORDINATE:g} of the origin, increasing times and "
+                         "0 < fov < 180")
+    if rotations.shape != (len(keyframes), 3) or not np.isfinite(rotations).all():
+        raise InputError("keyframe rotations need three finite Euler angles in degrees")
+    quats = [_to_quat(_euler_to_matrix(r)) for r in rotations]
     if use_look:
         for i, (p, q) in enumerate(zip(positions, targets, strict=True)):
             _check_view_direction(q - p, f"keyframe {i}")

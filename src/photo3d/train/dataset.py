@@ -253,7 +253,8 @@ def _signature(files: list[TrainingFile], options: dict) -> str:
         for p in (f.image, f.depth):
             st = p.stat() if p is not None else None
             parts.append(f"{p}:{st.st_size}:{st.st_mtime_ns}" if st else "-")
-    return hashlib.sha256("\n".join(parts).encode()).hexdigest()
+    # surrogateescape: a file name that is not UTF-8 keeps its bytes (os.fsencode)
+    return hashlib.sha256("\n".join(parts).encode("utf-8", "surrogateescape")).hexdigest()
 
 
 def _save_pool(path: Path, pool: list[RegionPair]) -> None:

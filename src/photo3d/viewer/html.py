@@ -78,6 +78,8 @@ def write_viewer(mesh: Mesh | TexturedMesh, path: PathLike, *, title: str = "pho
     header["animate"] = bool(animate)
     before, after = _template().split("{{DATA}}")
     header_json = json.dumps(header, separators=(",", ":")).replace("<", "\\u003c")
+    # a folder name that is not UTF-8 (lone surrogates, os.fsdecode): its bytes as \xNN
+    title = title.encode("utf-8", "surrogateescape").decode("utf-8", "backslashreplace")
     before = before.replace("{{TITLE}}", html.escape(title)).replace("{{HEADER}}", header_json)
     after = after.replace("{{SCRIPT}}", _script())
     path = Path(path)
