@@ -282,12 +282,17 @@ def test_workers_exit_with_the_batch_and_a_second_batch_is_refused(tmp_path, cap
         assert _wait_for(writing, 120), "no photo started"
         workers = _children(proc.pid)
         assert workers
-        # the same OUT while the first batch runs: refused in one line, nothing touched
-        listing = sorted(p.name for p in out.iterdir())
-        assert main(["batch", str(src), "-o", str(out), "--depth", str(depth), *FAST]) == 2
+        # the same OUT while the first batch runs: refused in one line, nothing of its
+        # own written (its photo is not one of the first batch's, which keeps writing)
+        other = tmp_path / "other"
+        other.mkdir()
+        add_photo(other, "zz", depth, seed=9)
+        assert main(["batch", str(other), "-o", str(out), "--depth", str(depth), *FAST]) == 2
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and "another photo3d batch is writing" in err[0], err
-        assert sorted(p.name for p in out.iterdir()) == listing
+        assert not [p.name for p in out.iterdir() if "zz" in p.name]
+        manifest = out / "batch.jsonl"
+        assert not manifest.exists() or "zz" not in manifest.read_text()
         proc.kill()  # SIGKILL: no chance to stop its workers itself
         proc.wait(timeout=30)
         assert _wait_for(lambda: not any(map(_alive, workers)), 30), "workers outlived it"
