@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from filetree import tree
 from PIL import Image
 
 from photo3d.errors import OutputError
@@ -146,20 +147,6 @@ def test_a_symbolic_link_is_followed_and_stays(tmp_path):
     write_text(tmp_path / "link.txt", "new")
     assert (tmp_path / "link.txt").is_symlink() and (tmp_path / "real.txt").read_text() == "new"
     assert names(tmp_path) == ["link.txt", "real.txt"]
-
-
-def tree(root: Path) -> dict[str, str | bytes]:
-    """Every entry under ``root``: a link's target, a file's bytes, ``"dir"``."""
-    found = {}
-    for path in sorted(root.rglob("*")):
-        key = str(path.relative_to(root))
-        if path.is_symlink():
-            found[key] = "-> " + os.readlink(path)
-        elif path.is_dir():
-            found[key] = "dir"
-        else:
-            found[key] = path.read_bytes()
-    return found
 
 
 @pytest.mark.parametrize("points_to", ["outside/real.txt", "outside/missing.txt",

@@ -7,32 +7,18 @@ that nothing was rendered and that nothing under the temporary root changed.
 
 from __future__ import annotations
 
-import os
 import shutil
 from pathlib import Path
 
 import numpy as np
 import pytest
 from conftest import two_planes
+from filetree import tree
 from PIL import Image
 
 from photo3d.cli import main
 
 LINK_MESSAGE = "is a symbolic link; photo3d does not write through links"
-
-
-def tree(root: Path) -> dict[str, str | bytes]:
-    """Every entry under ``root``: a link's target, a file's bytes, ``"dir"``."""
-    found = {}
-    for path in sorted(root.rglob("*")):
-        key = str(path.relative_to(root))
-        if path.is_symlink():
-            found[key] = "-> " + os.readlink(path)
-        elif path.is_dir():
-            found[key] = "dir"
-        else:
-            found[key] = path.read_bytes()
-    return found
 
 
 @pytest.fixture(scope="module")

@@ -5,7 +5,6 @@ from __future__ import annotations
 import _thread
 import http.client
 import importlib
-import os
 import signal
 import socket
 import threading
@@ -13,6 +12,7 @@ import urllib.error
 import urllib.request
 
 import pytest
+from filetree import tree
 
 import photo3d.viewer
 from photo3d.errors import InputError
@@ -101,20 +101,6 @@ def test_browser_is_opened_only_with_a_display(monkeypatch):
     monkeypatch.setenv("DISPLAY", ":0")
     assert serve_module.open_in_browser("http://127.0.0.1:1/viewer.html") is True
     assert opened == ["http://127.0.0.1:1/viewer.html"]
-
-
-def tree(root) -> dict:
-    """Every entry under ``root``: a link's target, a file's bytes, ``"dir"``."""
-    found = {}
-    for path in sorted(root.rglob("*")):
-        key = str(path.relative_to(root))
-        if path.is_symlink():
-            found[key] = "-> " + os.readlink(path)
-        elif path.is_dir():
-            found[key] = "dir"
-        else:
-            found[key] = path.read_bytes()
-    return found
 
 
 @pytest.fixture
