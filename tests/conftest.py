@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import time
+
 import numpy as np
 import pytest
 
@@ -77,3 +79,14 @@ def merge(*meshes):
         faces.append(f + n)
         n += len(v)
     return np.concatenate(verts), np.concatenate(cols), np.concatenate(faces)
+
+
+def wait_for(predicate, timeout: float) -> bool:
+    """Poll ``predicate()`` every 50 ms until it is true (True) or ``timeout`` seconds
+    pass (False)."""
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        if predicate():
+            return True
+        time.sleep(0.05)
+    return False

@@ -7,12 +7,11 @@ import os
 import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import two_planes
+from conftest import two_planes, wait_for
 
 from photo3d.batch import MakeOptions, PhotoJob, find_photos, read_manifest, run_batch
 from photo3d.batch.worker import discard_partial, is_complete
@@ -172,15 +171,6 @@ def test_discard_partial_removes_only_what_a_killed_writer_staged(tmp_path):
         ".a.0f0f0f0f.tmp", ".a.1a2b3c4d", ".a.notahex!.tmp", ".a.old", ".ab.1a2b3c4d.tmp", "a"]
 
 
-def _wait_for(predicate, timeout: float) -> bool:
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        if predicate():
-            return True
-        time.sleep(0.05)
-    return False
-
-
 def test_ctrl_c_stops_cleanly_and_a_rerun_resumes(tmp_path):
     src, depth, out = tmp_path / "photos", tmp_path / "depth", tmp_path / "out"
     src.mkdir()
@@ -200,7 +190,7 @@ def test_ctrl_c_stops_cleanly_and_a_rerun_resumes(tmp_path):
         def writing() -> bool:
             return out.is_dir() and any(p.name.startswith(".p") for p in out.iterdir())
 
-        assert _wait_for(writing, 120), "no photo started"
+        assert wait_for(writing, 120), "no photo started"
         os.killpg(proc.pid, signal.SIGINT)  # what Ctrl-C at a terminal does
         stdout, stderr = proc.communicate(timeout=60)
     finally:

@@ -8,12 +8,11 @@ import os
 import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import two_planes
+from conftest import two_planes, wait_for
 
 from photo3d.batch import find_photos, local, read_manifest
 from photo3d.batch.lock import batch_lock
@@ -233,15 +232,6 @@ def test_a_killed_worker_is_retried_once_then_its_photo_fails(folders, capsys, m
         "(out of memory?)"]
 
 
-def _wait_for(predicate, timeout: float) -> bool:
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        if predicate():
-            return True
-        time.sleep(0.05)
-    return False
-
-
 def _children(pid: int) -> list[int]:
     found = []
     for entry in Path("/proc").iterdir():
@@ -279,7 +269,7 @@ def test_workers_exit_with_the_batch_and_a_second_batch_is_refused(tmp_path, cap
         def writing() -> bool:
             return out.is_dir() and any(p.name.startswith(".p") for p in out.iterdir())
 
-        assert _wait_for(writing, 120), "no photo started"
+        assert wait_for(writing, 120), "no photo started"
         workers = _children(proc.pid)
         assert workers
         # the same OUT while the first batch runs: refused in one line, nothing of its
@@ -295,7 +285,7 @@ def test_workers_exit_with_the_batch_and_a_second_batch_is_refused(tmp_path, cap
         assert not manifest.exists() or "zz" not in manifest.read_text()
         proc.kill()  # SIGKILL: no chance to stop its workers itself
         proc.wait(timeout=30)
-        assert _wait_for(lambda: not any(map(_alive, workers)), 30), "workers outlived it"
+        assert wait_for(lambda: not any(map(_alive, workers)), 30), "workers outlived it"
     finally:
         if proc.poll() is None:
             proc.kill()
