@@ -15,7 +15,7 @@ from test_robustness import make, run, snapshot
 from photo3d.cli import main
 from photo3d.files.staging import owned_by_names
 from photo3d.io.video import video_formats
-from photo3d.output import VIDEO_FILES, owned_photo
+from photo3d.owned import VIDEO_FILES, owned_photo
 
 photos = test_robustness.photos  # the fixture: tmp/photos/{a.png, a.npy, notes.txt}
 
@@ -39,14 +39,38 @@ def test_make_overwrite_never_deletes_a_users_file_in_the_folder(photos, capsys,
     run(capsys, *make(photos, "out", "--overwrite"), status=2, message=f"holds {named}")
 
 
-def test_make_overwrite_replaces_the_videos_photo3d_named(photos, capsys):
+def test_make_overwrite_replaces_the_videos_photo3d_wrote(photos, capsys):
+    """Videos made by `make` and added by `render` are listed in config.json and replaced;
+    a video the user put beside them is not photo3d's, whatever its name."""
+    out = photos.parent / "out"
+    video = ["--frames", "2", "--video-size", "32x24", "--ssaa", "1", "--format", "gif"]
+    argv = [a for a in make(photos, "out", "--path", "circle", *video) if a != "--no-video"]
+    run(capsys, *argv, status=0)
+    run(capsys, "render", out, "--path", "swing", *video, "-q", status=0)
+    assert sorted(p.name for p in (out / "video").iterdir()) == ["circle.gif", "swing.gif"]
+    run(capsys, *make(photos, "out", "--overwrite"), status=0)
+    assert not (out / "video").exists()  # this run wrote no video (--no-video)
+    run(capsys, *argv, "--overwrite", status=0)
+    (out / "video" / "holiday.mp4").write_bytes(b"the user's own video")
+    (out / "still.png").write_bytes(b"the user's own still")
+    run(capsys, *make(photos, "out", "--overwrite"), status=2,
+        message="holds still.png, video/holiday.mp4, which photo3d did not write")
+
+
+def test_render_never_replaces_a_video_or_still_photo3d_did_not_write(photos, capsys):
     out = photos.parent / "out"
     run(capsys, *make(photos, "out"), status=0)
     (out / "video").mkdir()
-    for name in ("circle.mp4", "swing_anaglyph.gif", "zoom-in.webm"):
-        (out / "video" / name).write_bytes(b"a video photo3d wrote")
-    run(capsys, *make(photos, "out", "--overwrite"), status=0)
-    assert not (out / "video").exists()  # this run wrote no video (--no-video)
+    (out / "video" / "circle.gif").write_bytes(b"the user's own video")
+    (out / "still.png").write_bytes(b"the user's own still")
+    video = ["--frames", "2", "--video-size", "32x24", "--ssaa", "1", "--format", "gif", "-q"]
+    run(capsys, "render", out, "--path", "circle", *video, status=2,
+        message="circle.gif exists and photo3d did not write it")
+    run(capsys, "render", out, "--still", "-q", status=2,
+        message="still.png exists and photo3d did not write it")
+    (out / "still.png").unlink()
+    run(capsys, "render", out, "--still", "-q", status=0)
+    run(capsys, "render", out, "--still", "-q", status=0)  # its own still: replaced
 
 
 def test_owned_by_names_looks_inside_subfolders(tmp_path):
@@ -61,6 +85,12 @@ def test_owned_by_names_looks_inside_subfolders(tmp_path):
     assert owned(tmp_path) == ["holds video/y.mp4, video/z.txt"]
     assert owned_photo(tmp_path) == ["holds a.npz, video/y.mp4, video/z.txt",
                                      "has no photo3d.npz"]
+    for name in ("a.npz", "video/y.mp4", "video/z.txt"):
+        (tmp_path / name).unlink()
+    (tmp_path / "photo3d.npz").write_bytes(b"")
+    assert owned_photo(tmp_path) == ["holds video/x.mp4, which photo3d did not write"]
+    (tmp_path / "config.json").write_text('{"save": {"videos": [{"path": "x", "format": "mp4"}]}}')
+    assert owned_photo(tmp_path) == []  # saved before config.json listed what it wrote
 
 
 # --- depth: the output is never one of the inputs ----------------------------------------

@@ -152,7 +152,8 @@ def test_config_json_records_the_inpainter_the_depth_source_and_the_save_options
     photo = photo3d.make(img, depth=tmp_path / "d.npy", config=exact_config())
     out = photo.save(tmp_path / "out", ply="ascii", full_glb=True, viewer=False)
     meta = json.loads((out / "config.json").read_text())
-    assert list(meta) == ["config", "inpainter", "depth_source", "save", "stats", "timings"]
+    assert list(meta) == ["config", "inpainter", "depth_source", "save", "stats", "timings",
+                          "written"]
     assert meta["inpainter"] == {"name": "diffusion", "iterations": 300, "tolerance": 1e-3}
     assert meta["depth_source"] == f"depth file {tmp_path / 'd.npy'} (disparity)"
     assert meta["save"] == {"ply": "ascii", "glb": "full", "light_error": 0.5,

@@ -24,12 +24,13 @@ from typing import TYPE_CHECKING, Protocol
 
 from photo3d.config import Config
 from photo3d.errors import InputError, OutputError
-from photo3d.files.staging import Staging, owned_by_names, stage_output
+from photo3d.files.staging import Staging, stage_output
 from photo3d.io.gltf import write_glb
 from photo3d.io.gltf_textured import write_textured_glb
 from photo3d.io.npz import load_npz, save_npz
 from photo3d.io.ply import write_ply
 from photo3d.mesh.light import LIGHT_ERROR, build_light_mesh
+from photo3d.owned import FINISHED_FILES, LDI_FILE, claim_files, owned_photo, record_files
 from photo3d.stages.ldi import LDI
 
 if TYPE_CHECKING:
@@ -48,22 +49,6 @@ class SavedPhoto(Protocol):
     depth_source: str | None
 
     def mesh(self) -> Mesh: ...
-
-
-LDI_FILE = "photo3d.npz"
-PHOTO_FILES = (LDI_FILE, "config.json", "mesh.ply", "mesh.glb", "viewer.html", "video",
-               "still.png", "still_*.png")
-"""Top-level names in a 3D photo folder (``render --still`` adds ``still*.png``)."""
-
-FINISHED_FILES = (LDI_FILE, "config.json")
-"""Files every finished 3D photo folder holds (whatever else was asked for)."""
-
-VIDEO_FILES = ("*.mp4", "*.webm", "*.gif")
-"""Names of the files in a 3D photo folder's ``video/`` (one per format photo3d writes)."""
-
-owned_photo = owned_by_names(LDI_FILE, PHOTO_FILES, inside={"video": VIDEO_FILES})
-"""The check that a folder is a 3D photo folder photo3d wrote (and may replace): only
-:data:`PHOTO_FILES` at the top, only :data:`VIDEO_FILES` in ``video/``."""
 
 
 def is_complete(out: str | Path) -> bool:
@@ -208,19 +193,22 @@ def photo_meta(photo: SavedPhoto, *, ply: str | None = "binary", glb: bool = Tru
         >>> photo = photo3d.make(np.zeros((16, 16, 3)), depth=np.ones((16, 16)),
         ...                      config=photo3d.Config(size=None))
         >>> meta = photo_meta(photo, full_glb=True)
-        >>> list(meta), meta["save"]["glb"], meta["inpainter"]["name"]
-        (['config', 'inpainter', 'depth_source', 'save', 'stats', 'timings'], 'full', 'diffusion')
+        >>> list(meta)
+        ['config', 'inpainter', 'depth_source', 'save', 'stats', 'timings', 'written']
+        >>> meta["save"]["glb"], meta["inpainter"]["name"]
+        ('full', 'diffusion')
     """
     save = {"ply": ply, "glb": ("full" if full_glb else "light") if glb else None,
             "light_error": light_error, "viewer": viewer,
             "videos": [dataclasses.asdict(v) for v in videos], "render_settings": None}
+    written = sorted(f"video/{v.name}.{v.format}" for v in videos)
     if videos:
         from photo3d.render.renderer import RenderSettings
 
         save["render_settings"] = dataclasses.asdict(render_settings or RenderSettings())
     return {"config": photo.config.to_dict(), "inpainter": dict(photo.inpainter),
             "depth_source": photo.depth_source, "save": save, "stats": photo.stats,
-            "timings": photo.timings}
+            "timings": photo.timings, "written": written}
 
 
 def _video_mesh(photo: SavedPhoto, mesh, light, settings: RenderSettings | None, light_error):
@@ -267,16 +255,18 @@ def write_videos(photo: SavedPhoto, mesh, folder: Path, videos: Sequence[VideoSp
     :class:`~photo3d.mesh.types.TexturedMesh`; None: the light one with the OpenGL
     backend, else the full one (built here).
 
-    Nothing is written through a symbolic link: a ``video`` that is one, or a link
-    named as one of the videos, is refused (OutputError) before anything is rendered.
+    Nothing is written through a symbolic link, and no file photo3d did not write is
+    replaced: a ``video`` that is a link, or a video name that is a link or a file
+    ``config.json`` does not list (:mod:`photo3d.owned`), is refused (OutputError)
+    before anything is rendered. The videos written are added to that list.
     """
     from photo3d.files.atomic import refuse_symlink
     from photo3d.render.animate import render_video
     from photo3d.render.renderer import Renderer
 
     refuse_symlink(folder / "video")
-    for spec in videos:
-        refuse_symlink(folder / "video" / f"{spec.name}.{spec.format}")
+    names = [f"video/{spec.name}.{spec.format}" for spec in videos]
+    claim_files(folder, names)
     try:
         (folder / "video").mkdir(exist_ok=True)
         written = []
@@ -291,6 +281,7 @@ def write_videos(photo: SavedPhoto, mesh, folder: Path, videos: Sequence[VideoSp
                 target = folder / "video" / f"{spec.name}.{spec.format}"
                 written.append(render_video(renderer, photo.ldi, spec, target,
                                             progress=on_frame))
+        record_files(folder, names)
     except OSError as err:
         raise OutputError(f"cannot write videos in {folder}: {err.strerror or err}") from None
     return written

@@ -216,10 +216,11 @@ def test_a_finished_folder_is_defined_once():
     import photo3d.batch.worker
     import photo3d.folder
     import photo3d.output
+    import photo3d.owned
 
     assert photo3d.batch.is_complete is photo3d.output.is_complete
     assert photo3d.batch.worker.is_complete is photo3d.output.is_complete
-    assert set(photo3d.output.FINISHED_FILES) <= set(photo3d.output.PHOTO_FILES)
+    assert set(photo3d.owned.FINISHED_FILES) <= set(photo3d.owned.PHOTO_FILES)
     assert photo3d.batch.MakeOptions is photo3d.folder.MakeOptions
 
 

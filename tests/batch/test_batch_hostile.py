@@ -74,6 +74,7 @@ def batch(src: Path, depth: Path, out: Path, *extra: str) -> list[str]:
 def test_a_file_name_that_is_not_utf8_works_and_one_that_fails_fails_alone(folders):
     src, depth, out = folders
     add_photo(src, b"caf\xe9", depth, seed=2)
+    add_photo(src, "caf\\xe9", depth, seed=3)  # the escape's own text: a different photo
     (Path(os.fsdecode(os.fsencode(src) + b"/bad\xff.png"))).write_bytes(b"not a png")
     before = tree(src.parent, leave_out=out)
     run = subprocess.run([sys.executable, "-m", "photo3d", *batch(src, depth, out)],
@@ -83,7 +84,7 @@ def test_a_file_name_that_is_not_utf8_works_and_one_that_fails_fails_alone(folde
     assert len(err) == 1 and err[0].startswith("photo3d: failed: bad"), err
     status = {r["name"]: r for r in records(out)}
     assert {n: r["status"] for n, r in status.items()} == {
-        "a": "ok", "b": "ok", "caf\\xe9": "ok", "bad\\xff": "failed"}
+        "a": "ok", "b": "ok", "caf\\xe9": "ok", "caf\\\\xe9": "ok", "bad\\xff": "failed"}
     assert status["caf\\xe9"]["output"] == str(out) + "/caf\\xe9"
     assert is_complete(Path(os.fsdecode(os.fsencode(out) + b"/caf\xe9")))
     assert tree(src.parent, leave_out=out) == before
@@ -93,7 +94,7 @@ def test_a_file_name_that_is_not_utf8_works_and_one_that_fails_fails_alone(folde
     assert run.returncode == 1
     status = {r["name"]: r["status"] for r in records(out)}
     assert status == {"a": "skipped", "b": "skipped", "caf\\xe9": "skipped",
-                      "bad\\xff": "failed"}
+                      "caf\\\\xe9": "skipped", "bad\\xff": "failed"}
 
 
 def test_recursive_visits_each_real_folder_once(folders, capsys):

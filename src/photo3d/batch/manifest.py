@@ -31,25 +31,29 @@ STATUSES = ("ok", "failed", "skipped")
 
 
 def json_text(text: str) -> str:
-    """``text`` with the undecodable bytes of a file name as ``\\xNN`` escapes.
+    """``text`` with ``\\`` doubled and the undecodable bytes of a file name as
+    ``\\xNN`` escapes, so two different names never give the same text.
 
     Names from the file system hold such bytes as lone surrogates
-    (:func:`os.fsdecode`), which UTF-8 cannot encode; every other string is
-    returned unchanged.
+    (:func:`os.fsdecode`), which UTF-8 cannot encode; a literal backslash is doubled,
+    so ``caf\\xe9.jpg`` (those seven characters) and a name with the Latin-1 byte 0xE9
+    stay apart. Every other string is returned unchanged.
 
     Example:
-        >>> json_text(os.fsdecode(b"caf\\xe9")), json_text("café")
-        ('caf\\\\xe9', 'café')
+        >>> json_text(os.fsdecode(b"caf\\xe9")), json_text("café"), json_text("caf\\\\xe9")
+        ('caf\\\\xe9', 'café', 'caf\\\\\\\\xe9')
     """
-    try:
-        text.encode("utf-8")
-        return text
-    except UnicodeEncodeError:
+    if "\\" not in text:
         try:
-            raw = os.fsencode(text)
+            text.encode("utf-8")
+            return text
         except UnicodeEncodeError:
-            raw = text.encode("utf-8", "backslashreplace")
-        return raw.decode("utf-8", "backslashreplace")
+            pass
+    try:
+        raw = os.fsencode(text).replace(b"\\", b"\\\\")
+    except UnicodeEncodeError:
+        raw = text.replace("\\", "\\\\").encode("utf-8", "backslashreplace")
+    return raw.decode("utf-8", "backslashreplace")
 
 
 @dataclass(frozen=True)

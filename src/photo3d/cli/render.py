@@ -48,15 +48,19 @@ def run(args: argparse.Namespace) -> int:
 def _still(args: argparse.Namespace, photo, spec) -> int:
     from photo3d.files.atomic import atomic_path, check_writable
     from photo3d.io.images import write_image
+    from photo3d.owned import claim_files, record_files
     from photo3d.render.animate import render_still
     from photo3d.render.renderer import Renderer
 
-    path = args.photo / (f"still_{spec.stereo}.png" if spec.stereo else "still.png")
-    check_writable(path, follow_symlinks=False)  # before rendering; never through a link
+    name = f"still_{spec.stereo}.png" if spec.stereo else "still.png"
+    path = args.photo / name
+    claim_files(args.photo, [name])  # never a link, nor a file photo3d did not write
+    check_writable(path, follow_symlinks=False)  # before rendering
     with Renderer(photo.mesh(), render_settings_from(args)) as renderer:
         image = render_still(renderer, photo.ldi, spec)
     with atomic_path(path, follow_symlinks=False) as tmp:
         write_image(tmp, image)
+    record_files(args.photo, [name])
     if not args.quiet:
         print(f"wrote {path} ({image.shape[1]}x{image.shape[0]})")
     return 0

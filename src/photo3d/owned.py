@@ -1,0 +1,169 @@
+"""Which files of a 3D photo folder photo3d wrote, so it replaces only those.
+
+A 3D photo folder (:mod:`photo3d.output`) holds fixed names (``photo3d.npz``,
+``config.json``, the meshes, the viewer) and files whose names depend on what was
+asked for: the videos in ``video/`` and ``render --still`` images. A user may put a
+video of their own in ``video/`` or a ``still.png`` of their own beside the mesh, so
+those names are not photo3d's by their pattern alone: ``config.json`` lists, under
+``"written"``, every such file photo3d wrote (paths relative to the folder, ``/``
+separators). ``make --overwrite`` replaces a folder only if every entry is a fixed
+name or listed there, and ``render`` replaces a video or still only if listed.
+
+Folders saved before the list existed: their videos are the ones ``config.json``'s
+``save.videos`` names.
+"""
+
+from __future__ import annotations
+
+import fnmatch
+import json
+from collections.abc import Iterable
+from pathlib import Path
+
+from photo3d.errors import OutputError
+from photo3d.files.atomic import refuse_symlink, write_json
+from photo3d.files.staging import owned_by_names
+
+LDI_FILE = "photo3d.npz"
+PHOTO_FILES = (LDI_FILE, "config.json", "mesh.ply", "mesh.glb", "viewer.html", "video",
+               "still.png", "still_*.png")
+"""Top-level names in a 3D photo folder (``render --still`` adds ``still*.png``)."""
+
+FINISHED_FILES = (LDI_FILE, "config.json")
+"""Files every finished 3D photo folder holds (whatever else was asked for)."""
+
+VIDEO_FILES = ("*.mp4", "*.webm", "*.gif")
+"""Names of the files in a 3D photo folder's ``video/`` (one per format photo3d writes)."""
+
+RECORDED = ("still.png", "still_*.png", "video/*")
+"""Entries that are photo3d's only if ``config.json`` lists them (see the module doc)."""
+
+_by_names = owned_by_names(LDI_FILE, PHOTO_FILES, inside={"video": VIDEO_FILES})
+_MAX_CONFIG = 16 << 20  # a config.json photo3d wrote is a few kB
+
+
+def recorded_files(folder: str | Path) -> set[str]:
+    """The names (relative to ``folder``) of the videos and stills photo3d wrote there.
+
+    An unreadable or damaged ``config.json`` records nothing (so nothing is replaced).
+
+    Example:
+        >>> import pathlib, tempfile
+        >>> folder = pathlib.Path(tempfile.mkdtemp())
+        >>> _ = (folder / "config.json").write_text('{"written": ["video/circle.mp4"]}')
+        >>> sorted(recorded_files(folder))
+        ['video/circle.mp4']
+    """
+    meta = _config(Path(folder)) or {}
+    written = meta.get("written")
+    if isinstance(written, list):
+        return {w for w in written if isinstance(w, str)}
+    save = meta.get("save")  # saved before "written": the videos it asked for
+    videos = save.get("videos") if isinstance(save, dict) else None
+    if not isinstance(videos, list):
+        return set()
+    return {name for v in videos if (name := _legacy_video(v))}
+
+
+def owned_photo(folder: Path) -> list[str]:
+    """The reasons ``folder`` is not a 3D photo folder photo3d may replace (empty: it may).
+
+    Only :data:`PHOTO_FILES` at the top, only :data:`VIDEO_FILES` in ``video/``, and
+    every video and still listed in ``config.json`` (:func:`recorded_files`).
+
+    Example:
+        >>> import pathlib, tempfile
+        >>> folder = pathlib.Path(tempfile.mkdtemp())
+        >>> for name in ("photo3d.npz", "config.json", "still.png"): (folder / name).touch()
+        >>> owned_photo(folder)
+        ['holds still.png, which photo3d did not write']
+    """
+    reasons = _by_names(folder)
+    if reasons and reasons[0].startswith("holds "):
+        return reasons
+    mine = recorded_files(folder)
+    foreign = [name for name in _recordable(folder) if name not in mine]
+    if foreign:
+        shown = ", ".join(foreign[:3]) + (", ..." if len(foreign) > 3 else "")
+        reasons.insert(0, f"holds {shown}, which photo3d did not write")
+    return reasons
+
+
+def claim_files(folder: str | Path, names: Iterable[str]) -> None:
+    """Check before rendering that photo3d may write ``names`` (relative to ``folder``).
+
+    Raises:
+        OutputError: one of them is a symbolic link, or exists and photo3d did not
+            write it (one line naming it).
+
+    Example:
+        >>> import pathlib, tempfile
+        >>> folder = pathlib.Path(tempfile.mkdtemp())
+        >>> (folder / "still.png").write_bytes(b"mine")
+        4
+        >>> try:
+        ...     claim_files(folder, ["still.png"])
+        ... except OutputError as err:
+        ...     print(str(err).split(" exists")[0].endswith("still.png"))
+        True
+    """
+    folder = Path(folder)
+    mine = recorded_files(folder)
+    targets = {name: refuse_symlink(folder / name) for name in names}  # links first
+    for name, target in targets.items():
+        if target.exists() and name not in mine:
+            raise OutputError(f"{target} exists and photo3d did not write it; move it "
+                              "away or choose another name (nothing was written)")
+
+
+def record_files(folder: str | Path, names: Iterable[str]) -> None:
+    """Add ``names`` to the files ``config.json`` lists as photo3d's (atomically).
+
+    A folder without a readable ``config.json`` is left as it is.
+
+    Example:
+        >>> import pathlib, tempfile
+        >>> folder = pathlib.Path(tempfile.mkdtemp())
+        >>> _ = (folder / "config.json").write_text("{}")
+        >>> record_files(folder, ["still.png"]); sorted(recorded_files(folder))
+        ['still.png']
+    """
+    folder = Path(folder)
+    meta = _config(folder)
+    if meta is None:
+        return
+    meta["written"] = sorted(recorded_files(folder) | set(names))
+    write_json(refuse_symlink(folder / "config.json"), meta)
+
+
+def _recordable(folder: Path) -> list[str]:
+    """Entries of ``folder`` that must be listed in config.json to be photo3d's."""
+    found = [p.name for p in sorted(folder.iterdir())
+             if any(fnmatch.fnmatchcase(p.name, pattern) for pattern in RECORDED)]
+    video = folder / "video"
+    if video.is_dir() and not video.is_symlink():
+        found += [f"video/{p.name}" for p in sorted(video.iterdir())]
+    return [name for name in found if name != "video"]
+
+
+def _config(folder: Path) -> dict | None:
+    """``config.json`` of ``folder``; None if missing, a link, too large or damaged."""
+    path = folder / "config.json"
+    try:
+        if path.is_symlink() or not path.is_file() or path.stat().st_size > _MAX_CONFIG:
+            return None
+        meta = json.loads(path.read_bytes())
+    except (OSError, ValueError):
+        return None
+    return meta if isinstance(meta, dict) else None
+
+
+def _legacy_video(spec) -> str | None:
+    """``video/NAME.FORMAT`` of a recorded VideoSpec dict with a preset path."""
+    if not isinstance(spec, dict):
+        return None
+    path, fmt, stereo = spec.get("path"), spec.get("format"), spec.get("stereo")
+    if not (isinstance(path, str) and isinstance(fmt, str) and "/" not in path + fmt):
+        return None
+    stem = f"{path}_{stereo}" if isinstance(stereo, str) else path
+    return f"video/{stem}.{fmt}"
