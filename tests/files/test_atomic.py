@@ -375,6 +375,7 @@ def test_render_still_keeps_the_old_image_and_checks_before_rendering(tmp_path, 
     from conftest import two_planes
 
     from photo3d.cli import main
+    from photo3d.owned import record_files
 
     img, disparity = two_planes(48, 64, 32)
     Image.fromarray((img * 255).astype(np.uint8)).save(tmp_path / "a.png")
@@ -383,6 +384,7 @@ def test_render_still_keeps_the_old_image_and_checks_before_rendering(tmp_path, 
     assert main(["make", str(tmp_path / "a.png"), "--depth", str(tmp_path / "a.npy"), "-o",
                  str(out), "--size", "48", "--no-video", "--no-glb", "--no-viewer", "-q"]) == 0
     (out / "still.png").write_bytes(b"old still")
+    record_files(out, ["still.png"])  # as if an earlier `render --still` wrote it
     before = names(out)
 
     def half_written(path, image, **kwargs):

