@@ -193,3 +193,33 @@ def test_make_reads_heic_photos_like_the_command_line(tmp_path):
     from_array = photo3d.make(read_photo(tmp_path / "a.heic"), depth=d, config=exact_config())
     np.testing.assert_array_equal(photo.ldi.color, from_array.ldi.color)
     assert np.abs(photo.ldi.color[: 32 * 48].reshape(32, 48, 3) - img).mean() < 0.04  # lossy
+
+
+def test_the_border_continues_the_photos_texture_without_streaks():
+    """Replication copies the outermost row outward (every border row alike: streaks);
+    the default border fill carries the photo's texture into the frame: its rows differ
+    like the photo's do, with the photo's own colours (a binary texture stays binary,
+    not diffused to grey). Depth, links and labels are the replicated ones either way."""
+    rng = np.random.default_rng(0)
+    img = np.repeat((rng.random((48, 64, 1)) > 0.5).astype(np.float32), 3, axis=2)
+    depth = np.full((48, 64), 5.0)
+    made = {fill: photo3d.make(img, depth=depth,
+                               config=exact_config(border=8, border_context=16,
+                                                   border_fill=fill))
+            for fill in ("replicate", "structured")}
+    rows = {}
+    for fill, photo in made.items():
+        ldi = photo.ldi
+        top = ldi.y < 0
+        grid = np.zeros((8, 64 + 16))
+        grid[ldi.y[top] + 8, ldi.x[top] + 8] = ldi.color[top, 0]
+        rows[fill] = np.abs(np.diff(grid[:, 8:-8], axis=0)).mean()
+        if fill == "structured":
+            binary = np.minimum(ldi.color[top, 0], 1 - ldi.color[top, 0]) < 0.2
+            assert binary.mean() > 0.8
+    assert rows["replicate"] == 0.0
+    assert rows["structured"] > 0.3 * np.abs(np.diff(img[..., 0], axis=0)).mean()
+    a, b = made["replicate"].ldi, made["structured"].ldi
+    for name in ("y", "x", "disparity", "links", "label"):
+        assert np.array_equal(getattr(a, name), getattr(b, name)), name
+    assert np.array_equal(a.color[: 48 * 64], b.color[: 48 * 64])

@@ -13,13 +13,13 @@ from photo3d.depth.normalize import prepare_depth
 from photo3d.depth.sources import describe_depth, read_photo
 from photo3d.errors import InputError
 from photo3d.inpaint import get_inpainter
-from photo3d.inpaint.base import Inpainter
+from photo3d.inpaint.base import Inpainter, Patch
 from photo3d.io.depth import read_depth
 from photo3d.io.images import MIN_SIDE
 from photo3d.photo import Photo3D
 from photo3d.progress import StageProgress
 from photo3d.resources import check_memory
-from photo3d.stages.border import extend_border
+from photo3d.stages.border import extend_border, fill_border
 from photo3d.stages.edges import edges_csr
 from photo3d.stages.ldi import cut, from_image
 from photo3d.stages.merge import merge
@@ -110,6 +110,10 @@ def make(
     ldi = from_image(pre.image, pre.disparity, intrinsics=intrinsics, mapping=mapping)
     ldi = cut(ldi, pre.edges.cuts)
     ldi = extend_border(ldi, px(reg.border))
+    scale = max(w / img.shape[1], h / img.shape[0])
+    if reg.border_fill != "replicate":
+        ldi = fill_border(ldi, _border_fill(reg.border_fill, backend, scale),
+                          context=px(reg.border_context))
     edge_ptr, edge_pixels = edges_csr(pre.edges.labels, pre.edges.count)
     done("ldi")
 
@@ -126,8 +130,7 @@ def make(
             dilation=px(reg.edge_dilation) if k == 0 else 0,
             threshold=thr,
         )
-        jobs = extract_patches(ldi, regions, edge_pixels, margin=backend.margin,
-                               scale=max(w / img.shape[1], h / img.shape[0]))
+        jobs = extract_patches(ldi, regions, edge_pixels, margin=backend.margin, scale=scale)
 
         def on_patch(i: int, n: int, k: int = k) -> None:
             report("inpaint", (k + i / max(n, 1)) / reg.max_passes)
@@ -156,6 +159,19 @@ def make(
             "disparity_range": list(pre.disparity_range),
         },
     )
+
+
+def _border_fill(name: str, backend: Inpainter, scale: float):
+    """The :data:`~photo3d.stages.border.BorderFill` of the backend ``name`` (the
+    pipeline's own backend when the names match): one patch, the frame."""
+    fill = backend if name == backend.name else get_inpainter(name)
+
+    def run(color, disparity, context, synthesis):
+        edges = np.zeros(context.shape, np.float32)
+        patch = Patch(color, disparity, edges, context, synthesis, (0, 0), scale)
+        return fill.inpaint([patch])[0].color
+
+    return run
 
 
 def inpainter_settings(backend: Inpainter) -> dict[str, object]:

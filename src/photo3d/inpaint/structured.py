@@ -27,7 +27,7 @@ import numpy as np
 
 from photo3d.inpaint.base import InpaintResult, Patch
 from photo3d.inpaint.continuation import continue_edges
-from photo3d.inpaint.diffusion import diffuse_in_place
+from photo3d.inpaint.diffusion import diffuse, diffuse_in_place
 from photo3d.inpaint.exemplar import exemplar_fill
 from photo3d.progress import CountProgress
 
@@ -71,6 +71,53 @@ def piecewise_diffuse(values: np.ndarray, context: np.ndarray, synthesis: np.nda
     return out
 
 
+def texture_weight(color: np.ndarray, context: np.ndarray, synthesis: np.ndarray, *,
+                   smooth: float, textured: float, radius: float = 2.0) -> np.ndarray:
+    """How much texture each synthesis pixel wants, from the context next to it.
+
+    The context's fine detail is measured as the local RMS of its high-pass grey
+    level (grey minus its Gaussian blur of ``radius`` px, both normalised over the
+    context only) and carried into the synthesis region by diffusion, so every hole
+    pixel reads the detail of the context it continues. A smooth context (a clear sky,
+    a wall, a defocused background) wants a smooth fill, which diffusion already
+    gives; copied texture there only adds specks.
+
+    Args:
+        color: ``(h, w, 3) float32`` read under ``context`` only.
+        context, synthesis: ``(h, w) bool``.
+        smooth: detail (RMS, colour units) at and below which the weight is 0.
+        textured: detail at and above which the weight is 1 (linear in between).
+        radius: Gaussian sigma of the high-pass and of the local RMS, in pixels.
+
+    Returns:
+        ``(h, w) float32`` in [0, 1], meaningful under ``synthesis``.
+
+    Example:
+        >>> rng = np.random.default_rng(0)
+        >>> ctx = np.ones((32, 32), bool); ctx[8:24, 8:24] = False
+        >>> flat = np.full((32, 32, 3), 0.5, np.float32)
+        >>> noisy = (flat + rng.normal(0, 0.1, (32, 32, 1))).astype(np.float32)
+        >>> w = [texture_weight(c, ctx, ~ctx, smooth=0.01, textured=0.03)[16, 16]
+        ...      for c in (flat, noisy)]
+        >>> [round(float(v), 2) for v in w]
+        [0.0, 1.0]
+    """
+    from scipy.ndimage import gaussian_filter
+
+    known = context.astype(np.float32)
+    grey = np.where(context, color.mean(axis=2), 0.0).astype(np.float32)
+
+    def local_mean(values: np.ndarray) -> np.ndarray:
+        num = gaussian_filter(values * known, radius, mode="constant")
+        den = gaussian_filter(known, radius, mode="constant")
+        return num / np.maximum(den, 1e-6)
+
+    detail = np.sqrt(np.maximum(local_mean((grey - local_mean(grey)) ** 2), 0.0))
+    carried = diffuse(detail[..., None].astype(np.float32), context, synthesis)[..., 0]
+    span = max(textured - smooth, 1e-6)
+    return np.clip((carried - smooth) / span, 0.0, 1.0).astype(np.float32)
+
+
 class StructuredInpainter:
     """Backend ``"structured"``: continued edges, piecewise diffusion, exemplar texture.
 
@@ -104,9 +151,11 @@ class StructuredInpainter:
                  workers: int | None = None, lines: bool = True, texture: float = 1.0,
                  patch_radius: float = 1.5, pm_iterations: int = 3, em_steps: int = 1,
                  guide_weight: float = 0.5, copy: bool = True, support_factor: float = 1.0,
-                 coherence: float = 0.8, **structure) -> None:
+                 coherence: float = 0.8, smooth: float = 0.0, textured: float = 0.0,
+                 **structure) -> None:
         self.lines = lines
         self.texture = texture
+        self.smooth, self.textured = smooth, textured
         self.patch_radius = patch_radius
         self.exemplar = dict(iterations=pm_iterations,
                              em_steps=em_steps, guide_weight=guide_weight, copy=copy)
@@ -126,7 +175,8 @@ class StructuredInpainter:
         """
         return {"name": self.name, "iterations": self.iterations,
                 "tolerance": self.tolerance, "lines": self.lines, "texture": self.texture,
-                "patch_radius": self.patch_radius,
+                "patch_radius": self.patch_radius, "smooth": self.smooth,
+                "textured": self.textured,
                 **{("pm_iterations" if k == "iterations" else k): v
                    for k, v in self.exemplar.items()},
                 **self.structure}
@@ -156,7 +206,12 @@ class StructuredInpainter:
         if self.texture > 0:
             tex = exemplar_fill(color, context, p.synthesis, radius=self.radius(p.scale),
                                 **self.exemplar)
-            color = color + self.texture * (tex - color)
+            amount = np.float32(self.texture)
+            if self.textured > 0:  # per pixel: texture only where the context has detail
+                amount = amount * texture_weight(p.color, context, p.synthesis,
+                                                 smooth=self.smooth,
+                                                 textured=self.textured)[..., None]
+            color = color + amount * (tex - color)
         return InpaintResult(color=np.clip(color, 0.0, 1.0), disparity=out[..., 3],
                              edges=lines.astype(np.float32))
 

@@ -6,10 +6,16 @@ along the outward direction (corners replicate the corner pixel). Links are
 replicated too: two border pixels are linked when their source pixels are the same
 or linked, so depth edges that reach the frame continue into the border instead of
 being stretched. Border pixels get label 5 (the authors' label for extrapolation).
+
+Their colours are then filled by :func:`fill_border` (the pipeline passes the fill,
+by default the ``structured`` inpainter, which carries the photo's lines and texture
+outward as the authors' inpainting of the frame does); their disparity stays the
+replicated one, so the links above hold.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import replace
 
 import numpy as np
@@ -72,3 +78,56 @@ def extend_border(ldi: LDI, border: int) -> LDI:
         label=np.concatenate([ldi.label, np.full(n_new, LABEL_BORDER, np.uint8)]),
         border=b,
     )
+
+
+BorderFill = Callable[[np.ndarray, np.ndarray, np.ndarray, np.ndarray], np.ndarray]
+"""``fill(color, disparity, context, synthesis) -> color``: every array on the padded
+lattice ``(H + 2b, W + 2b)``; ``color`` ``(.., 3) float32`` and ``disparity`` are zero
+outside ``context``; returns the ``(.., 3) float32`` colours (read under ``synthesis``)."""
+
+
+def fill_border(ldi: LDI, fill: BorderFill, *, context: int) -> LDI:
+    """Replace the colours of the border pixels of :func:`extend_border` by ``fill``'s.
+
+    Args:
+        ldi: the LDI :func:`extend_border` returned (nothing added since).
+        fill: see :data:`BorderFill`; it sees the photo's outer band only.
+        context: width of that band in pixels (at least 1).
+
+    Returns:
+        A new LDI whose border pixels have the filled colours (positions, disparity,
+        links and labels unchanged).
+
+    Example:
+        >>> from photo3d.stages.ldi import from_image
+        >>> img = np.zeros((4, 4, 3), np.float32); img[:, 2:] = 1.0
+        >>> ext = extend_border(from_image(img, np.ones((4, 4), np.float32)), 2)
+        >>> grey = lambda color, disparity, ctx, syn: np.full(color.shape, 0.5, np.float32)
+        >>> out = fill_border(ext, grey, context=1)
+        >>> float(out.color[16:].mean()), bool((out.color[:16] == ext.color[:16]).all())
+        (0.5, True)
+    """
+    b = ldi.border
+    if b == 0:
+        return ldi
+    h, w = ldi.height, ldi.width
+    hp, wp = h + 2 * b, w + 2 * b
+    n_in = h * w
+    ring = np.ones((hp, wp), bool)
+    ring[b:b + h, b:b + w] = False
+    if ldi.size != n_in + int(ring.sum()):
+        raise ValueError("fill_border needs the LDI extend_border returned")
+    band = np.zeros((hp, wp), bool)
+    band[b:b + h, b:b + w] = True
+    c = max(1, int(context))
+    band[b + c:b + h - c, b + c:b + w - c] = False
+    color = np.zeros((hp, wp, 3), np.float32)
+    disparity = np.zeros((hp, wp), np.float32)
+    color[b:b + h, b:b + w] = ldi.color[:n_in].reshape(h, w, 3)
+    disparity[b:b + h, b:b + w] = ldi.disparity[:n_in].reshape(h, w)
+    color[~band] = 0.0
+    disparity[~band] = 0.0
+    filled = np.asarray(fill(color, disparity, band, ring), np.float32)
+    new_color = ldi.color.copy()
+    new_color[n_in:] = np.clip(filled[ring], 0.0, 1.0)
+    return replace(ldi, color=new_color)
