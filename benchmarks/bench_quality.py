@@ -33,13 +33,13 @@ def main() -> None:
     args = parser.parse_args()
     methods = args.methods.split(",")
     real = run({"motorcycle": motorcycle_pair}, args.out / "quality" / "real",
-               methods=methods, weights=args.weights, progress=print)
+               methods=methods, weights=args.weights, overwrite=True, progress=print)
     synth = None
     if args.synthetic:
         synth = run({f"synthetic{i}": partial(synthetic_pair, i)
                      for i in range(args.synthetic)},
                     args.out / "quality" / "synthetic", methods=methods, weights=args.weights,
-                    progress=print)
+                    overwrite=True, progress=print)
     record = {"benchmark": "quality", "machine": machine_info(), "real": real,
               "synthetic": synth,
               "command": " ".join(["python", "benchmarks/bench_quality.py", *sys.argv[1:]])}

@@ -52,6 +52,7 @@ BENCHMARKS = [
     ["bench_viewer.py"],
     ["bench_memory.py"],
     ["bench_batch.py"],
+    ["bench_heldout.py"],
 ]
 
 
@@ -799,6 +800,8 @@ def main() -> None:
                      "python benchmarks/bench_memory.py"),
         section_json("batch.json", "Many photos: `photo3d batch` against a shell loop of `make`",
                      "python benchmarks/bench_batch.py"),
+        section_json("heldout.json", "Held-out fills: first-pass regions and the border on "
+                     "photos (issue 27)", "python benchmarks/bench_heldout.py"),
         section_light(load, machine_line, missing),
         (HERE / "history.md").read_text(),  # measurement history, written by hand
     ]

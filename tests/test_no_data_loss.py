@@ -189,6 +189,9 @@ def test_eval_overwrite_replaces_only_its_files(tmp_path, capsys, monkeypatch):
     assert (ev / "notes.txt").read_text() == "my notes"
     assert (ev / "grid_old.png").read_bytes() == b"an older grid"
     assert all((ev / n).stat().st_ino != i for n, i in old.items())  # replaced
+    loud = [a for a in EVAL if a != "-q"]
+    assert main([*loud, "-o", "ev", "--overwrite"]) == 0
+    assert "left as they were: grid_old.png, notes.txt" in capsys.readouterr().out
 
 
 def test_eval_into_an_empty_folder(tmp_path, capsys, monkeypatch):

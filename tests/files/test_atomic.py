@@ -333,15 +333,17 @@ def test_eval_reports(tmp_path, monkeypatch):
         raise OSError(errno.ENOSPC, "No space left on device")
 
     monkeypatch.setattr("photo3d.io.images.write_image", fails)
+    with pytest.raises(OutputError, match="exists and is not empty"):
+        report.run({"p": lambda: pair}, out, methods=["m"])  # a second run needs overwrite
     with pytest.raises(OutputError, match=r"grid_p.png: No space left on device"):
-        report.run({"p": lambda: pair}, out, methods=["m"])
+        report.run({"p": lambda: pair}, out, methods=["m"], overwrite=True)
     monkeypatch.undo()
     monkeypatch.setattr(os, "replace", _refuse)
     monkeypatch.setattr(report, "evaluate", lambda *a, **k: result)
     monkeypatch.setattr(report, "grid", lambda pair, result: np.ones((4, 4, 3), np.float32))
     monkeypatch.setattr(report, "table", lambda result: "| other |")
     with pytest.raises(OutputError, match="Input/output error"):
-        report.run({"p": lambda: pair}, out, methods=["m"])
+        report.run({"p": lambda: pair}, out, methods=["m"], overwrite=True)
     assert {n: (out / n).read_bytes() for n in names(out)} == before
 
 
@@ -355,8 +357,8 @@ def test_eval_refuses_an_unwritable_folder_before_evaluating(tmp_path, monkeypat
     (tmp_path / "file").write_text("a file")
     with pytest.raises(OutputError, match="cannot create the folder"):
         report.run({"p": refuse}, tmp_path / "file" / "eval")
-    with pytest.raises(OutputError, match="cannot write /proc/results.json"):
-        report.run({"p": refuse}, "/proc")
+    with pytest.raises(OutputError, match="/proc has no results.json of photo3d eval"):
+        report.run({"p": refuse}, "/proc", overwrite=True)
 
 
 def test_the_training_cache_index(tmp_path, monkeypatch):

@@ -107,18 +107,21 @@ def _text(name: str) -> str:
 
 def run(pairs: dict[str, Callable[[], StereoPair]], out: str | Path, *,
         methods: Sequence[str] = METHODS, weights=None, lpips: bool = True,
-        progress: Callable[[str], None] | None = None) -> dict:
+        overwrite: bool = False, progress: Callable[[str], None] | None = None) -> dict:
     """Evaluate ``methods`` on each pair (built lazily) and write ``out/``.
 
     Writes ``results.json`` (all scores, notes, timings), ``results.md`` (one table
     per pair and the mean over pairs) and ``grid_<pair>.png`` (crops where methods
     differ most), each atomically (:mod:`photo3d.files.atomic`), and nothing else;
-    see :func:`check_results_folder` for the check a command runs first. Returns the
+    ``out`` must be new or empty unless ``overwrite`` (then it must be a results
+    folder of photo3d eval, and only these files are replaced: see
+    :func:`check_results_folder`, checked here before the evaluation). Returns the
     JSON record.
 
     Raises:
-        OutputError: ``out`` cannot be created or written (checked before the
-            evaluation); files already there are kept as they were.
+        OutputError: ``out`` cannot be created or written, or is not empty (without
+            ``overwrite``) or not a results folder (checked before the evaluation);
+            files already there are kept as they were.
 
     Example:
         >>> import tempfile
@@ -132,7 +135,7 @@ def run(pairs: dict[str, Callable[[], StereoPair]], out: str | Path, *,
     """
     from photo3d.io.images import write_image
 
-    out = Path(out)
+    out = check_results_folder(out, overwrite=overwrite)
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as err:
