@@ -66,11 +66,12 @@ class RegionConfig:
     the photo exactly near depth edges)."""
     border: int = 60
     """Width of the extrapolated frame around the image (px at 1024; 0 = none)."""
-    border_fill: str = "structured"
-    """How the extrapolated frame gets its colours: an inpainting backend's name
-    (:func:`photo3d.inpaint.available`), which fills it from the photo's outer band
-    (``border_context`` wide), or ``replicate`` (the outermost pixels copied outward:
-    streaks). Its depth always continues the outermost pixels' depth."""
+    border_fill: str = "texture"
+    """How the extrapolated frame gets its colours, from the photo's outer band
+    (``border_context`` wide): ``texture`` (the photo's texture continued:
+    :func:`photo3d.inpaint.frame.fill_frame`), an inpainting backend's name
+    (:func:`photo3d.inpaint.available`), or ``replicate`` (the outermost pixels
+    copied outward: streaks). Its depth always continues the outermost pixels'."""
     border_context: int = 120
     """Width of the photo's outer band the border fill reads (px at 1024)."""
     max_passes: int = 3

@@ -14,6 +14,7 @@ from photo3d.depth.sources import describe_depth, read_photo
 from photo3d.errors import InputError
 from photo3d.inpaint import get_inpainter
 from photo3d.inpaint.base import Inpainter, Patch
+from photo3d.inpaint.frame import fill_frame
 from photo3d.io.depth import read_depth
 from photo3d.io.images import MIN_SIDE
 from photo3d.photo import Photo3D
@@ -162,8 +163,13 @@ def make(
 
 
 def _border_fill(name: str, backend: Inpainter, scale: float):
-    """The :data:`~photo3d.stages.border.BorderFill` of the backend ``name`` (the
-    pipeline's own backend when the names match): one patch, the frame."""
+    """The :data:`~photo3d.stages.border.BorderFill` called ``name``: ``texture``
+    (:func:`photo3d.inpaint.frame.fill_frame`) or an inpainting backend's (the
+    pipeline's own when the names match) run on one patch, the frame."""
+    if name == "texture":
+        radius = max(2, round(1.5 * scale))
+        return lambda color, disparity, context, synthesis: fill_frame(
+            color, disparity, context, synthesis, radius=radius)
     fill = backend if name == backend.name else get_inpainter(name)
 
     def run(color, disparity, context, synthesis):

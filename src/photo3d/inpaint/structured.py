@@ -9,7 +9,10 @@ The classical counterpart of the paper's edge-then-colour order. Per patch:
    boundary stays sharp; the line pixels themselves are filled last, from both sides;
 3. texture: every synthesis pixel copies the centre of the context patch that best
    matches its neighbourhood, the step-2 colours included in the match so sources come
-   from the matching side (:mod:`photo3d.inpaint.exemplar`, PatchMatch).
+   from the matching side (:mod:`photo3d.inpaint.exemplar`, PatchMatch); a pixel takes
+   that texture in proportion to the detail of the context next to it
+   (:func:`texture_weight`): where the context is smooth (sky, walls, out-of-focus
+   background) the truth is smooth too and the step-2 colours stay.
 
 Disparity is the step-2 result (no texture is added to depth). The continued lines
 are the result's ``edges``: where the disparity steps across one, the merge tears the
@@ -129,8 +132,10 @@ class StructuredInpainter:
     lattice pixels), ``pm_iterations``, ``em_steps``, ``guide_weight``, ``copy``
     (:func:`~photo3d.inpaint.exemplar.exemplar_fill`); ``support_factor``,
     ``coherence`` and any other keyword of
-    :func:`~photo3d.inpaint.continuation.continue_edges`; ``workers`` (threads; the
-    kernels release the GIL).
+    :func:`~photo3d.inpaint.continuation.continue_edges`; ``smooth`` and ``textured``
+    (:func:`texture_weight`: texture only where the context next to a pixel has
+    detail, so a smooth context gets the smooth fill; ``textured=0`` copies texture
+    everywhere); ``workers`` (threads; the kernels release the GIL).
 
     Example:
         >>> from photo3d.inpaint import get_inpainter
@@ -151,7 +156,7 @@ class StructuredInpainter:
                  workers: int | None = None, lines: bool = True, texture: float = 1.0,
                  patch_radius: float = 1.5, pm_iterations: int = 3, em_steps: int = 1,
                  guide_weight: float = 0.5, copy: bool = True, support_factor: float = 1.0,
-                 coherence: float = 0.8, smooth: float = 0.0, textured: float = 0.0,
+                 coherence: float = 0.8, smooth: float = 0.003, textured: float = 0.012,
                  **structure) -> None:
         self.lines = lines
         self.texture = texture
