@@ -35,7 +35,7 @@ LAYERS = {
     # 9: what runs make many times
     "photo3d.eval": 9, "photo3d.train": 9, "photo3d.batch": 9,
     # 10: the command line
-    "photo3d.cli": 10, "photo3d.__main__": 10,
+    "photo3d.cli": 10, "photo3d.__main__": 10, "photo3d.ui": 10,
 }
 
 

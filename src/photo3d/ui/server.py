@@ -1,0 +1,215 @@
+"""Start and stop the ``photo3d ui`` server (what the command line runs).
+
+:func:`start` checks the options (:func:`~photo3d.ui.options.check_host`), creates
+the requests' workspace inside Gradio's upload folder (so results are served
+without a copy), starts the warm-up and the TTL sweeper, builds the page
+(:func:`photo3d.ui.page.build_app`) and launches it in background threads; it
+returns a :class:`UiServer` once the address answers. :meth:`UiServer.close`
+stops running requests (their partial output is removed), the server and the
+sweeper, and removes every file the server wrote. The library never prints: the
+command line prints :attr:`UiServer.url`.
+
+Safe defaults (docs/ui.md): loopback only unless a login is given, no public
+share link, no telemetry, no monitoring or MCP endpoints, uploads limited in
+bytes, and a bounded queue.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import secrets
+import socket
+import threading
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import TypeVar
+
+from photo3d.errors import ConfigError
+from photo3d.ui.options import UiOptions, check_host, url_of
+from photo3d.ui.runner import Runner
+from photo3d.ui.warmup import Warmup
+from photo3d.ui.workspace import Workspace
+
+T = TypeVar("T")
+
+
+class UiServer:
+    """A running ``photo3d ui`` (a context manager that closes it).
+
+    Attributes:
+        url: the page's address, e.g. ``http://127.0.0.1:7860/``.
+        options: what it was started with (``port`` is the real one).
+        warmup: the warm-up (:class:`~photo3d.ui.warmup.Warmup`).
+        workspace: the requests' folders (:class:`~photo3d.ui.workspace.Workspace`).
+    """
+
+    def __init__(self, demo, options: UiOptions, runner: Runner, warmup: Warmup,
+                 workspace: Workspace) -> None:
+        self.demo = demo
+        self.options = options
+        self.runner = runner
+        self.warmup = warmup
+        self.workspace = workspace
+        self.url = url_of(options.host, options.port)
+        self._closed = False
+
+    def wait(self) -> None:
+        """Block until the server stops (Ctrl-C in the main thread interrupts it)."""
+        while self.demo.is_running:
+            time.sleep(0.2)
+
+    def close(self, timeout: float = 10.0) -> None:
+        """Stop requests (waiting up to ``timeout`` seconds), the server, the sweeper,
+        and remove every file the server wrote. Idempotent."""
+        if self._closed:
+            return
+        self._closed = True
+        try:
+            self.runner.stop(timeout)
+            self.demo.close(verbose=False)
+        finally:
+            self.workspace.close()
+
+    def __enter__(self) -> UiServer:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+def start(options: UiOptions | None = None) -> UiServer:
+    """Start ``photo3d ui`` in background threads and return once it answers.
+
+    Args:
+        options: :class:`~photo3d.ui.options.UiOptions` (default: 127.0.0.1:7860,
+            one worker, no login).
+
+    Returns:
+        The running :class:`UiServer`; close it (or use it in a ``with`` block).
+
+    Raises:
+        ConfigError: a non-loopback host without a login, or the port is taken.
+        MissingExtra: Gradio is not installed (``pip install 'photo3d[ui]'``).
+    """
+    options = options or UiOptions()
+    check_host(options.host, options.auth)
+    port = options.port or _free_port(options.host)
+    _check_port(options.host, port)  # before Gradio tries, which leaks its loop when it fails
+    options = _with_port(options, port)
+    from photo3d.ui.page import CSS, build_app, load_gradio, theme
+
+    load_gradio()  # MissingExtra before anything is created
+    overlap = _thread_safe_kernels()
+    if options.workers > 1 and not overlap:
+        raise ConfigError(f"--workers {options.workers} needs numba's OpenMP or TBB "
+                          "threading layer (install libgomp1, or pip install tbb), or use "
+                          "--workers 1")
+    from gradio.utils import get_upload_folder
+
+    upload_root = Path(get_upload_folder())
+    upload_root.mkdir(parents=True, exist_ok=True)
+    workspace = Workspace(upload_root / f"photo3d-ui-{secrets.token_hex(8)}", ttl=options.ttl)
+    try:
+        warmup = Warmup(workspace.root / "warmup")
+        (warmup.start if options.warmup else warmup.skip)()
+        workspace.start_sweeper()
+        runner = Runner(workspace, warmup, upload_root=upload_root,
+                        max_bytes=options.max_upload_bytes, overlap=overlap)
+        demo = _in_own_loop(lambda: _launch(
+            build_app(runner, warmup, workers=options.workers, ttl=options.ttl), options,
+            CSS, theme()))
+    except BaseException:
+        workspace.close()
+        raise
+    return UiServer(demo, options, runner, warmup, workspace)
+
+
+def _launch(demo, options: UiOptions, css: str, theme):
+    """Gradio's queue and server with photo3d's safe settings (no share link, no
+    monitoring or MCP endpoints, no run history, uploads limited in bytes)."""
+    demo.queue(default_concurrency_limit=options.workers, max_size=options.max_queue)
+    try:
+        demo.launch(server_name=options.host, server_port=options.port, auth=options.auth,
+                    share=False, prevent_thread_lock=True, quiet=True, inbrowser=False,
+                    show_error=False, max_file_size=options.max_upload_bytes,
+                    footer_links=["api"], enable_monitoring=False, mcp_server=False,
+                    ssr_mode=False, pwa=False, run_history=False, theme=theme, css=css)
+    except OSError as err:
+        raise ConfigError(f"cannot listen on {options.host}:{options.port}: "
+                          f"{getattr(err, 'strerror', None) or 'the port is taken'}; "
+                          "choose another --port") from None
+    return demo
+
+
+def _in_own_loop(fn: Callable[[], T]) -> T:
+    """``fn()``, run in a helper thread inside a running event loop that is closed
+    afterwards: each Gradio app sets up a new event loop in the calling thread when
+    none runs there, and never closes it (two ResourceWarnings per app)."""
+    outcome: list = []
+
+    def target() -> None:
+        async def main():
+            return fn()
+
+        try:
+            outcome.append((True, asyncio.run(main())))
+        except BaseException as err:  # handed to the caller's thread
+            outcome.append((False, err))
+
+    thread = threading.Thread(target=target, name="photo3d-ui-launch")
+    thread.start()
+    thread.join()
+    ok, value = outcome[0]
+    if not ok:
+        raise value
+    return value
+
+
+def _thread_safe_kernels() -> bool:
+    """Have numba run parallel kernels of several threads at once (several workers,
+    or a request beside the warm-up) if it can: its OpenMP and TBB threading layers
+    can, its fallback cannot (it aborts the process). Returns whether it can."""
+    import importlib
+
+    import numba
+
+    try:
+        return numba.threading_layer() != "workqueue"  # already chosen in this process
+    except ValueError:  # not chosen yet: choose a thread-safe one if there is one
+        pass
+    for layer in ("tbbpool", "omppool"):
+        try:
+            importlib.import_module(f"numba.np.ufunc.{layer}")
+        except ImportError:
+            continue
+        if numba.config.THREADING_LAYER == "default":
+            numba.config.THREADING_LAYER = "threadsafe"
+        return numba.config.THREADING_LAYER in ("threadsafe", "tbb", "omp", "safe")
+    return False
+
+
+def _with_port(options: UiOptions, port: int) -> UiOptions:
+    from dataclasses import replace
+
+    return replace(options, port=port)
+
+
+def _check_port(host: str, port: int) -> None:
+    """Raise ConfigError if ``host:port`` cannot be listened on now."""
+    family = socket.AF_INET6 if ":" in host else socket.AF_INET
+    with socket.socket(family, socket.SOCK_STREAM) as s:
+        s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)  # as the server will
+        try:
+            s.bind((host.strip("[]"), port))
+        except OSError as err:
+            raise ConfigError(f"cannot listen on {host}:{port}: {err.strerror or err}; "
+                              "choose another --port (or --host)") from None
+
+
+def _free_port(host: str) -> int:
+    """A TCP port free on ``host`` now (it may be taken again before it is used)."""
+    family = socket.AF_INET6 if ":" in host else socket.AF_INET
+    with socket.socket(family, socket.SOCK_STREAM) as s:
+        s.bind((host.strip("[]"), 0))
+        return s.getsockname()[1]

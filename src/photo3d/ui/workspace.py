@@ -1,0 +1,171 @@
+"""Per-request temporary folders that expire, and the check of every uploaded file.
+
+Each request of ``photo3d ui`` works in its own folder under one root
+(:class:`Workspace`): the 3D photo folder, the depth preview and the zip are
+written there and served from there. A folder is kept ``ttl`` seconds after its
+request ends (so the page's download links keep working), then removed by a
+background sweeper; everything is removed when the server stops.
+
+Uploads are never opened by a path the client chose: :func:`check_upload` accepts
+only a regular file inside the upload folder the server created (not a link, not
+inside another request's folder) and within the byte limit.
+
+Example:
+    >>> import tempfile
+    >>> ws = Workspace(Path(tempfile.mkdtemp()) / "ws", ttl=60)
+    >>> with ws.request() as folder:
+    ...     _ = (folder / "a.txt").write_text("hi")
+    >>> ws.sweep(now=ws.clock() + 61)
+    1
+    >>> folder.exists(); ws.close()
+    False
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import stat
+import tempfile
+import threading
+import time
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from pathlib import Path
+
+from photo3d.errors import InputError, OutputError
+
+
+class Workspace:
+    """A root folder holding one temporary folder per request, each removed ``ttl``
+    seconds after its request ends.
+
+    Args:
+        root: the folder to create (must not exist) and own; removed by :meth:`close`.
+        ttl: seconds a finished request's folder is kept.
+        clock: the time source (``time.monotonic``; tests pass a fake one).
+
+    Thread-safe: requests, the sweeper and :meth:`close` may run in any threads.
+    """
+
+    def __init__(self, root: str | os.PathLike[str], *, ttl: float,
+                 clock: Callable[[], float] = time.monotonic) -> None:
+        self.root = Path(root)
+        self.ttl = float(ttl)
+        self.clock = clock
+        try:
+            self.root.mkdir(mode=0o700, parents=True)
+        except OSError as err:
+            raise OutputError(f"cannot create the working folder {self.root}: "
+                              f"{err.strerror or err}") from None
+        self._lock = threading.Lock()
+        self._busy: set[Path] = set()
+        self._expires: dict[Path, float] = {}
+        self._stop = threading.Event()
+        self._sweeper: threading.Thread | None = None
+
+    @contextmanager
+    def request(self) -> Iterator[Path]:
+        """A new, empty folder for one request (``0700``); its ``ttl`` starts when the
+        ``with`` block ends, also on an error."""
+        folder = Path(tempfile.mkdtemp(prefix="request-", dir=self.root))
+        with self._lock:
+            self._busy.add(folder)
+        try:
+            yield folder
+        finally:
+            with self._lock:
+                self._busy.discard(folder)
+                self._expires[folder] = self.clock() + self.ttl
+
+    def sweep(self, now: float | None = None) -> int:
+        """Remove the folders of finished requests whose ``ttl`` has passed; returns
+        how many were removed."""
+        now = self.clock() if now is None else now
+        with self._lock:
+            due = [f for f, end in self._expires.items() if end <= now and f not in self._busy]
+            for folder in due:
+                del self._expires[folder]
+        for folder in due:
+            shutil.rmtree(folder, ignore_errors=True)  # already gone: nothing to do
+        return len(due)
+
+    def start_sweeper(self, every: float | None = None) -> None:
+        """Sweep every ``every`` seconds (default: a quarter of ``ttl``, at most a
+        minute) in a daemon thread until :meth:`close`."""
+        interval = every if every is not None else min(60.0, max(self.ttl / 4, 0.5))
+
+        def loop() -> None:
+            while not self._stop.wait(interval):
+                self.sweep()
+
+        self._sweeper = threading.Thread(target=loop, name="photo3d-ui-sweeper", daemon=True)
+        self._sweeper.start()
+
+    def contains(self, path: str | os.PathLike[str]) -> bool:
+        """True if ``path`` (resolved) lies inside the root."""
+        return Path(os.path.realpath(path)).is_relative_to(os.path.realpath(self.root))
+
+    def close(self) -> None:
+        """Stop the sweeper and remove the root with everything in it."""
+        self._stop.set()
+        if self._sweeper is not None:
+            self._sweeper.join()
+        for _ in range(3):  # a request still finishing may add a file meanwhile
+            shutil.rmtree(self.root, ignore_errors=True)
+            if not self.root.exists():
+                break
+            time.sleep(0.2)
+
+
+def check_upload(path: str | os.PathLike[str], *, upload_root: str | os.PathLike[str],
+                 workspace: Workspace | None = None, max_bytes: int,
+                 what: str = "photo") -> Path:
+    """The uploaded file at ``path``, after checking that the server created it.
+
+    Args:
+        path: the file the web framework handed over for an upload.
+        upload_root: the folder uploads are stored in; ``path`` must lie inside it.
+        workspace: the requests' folders, which ``path`` must not lie in (another
+            request's results are not an upload).
+        max_bytes: largest size accepted.
+        what: the input's name for messages (``"photo"``, ``"depth map"``).
+
+    Returns:
+        ``path`` resolved.
+
+    Raises:
+        InputError: outside ``upload_root``, inside ``workspace``, a symbolic link,
+            not a regular file, or larger than ``max_bytes``.
+
+    Example:
+        >>> import tempfile
+        >>> root = Path(tempfile.mkdtemp()); _ = (root / "p.png").write_bytes(b"x" * 10)
+        >>> check_upload(root / "p.png", upload_root=root, max_bytes=100).name
+        'p.png'
+        >>> check_upload("/etc/passwd", upload_root=root, max_bytes=100)
+        Traceback (most recent call last):
+        photo3d.errors.InputError: the photo was not uploaded to this server
+    """
+    given = Path(path)
+    real = Path(os.path.realpath(given))
+    inside = real.is_relative_to(os.path.realpath(upload_root))
+    if not inside or (workspace is not None and workspace.contains(real)):
+        raise InputError(f"the {what} was not uploaded to this server")
+    try:
+        info = os.lstat(given)
+    except OSError:
+        raise InputError(f"the {what} upload is gone (uploads expire; send it again)") from None
+    if stat.S_ISLNK(info.st_mode):
+        raise InputError(f"the {what} upload is a symbolic link")
+    if not stat.S_ISREG(info.st_mode):
+        raise InputError(f"the {what} upload is not a regular file")
+    if info.st_size > max_bytes:
+        raise InputError(f"the {what} is {_size(info.st_size)}; this server accepts at most "
+                         f"{_size(max_bytes)}")
+    return real
+
+
+def _size(n: int) -> str:
+    """``n`` bytes for people: ``'200.0 MB'``, ``'512 bytes'``."""
+    return f"{n / 2**20:.1f} MB" if n >= 2**20 else f"{n:,} bytes"
