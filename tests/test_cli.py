@@ -244,4 +244,4 @@ def test_make_says_where_the_depth_came_from_and_records_it(files, capsys):
     meta = json.loads((out / "config.json").read_text())
     assert meta["depth_source"] == source and meta["config"]["depth_kind"] == "depth"
     assert meta["save"]["viewer"] is False and meta["save"]["videos"] == []
-    assert meta["inpainter"]["name"] == "diffusion"
+    assert meta["inpainter"]["name"] == "structured"  # the default

@@ -17,7 +17,7 @@ from photo3d.folder import MakeOptions, make_folder, output_bytes, prepare
 from photo3d.render.animate import VideoSpec
 from photo3d.render.renderer import RenderSettings
 
-BASE = MakeOptions(config=Config(size=None))
+BASE = MakeOptions(config=Config(size=None, inpainter="diffusion"))
 VIDEO = (VideoSpec(path="circle", size=(32, 24), frames=2),)
 
 # One change per MakeOptions field, and where config.json shows it. A field missing

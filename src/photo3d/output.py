@@ -196,7 +196,7 @@ def photo_meta(photo: SavedPhoto, *, ply: str | None = "binary", glb: bool = Tru
         >>> list(meta)
         ['config', 'inpainter', 'depth_source', 'save', 'stats', 'timings', 'written']
         >>> meta["save"]["glb"], meta["inpainter"]["name"]
-        ('full', 'diffusion')
+        ('full', 'structured')
     """
     save = {"ply": ply, "glb": ("full" if full_glb else "light") if glb else None,
             "light_error": light_error, "viewer": viewer,

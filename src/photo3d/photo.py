@@ -133,7 +133,7 @@ def load(path: str | Path) -> Photo3D:
         >>> tmp = photo.save(pathlib.Path(tempfile.mkdtemp()) / "out", glb=False, ply=None)
         >>> back = photo3d.load(tmp)
         >>> back.ldi.size == photo.ldi.size, back.inpainter["name"], back.depth_source
-        (True, 'diffusion', 'depth array (disparity)')
+        (True, 'structured', 'depth array (disparity)')
     """
     from photo3d.output import read_folder
 

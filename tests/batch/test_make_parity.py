@@ -32,7 +32,7 @@ NOT_BATCH = {
 """``make`` options that are not ``MakeOptions`` (``dest`` -> why)."""
 
 VALUES = {
-    "size": ["64"], "inpainter": ["structured"], "depth_model": ["some/model"],
+    "size": ["64"], "inpainter": ["diffusion"], "depth_model": ["some/model"],
     "paths": ["circle"], "video_size": ["32x24"], "fps": ["10"], "frames": ["3"],
     "ssaa": ["1"], "eye_separation": ["0.02"], "weights": ["{weights}"],
 }

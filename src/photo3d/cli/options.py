@@ -114,7 +114,7 @@ def add_make_options(p: argparse.ArgumentParser, *, out_required: bool,
                    help="named configuration (default: %(default)s)")
     p.add_argument("--size", type=int, help="longer side of the working image in pixels "
                    "(default 1024; 0 keeps the input size)")
-    p.add_argument("--inpainter", help="inpainting backend: diffusion (default), structured "
+    p.add_argument("--inpainter", help="inpainting backend: structured (default), diffusion "
                    "or learned")
     p.add_argument("--weights", type=weights_arg, metavar="DIR|authors",
                    help="weights of the learned inpainter: a folder with the authors' "

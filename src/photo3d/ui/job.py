@@ -77,7 +77,7 @@ class JobOptions:
     """
 
     size: int = 1024
-    fill: str = "diffusion"
+    fill: str = "structured"
     source: str = "auto"
     depth_kind: str = "disparity"
     videos: bool = True

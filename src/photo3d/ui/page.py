@@ -108,7 +108,7 @@ def build_app(runner: Runner, warmup: Warmup, *, workers: int = 1,
                     size = gr.Slider(0, 2048, value=1024, step=64,
                                      label="Working size (px, longer side; 0 keeps the "
                                            "photo's size)", elem_id="photo3d-size")
-                    fill = gr.Radio(list(FILLS), value="diffusion", label="Fill")
+                    fill = gr.Radio(list(FILLS), value="structured", label="Fill")
                     source = gr.Radio(list(SOURCES), value="auto", label="Depth source "
                                       "(auto: the depth map, else the right view, else the "
                                       "photo's own, else the depth model)")
@@ -134,7 +134,7 @@ def build_app(runner: Runner, warmup: Warmup, *, workers: int = 1,
 
         inputs = [photo, depth, right, size, fill, source, depth_kind, videos, paths, ply]
 
-        def make_page(photo, depth=None, right=None, size=1024, fill="diffusion",
+        def make_page(photo, depth=None, right=None, size=1024, fill="structured",
                       source="auto", depth_kind="disparity", videos=True, paths=("circle",),
                       ply=False, progress=gr.Progress()):  # noqa: B008 - Gradio's way
             try:
@@ -155,7 +155,7 @@ def build_app(runner: Runner, warmup: Warmup, *, workers: int = 1,
                 kept = (gr.skip(),) * 5 if shown else (None,) * 5
                 yield *kept, f"Error: {err}"
 
-        def make(photo, depth=None, right=None, size=1024, fill="diffusion", source="auto",
+        def make(photo, depth=None, right=None, size=1024, fill="structured", source="auto",
                  depth_kind="disparity", videos=True, paths=("circle",), ply=False,
                  progress=gr.Progress()):  # noqa: B008 - Gradio's way
             try:
