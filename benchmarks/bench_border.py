@@ -53,9 +53,21 @@ def main() -> None:
     for f, m in mean.items():
         print(f"{f:12s} LPIPS {m['lpips']:.4f} PSNR {m['psnr']:.2f} SSIM {m['ssim']:.3f}")
     record = {"benchmark": "border", "machine": machine_info(), "folder": str(args.folder),
-              "mean": mean, "photos": per,
+              "mean": mean, "photos": per, "markdown": table(mean, len(per[fills[0]])),
               "command": " ".join(["python", "benchmarks/bench_border.py", *sys.argv[1:]])}
     args.out.write_text(json.dumps(record, indent=1))
+
+
+def table(mean: dict[str, dict[str, float]], photos: int) -> str:
+    """The means as a markdown table, replication first as the reference."""
+    ref = mean.get("replicate")
+    rows = ["| border fill | ring LPIPS | vs replicate | ring PSNR | ring SSIM |",
+            "| --- | --- | --- | --- | --- |"]
+    for fill, m in mean.items():
+        change = f"{100 * (m['lpips'] / ref['lpips'] - 1):+.1f} %" if ref else ""
+        rows.append(f"| {fill} | {m['lpips']:.4f} | {change} | {m['psnr']:.2f} | "
+                    f"{m['ssim']:.3f} |")
+    return "\n".join(rows) + f"\n\nMean over {photos} photos.\n"
 
 
 if __name__ == "__main__":

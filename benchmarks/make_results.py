@@ -53,6 +53,7 @@ BENCHMARKS = [
     ["bench_memory.py"],
     ["bench_batch.py"],
     ["bench_heldout.py"],
+    ["bench_border.py"],
 ]
 
 
@@ -802,6 +803,13 @@ def main() -> None:
                      "python benchmarks/bench_batch.py"),
         section_json("heldout.json", "Held-out fills: first-pass regions and the border on "
                      "photos (issue 27)", "python benchmarks/bench_heldout.py"),
+        section_json("heldout_debian.json", "Held-out fills on the held-out split of the "
+                     "photo set (issue 27: the default chosen here)",
+                     "python benchmarks/bench_heldout.py --folder data/photos/heldout "
+                     "--methods diffusion,structured,replicate --out "
+                     "benchmarks/results/heldout_debian.json"),
+        section_json("border.json", "The frame beyond the photo, end to end (issue 27)",
+                     "python benchmarks/bench_border.py"),
         section_light(load, machine_line, missing),
         (HERE / "history.md").read_text(),  # measurement history, written by hand
     ]
