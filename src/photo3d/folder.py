@@ -150,7 +150,7 @@ def prepare(options: MakeOptions) -> Inpainter:
 
     Example:
         >>> prepare(MakeOptions(config=Config(size=256))).name
-        'diffusion'
+        'structured'
     """
     from photo3d.resources import check_memory
 
