@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import sys
 
 
 def add_parser(sub) -> None:
@@ -51,4 +52,9 @@ def run(args: argparse.Namespace) -> int:
     finally:
         server.close()
     print("photo3d ui: stopped", flush=True)
+    if not server.warmup.finished:
+        # A cold warm-up compiles for minutes in pool threads the interpreter would join
+        # at exit; its folder is already removed, so end the process now.
+        sys.stderr.flush()
+        os._exit(0)
     return 0

@@ -54,6 +54,11 @@ class Warmup:
             self._started = True
             threading.Thread(target=self._run, name="photo3d-ui-warmup", daemon=True).start()
 
+    @property
+    def finished(self) -> bool:
+        """True once the warm-up has ended (done, failed or skipped)."""
+        return self._done.is_set()
+
     def skip(self) -> None:
         """Mark the warm-up done without running it."""
         self._started = self._skipped = True
