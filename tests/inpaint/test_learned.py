@@ -597,3 +597,62 @@ def test_random_nets_do_not_make_later_passes_explode(seed, monkeypatch):
     now, before = edges(True), edges(False)
     assert all(b < a for a, b in zip(now, now[1:], strict=False)), now
     assert before[1] > 2 * before[0]  # what the rules prevent (the test can fail)
+
+
+def refine_nets(seed: int | None = None) -> InpaintingNets:
+    """Random compact edge and depth nets and a tiny refine colour net (fresh: zero
+    residual; with ``seed``: every parameter random)."""
+    nets = random_nets(0)
+    color = build_net("color", arch="refine", channels=4, levels=2, blocks=1).eval()
+    if seed is not None:
+        g = torch.Generator().manual_seed(seed)
+        with torch.no_grad():
+            for p in color.parameters():
+                p.copy_(torch.randn(p.shape, generator=g) * 0.3)
+    return dataclasses.replace(nets, color=color)
+
+
+@pytest.mark.parametrize("size", [(40, 56), (600, 640)])  # the second is shrunk
+def test_a_fresh_refine_net_gives_the_diffusion_fill(size):
+    p = make_patch(*size, split=size[1] // 2, edge_col=False)
+    diffusion = get_inpainter("diffusion").inpaint([p])[0]
+    r = LearnedInpainter(nets=refine_nets()).inpaint([p])[0]
+    np.testing.assert_allclose(r.color[p.synthesis], diffusion.color[p.synthesis], atol=1e-6)
+
+
+@pytest.mark.parametrize("size", [(40, 56), (600, 640)])
+def test_a_refine_net_adds_its_residual_to_the_diffusion_fill(size):
+    p = make_patch(*size, split=size[1] // 2, edge_col=False)  # no edges: see fill_colors
+    diffusion = get_inpainter("diffusion").inpaint([p])[0]
+    inp = LearnedInpainter(nets=refine_nets(seed=1))
+    r = inp.inpaint([p])[0]
+    assert r.color.shape == (*size, 3) and np.isfinite(r.color).all()
+    assert 0 <= r.color.min() and r.color.max() <= 1
+    change = np.abs(r.color - diffusion.color)[p.synthesis].mean()
+    assert change > 1e-3
+    # the colour path alone (fill_colors, the held-out score's) gives the same colours
+    alone = inp.fill_colors([p])[0]
+    np.testing.assert_allclose(alone[p.synthesis], r.color[p.synthesis], atol=1e-6)
+
+
+def test_make_with_a_refine_weights_folder(tmp_path):
+    from photo3d.cli import main
+    from photo3d.io.images import write_image
+
+    weights = tmp_path / "weights"
+    weights.mkdir()
+    nets = refine_nets(seed=2)
+    for kind in ("edge", "depth", "color"):
+        save_safetensors(getattr(nets, kind), weights / f"{kind}.safetensors",
+                         dtype=torch.float16 if kind == "color" else None)
+    img, disp = two_planes(64, 96)
+    write_image(tmp_path / "photo.png", img)
+    np.save(tmp_path / "depth.npy", disp)
+    out = tmp_path / "out"
+    assert main(["make", str(tmp_path / "photo.png"), "--depth", str(tmp_path / "depth.npy"),
+                 "-o", str(out), "--size", "96", "--no-video", "--no-viewer",
+                 "--inpainter", "learned", "--weights", str(weights), "-q"]) == 0
+    import json
+
+    meta = json.loads((out / "config.json").read_text())
+    assert meta["stats"]["pixels_added"][0] > 0

@@ -31,24 +31,49 @@ def add_parser(sub) -> None:
                       help="working size (longer side) of region growth (default 4 x --size)")
     data.add_argument("--builtin-scenes", type=int, default=48, metavar="N",
                       help="synthetic scenes in --images builtin (default 48)")
+    data.add_argument("--shape-scenes", type=int, metavar="N",
+                      help="photos without any depth map: region shapes from N synthetic "
+                           "scenes (default 12)")
     tr.add_argument("-o", "--out", type=Path, required=True, metavar="RUN_DIR",
                     help="run folder: checkpoints, losses.csv, samples/, <kind>.safetensors")
     tr.add_argument("--steps", type=int, help="optimisation steps in total (default 1000)")
     tr.add_argument("--batch", type=int, help="samples per step (default 8, the paper's)")
     tr.add_argument("--size", type=int, help="crop side in pixels (default 256)")
     net = tr.add_argument_group("architecture (compact variants)")
+    net.add_argument("--arch", choices=["partialconv", "refine"],
+                     help="colour net: the paper's partial-convolution U-Net (default) or "
+                          "refine, a residual over the diffusion fill")
     net.add_argument("--width", type=float, help="channel multiplier (default 1.0 = authors')")
-    net.add_argument("--levels", type=int, help="U-Net levels, depth/color (default 7)")
-    net.add_argument("--blocks", type=int, help="residual blocks, edge (default 8)")
+    net.add_argument("--channels", type=int,
+                     help="refine net: channels at its finest level (default 16)")
+    net.add_argument("--levels", type=int,
+                     help="U-Net levels, depth/color (default 7; refine 4)")
+    net.add_argument("--blocks", type=int,
+                     help="residual blocks, edge (default 8) or refine (default 4)")
+    net.add_argument("--no-edges", dest="edges", action="store_false", default=None,
+                     help="refine net: ignore the edge channel (photos without depth "
+                          "never show it one)")
     opt = tr.add_argument_group("optimisation")
     opt.add_argument("--lr", type=float, help="Adam learning rate (default 1e-4)")
     opt.add_argument("--seed", type=int, help="random seed (default 0)")
     opt.add_argument("--gan", choices=["nsgan", "hinge"],
                      help="edge net adversarial loss (default nsgan)")
+    opt.add_argument("--adversarial", type=float, metavar="W",
+                     help="refine net: weight of a PatchGAN hinge loss (default 0: none; "
+                          "may be turned on when resuming)")
     opt.add_argument("--checkpoint-every", type=int, metavar="K",
                      help="checkpoint every K steps (default 500)")
     opt.add_argument("--sample-every", type=int, metavar="K",
                      help="sample grid every K steps (default 500)")
+    held = tr.add_argument_group("held-out score (colour net)")
+    held.add_argument("--heldout", type=Path, metavar="DIR",
+                      help="photos never trained on: the net is scored on them (LPIPS, "
+                           "PSNR, SSIM inside pasted regions, as photo3d eval --heldout) "
+                           "into RUN_DIR/heldout.csv")
+    held.add_argument("--heldout-photos", type=int, default=24, metavar="N",
+                      help="score the first N photos of --heldout (default 24)")
+    held.add_argument("--heldout-every", type=int, metavar="K",
+                      help="score every K steps (default 250)")
     tr.add_argument("--device", help="torch device, e.g. cpu or cuda (default: CUDA if any)")
     tr.add_argument("--threads", type=int, metavar="N",
                     help="CPU threads of torch (default: torch's choice; 1 is much faster for "
@@ -57,8 +82,9 @@ def add_parser(sub) -> None:
     tr.set_defaults(run=run)
 
 
-_TRAIN_OPTIONS = ("width", "levels", "blocks", "size", "batch", "steps", "lr", "seed",
-                  "region_size", "depth_kind", "gan", "checkpoint_every", "sample_every")
+_TRAIN_OPTIONS = ("arch", "width", "channels", "levels", "blocks", "edges", "size", "batch",
+                  "steps", "lr", "seed", "region_size", "depth_kind", "gan", "adversarial",
+                  "checkpoint_every", "sample_every", "heldout_every")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -82,6 +108,8 @@ def run(args: argparse.Namespace) -> int:
         raise ConfigError(f"unknown torch device {args.device!r} (try cpu or cuda)") from None
     if device is not None and device.type == "cuda" and not torch.cuda.is_available():
         raise ConfigError("--device cuda: no CUDA device is available")
+    if args.shape_scenes is not None and args.shape_scenes < 0:
+        raise ConfigError(f"--shape-scenes must be at least 0, got {args.shape_scenes}")
     if args.threads is not None:
         if args.threads < 1:
             raise ConfigError(f"--threads must be at least 1, got {args.threads}")
@@ -110,11 +138,21 @@ def run(args: argparse.Namespace) -> int:
         files = find_training_files(Path(args.images), depth=args.depth, shapes=args.shapes)
         open_run(run, config)  # marks the folder as a run before the data is prepared
     with bar(100, "prepare") as b:
+        shapes = {} if args.shape_scenes is None else {"builtin_shapes": args.shape_scenes}
         data = prepare_data(files, crop=config.size, region_size=config.working_size,
                             depth_kind=config.depth_kind, seed=config.seed,
-                            cache=run / "data",
+                            cache=run / "data", **shapes,
                             progress=lambda _, f: b.update(round(100 * f) - b.n))
     data.check(config.kind)
+    heldout = None
+    if args.heldout is not None:
+        if config.kind != "color":
+            raise ConfigError("--heldout scores the colour net only")
+        if args.heldout_photos < 1:
+            raise ConfigError(f"--heldout-photos must be at least 1, got {args.heldout_photos}")
+        from photo3d.train.heldout import HeldoutSet
+
+        heldout = HeldoutSet.from_folder(args.heldout, photos=args.heldout_photos)
     sources = len({p.source for p in data.pool})
     say(f"data: {len(data)} photos ({int(data.has_depth.sum())} with depth), "
         f"{len(data.pool)} region pairs from {sources} depth maps")
@@ -132,7 +170,7 @@ def run(args: argparse.Namespace) -> int:
             b.set_postfix_str(f"loss {losses['total']:.4g}", refresh=False)
             b.update(step - b.n)
 
-        result = train(data, run, config, device=device, progress=progress)
+        result = train(data, run, config, device=device, progress=progress, heldout=heldout)
     steps_run = result.step - result.start_step
     if steps_run:
         terms = ", ".join(f"{k} {v:.4g}" for k, v in result.losses.items())
@@ -143,4 +181,6 @@ def run(args: argparse.Namespace) -> int:
     size = result.weights.stat().st_size / 1e6
     say(f"weights: {result.weights} ({size:.2f} MB); log: {run / 'losses.csv'}; "
         f"samples: {run / 'samples'}/")
+    if heldout is not None:
+        say(f"held-out scores: {run / 'heldout.csv'}")
     return 0

@@ -92,6 +92,19 @@ if TYPE_CHECKING:  # torch is imported lazily: photo3d works without it
     from photo3d.nets.weights import InpaintingNets
 
 
+def is_refine(net) -> bool:
+    """``net`` is a refine colour net (:mod:`photo3d.nets.refine`): its RGB input holds
+    the diffusion fill under the hole, and it returns the fill plus a residual there.
+
+    Example:
+        >>> from photo3d.nets import build_net
+        >>> is_refine(build_net("color", arch="refine")), is_refine(build_net("color"))
+        (True, False)
+    """
+    config = getattr(net, "config", None)
+    return isinstance(config, dict) and config.get("arch") == "refine"
+
+
 def bundled_weights() -> Path:
     """The folder of the compact nets trained for and shipped with photo3d (used when
     no ``weights`` are given; see the README's training section for how they were
@@ -286,12 +299,15 @@ class LearnedInpainter:
         import torch
         import torch.nn.functional as F
 
-        inputs, scaled = [], []
+        refine = is_refine(self.nets.color)
+        inputs, scaled, fills = [], [], []
         for it, e in zip(items, edges, strict=True):
             h, w = it.ctx.shape
             frac = color_scale(h, w, self.color_size)
+            rgb = it.filled_rgb() if refine else it.rgb
+            fills.append(rgb if refine else None)
             if frac >= 1:
-                inputs.append(np.concatenate([it.rgb, np.stack([e, it.ctx, it.hole])]))
+                inputs.append(np.concatenate([rgb, np.stack([e, it.ctx, it.hole])]))
                 scaled.append(None)
                 continue
             size = (int(h * frac), int(w * frac))
@@ -299,18 +315,40 @@ class LearnedInpainter:
                                   mode="area")[0]
             syn = (masks[0] > 0).numpy()
             ctx = (masks[1] >= 1 - 1e-6).numpy() & ~syn
-            rgb = F.interpolate(torch.from_numpy(it.rgb)[None], size, mode="area")[0].numpy()
-            inputs.append(np.concatenate([rgb * ctx, np.stack(
-                [np.zeros(size, np.float32), ctx, close_gaps(ctx, syn)]).astype(np.float32)]))
+            hole = close_gaps(ctx, syn)
+            small = F.interpolate(torch.from_numpy(rgb)[None], size, mode="area")[0].numpy()
+            small = small * (ctx | hole) if refine else small * ctx
+            inputs.append(np.concatenate([small, np.stack(
+                [np.zeros(size, np.float32), ctx, hole]).astype(np.float32)]))
             scaled.append((h, w))
         outs = self._run("color", inputs)
         result = []
-        for o, hw in zip(outs, scaled, strict=True):
-            if hw is not None:
+        for it, o, x, hw, fill in zip(items, outs, inputs, scaled, fills, strict=True):
+            if refine and hw is not None:  # the residual, brought back to the full fill
+                o = F.interpolate(torch.from_numpy(np.ascontiguousarray(o - x[:3]))[None], hw,
+                                  mode="bicubic", align_corners=False)[0].numpy()
+                o = fill + it.hole * o
+            elif hw is not None:
                 o = F.interpolate(torch.from_numpy(np.ascontiguousarray(o))[None], hw,
                                   mode="bicubic", align_corners=False)[0].numpy()
             result.append(np.clip(np.moveaxis(o, 0, 2), 0.0, 1.0).astype(np.float32))
         return result
+
+    def fill_colors(self, patches: Sequence[Patch],
+                    edges: Sequence[np.ndarray] | None = None) -> list[np.ndarray]:
+        """The colour net alone on ``patches`` (each seen without the margin that only
+        adds padding, as :meth:`inpaint` does), with ``edges`` (``(h, w)`` per patch;
+        None: none), e.g. to score a colour net while it trains.
+
+        Returns:
+            ``(h, w, 3) float32`` per patch, meaningful under its synthesis region.
+        """
+        edges = [np.zeros(p.shape, np.float32) for p in patches] if edges is None else edges
+        seen = [trim(p, self.units["color"]) for p in patches]
+        out = self._colors([NetInputs(t, self.mapping) for t in seen],
+                           [window(e, p.origin, t) for e, p, t in zip(edges, patches, seen,
+                                                                       strict=True)])
+        return [window(o, t.origin, p) for o, t, p in zip(out, seen, patches, strict=True)]
 
     def _joint_edges(self, patches: Sequence[Patch]) -> list | None:
         """New edges of all ``patches`` from edge-net runs over them together: the

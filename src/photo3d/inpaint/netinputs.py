@@ -3,7 +3,9 @@
 :class:`NetInputs` builds every net input from a :class:`~photo3d.inpaint.base.Patch`:
 the learned backend at inference and :mod:`photo3d.train.samples` in training use it
 both, so the two cannot drift apart. :func:`close_gaps` is the hole channel of the
-depth and colour nets (the authors' ``open_small_mask``).
+depth and colour nets (the authors' ``open_small_mask``). :func:`diffusion_rgb` is
+the refine colour net's RGB input (:mod:`photo3d.nets.refine`): the context's colours
+with the diffusion fill under the hole.
 """
 
 from __future__ import annotations
@@ -13,6 +15,7 @@ from scipy.ndimage import binary_dilation, maximum_filter, minimum_filter
 
 from photo3d.camera import DepthMapping
 from photo3d.inpaint.base import Patch
+from photo3d.inpaint.diffusion import diffuse
 
 
 def close_gaps(context: np.ndarray, synthesis: np.ndarray, *, size: int = 41,
@@ -40,6 +43,38 @@ def close_gaps(context: np.ndarray, synthesis: np.ndarray, *, size: int = 41,
         closed = maximum_filter(closed, size, mode="constant", cval=0)
         closed = minimum_filter(closed, size, mode="constant", cval=1)
     return synthesis | (closed.astype(bool) & ~context)
+
+
+def diffusion_rgb(rgb: np.ndarray, context: np.ndarray, synthesis: np.ndarray,
+                  hole: np.ndarray | None = None) -> np.ndarray:
+    """The refine net's RGB input: ``rgb`` under ``context``; under ``synthesis`` the
+    diffusion backend's fill (:func:`photo3d.inpaint.diffusion.diffuse` from the
+    context, the backend's iterations and tolerance: exactly what ``--inpainter
+    diffusion`` gives those pixels); under the rest of ``hole`` (the gaps
+    :func:`close_gaps` adds) a second fill from both; zeros elsewhere.
+
+    Args:
+        rgb: ``(3, h, w) float32`` in [0, 1] (only read under ``context``).
+        context, synthesis: ``(h, w)`` 0/1 masks (disjoint).
+        hole: ``(h, w)`` 0/1, a superset of ``synthesis`` (None: ``synthesis``).
+
+    Returns:
+        ``(3, h, w) float32``.
+
+    Example:
+        >>> ctx = np.array([[1, 0, 0, 1]], bool)
+        >>> rgb = np.zeros((3, 1, 4), np.float32); rgb[:, 0, 3] = 1.0
+        >>> [round(float(v), 2) for v in diffusion_rgb(rgb, ctx, ~ctx)[0, 0]]
+        [0.0, 0.33, 0.67, 1.0]
+    """
+    ctx = context.astype(bool)
+    syn = synthesis.astype(bool) & ~ctx
+    filled = diffuse(np.ascontiguousarray(np.moveaxis(rgb, 0, 2), np.float32), ctx, syn)
+    if hole is not None:
+        gaps = hole.astype(bool) & ~syn & ~ctx
+        if gaps.any():
+            filled = diffuse(filled, ctx | syn, gaps)
+    return np.ascontiguousarray(np.moveaxis(np.clip(filled, 0.0, 1.0), 2, 0), np.float32)
 
 
 class NetInputs:
@@ -85,6 +120,11 @@ class NetInputs:
         dilated = binary_dilation(p.synthesis.astype(bool) & ~ctx,
                                   structure=np.ones((3, 3), bool))
         return bool((p.edges[dilated & ctx] > 0).any())
+
+    def filled_rgb(self) -> np.ndarray:
+        """``(3, h, w)``: :attr:`rgb` with the diffusion fill under :attr:`hole` (the
+        refine colour net's RGB input, :func:`diffusion_rgb`)."""
+        return diffusion_rgb(self.rgb, self.ctx > 0, self.syn > 0, self.hole > 0)
 
     def edge_input(self, edges: np.ndarray) -> np.ndarray:
         """``(7, h, w)`` edge-net input: rgb, disparity, ``edges``, context, synthesis."""

@@ -3,6 +3,8 @@
 - :mod:`photo3d.nets.edge`: edge generator (EdgeConnect, spectral norm) and its
   discriminator.
 - :mod:`photo3d.nets.partialconv`: partial convolution and the depth / colour U-Net.
+- :mod:`photo3d.nets.refine`: the refine colour net (a gated-convolution U-Net adding a
+  residual to the diffusion fill).
 - :mod:`photo3d.nets.weights`: loading the authors' checkpoints or our safetensors.
 - :mod:`photo3d.nets.authors`: the authors' published checkpoints, downloaded once
   into the cache (``--weights authors``).

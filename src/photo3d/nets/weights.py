@@ -4,7 +4,9 @@ A weights folder holds, per net, either the authors' checkpoint (``edge-model.pt
 ``depth-model.pth``, ``color-model.pth``: plain state dicts) or our own
 ``edge.safetensors``, ``depth.safetensors``, ``color.safetensors`` (written by
 :func:`save_safetensors`, with the architecture in the file's metadata, so compact
-variants load too). ``.pth`` files are read with ``torch.load(weights_only=True)``
+variants load too; a colour file whose ``config`` says ``"arch": "refine"`` holds
+the refine colour net, :mod:`photo3d.nets.refine`, and may be stored in float16).
+``.pth`` files are read with ``torch.load(weights_only=True)``
 only: a file that needs arbitrary unpickling is refused. A ``.pth`` whose SHA-256 is
 the authors' is logged as official; any other state dict with exactly the expected
 keys and shapes is accepted as custom. Everything else raises
@@ -25,6 +27,7 @@ from photo3d.errors import InputError
 from photo3d.files.download import sha256_of
 from photo3d.nets.edge import EdgeGenerator
 from photo3d.nets.partialconv import PartialConvUNet, color_net, depth_net
+from photo3d.nets.refine import RefineNet
 
 logger = logging.getLogger(__name__)
 
@@ -45,7 +48,8 @@ class InpaintingNets:
     Attributes:
         edge: :class:`~photo3d.nets.edge.EdgeGenerator`.
         depth: :class:`~photo3d.nets.partialconv.PartialConvUNet` (layout ``"depth"``).
-        color: :class:`~photo3d.nets.partialconv.PartialConvUNet` (layout ``"color"``).
+        color: :class:`~photo3d.nets.partialconv.PartialConvUNet` (layout ``"color"``)
+            or :class:`~photo3d.nets.refine.RefineNet`.
         device: where they live.
         sources: per net, ``"official"``, ``"custom .pth"`` or ``"safetensors"``.
     """
@@ -66,9 +70,17 @@ def resolve_device(device: str | torch.device | None = None) -> torch.device:
 
 def build_net(kind: str, **config) -> nn.Module:
     """A fresh net of ``kind`` (``"edge"``, ``"depth"``, ``"color"``); no ``config`` =
-    the authors' architecture, else the keyword arguments its class takes."""
+    the authors' architecture, else the keyword arguments its class takes (a colour
+    net with ``arch="refine"``: :class:`~photo3d.nets.refine.RefineNet`).
+
+    Example:
+        >>> type(build_net("color", arch="refine", channels=4, levels=2, blocks=1)).__name__
+        'RefineNet'
+    """
     if kind == "edge":
         return EdgeGenerator(**config)
+    if kind == "color" and config.get("arch") == "refine":
+        return RefineNet(**{k: v for k, v in config.items() if k != "arch"})
     if kind in ("depth", "color"):
         if not config:
             return depth_net() if kind == "depth" else color_net()
@@ -83,6 +95,8 @@ def _kind_of(module: nn.Module) -> str:
         return "edge"
     if isinstance(module, PartialConvUNet):
         return module.layout
+    if isinstance(module, RefineNet):
+        return "color"
     raise TypeError(f"cannot save {type(module).__name__}: not one of the inpainting nets")
 
 
@@ -209,14 +223,21 @@ def load_inpainting_nets(weights_dir: str | Path, *,
     )
 
 
-def save_safetensors(module: nn.Module, path: str | Path) -> Path:
-    """Write ``module``'s state dict and architecture to ``path`` (``.safetensors``)."""
+def save_safetensors(module: nn.Module, path: str | Path, *,
+                     dtype: torch.dtype | None = None) -> Path:
+    """Write ``module``'s state dict and architecture to ``path`` (``.safetensors``).
+
+    ``dtype``: store floating-point tensors in this type (e.g. ``torch.float16`` for
+    shipped weights: half the size; they load back into float32 nets); None keeps them.
+    """
     from safetensors.torch import save_file
 
     kind = _kind_of(module)
     config = {k: v for k, v in module.config.items() if k != "layout"}
     tensors = {k: v.detach().to("cpu").contiguous().clone()
                for k, v in module.state_dict().items()}
+    if dtype is not None:
+        tensors = {k: v.to(dtype) if v.is_floating_point() else v for k, v in tensors.items()}
     path = Path(path)
     save_file(tensors, str(path), metadata={"photo3d_net": kind, "config": json.dumps(config)})
     return path

@@ -19,6 +19,13 @@ term is a mean.
   discriminator's layer outputs on fake and real); the discriminator minimises
   ``(L_real + L_fake) / 2``. ``"nsgan"`` = binary cross-entropy on sigmoid scores,
   ``"hinge"`` = hinge loss on raw scores.
+* Refine colour net (:func:`refine_loss`): ``5 L_hole + 0.05 L_perceptual + 120 L_style
+  + 0.01 L_tv``, the colour loss's terms except that the L1 is the mean over the hole's
+  pixels (``|H (I - I_gt)|_1 / (3 sum H)``: as strong on a thin band as on a large
+  hole; with the paper's ``/ N`` a 128 px crop's band got too little of it and the net
+  drifted from the fill), and no context term (the net returns the context as given).
+  Optionally an adversarial term: a PatchGAN discriminator on (colour, hole) pairs,
+  hinge loss (:func:`patch_discriminator_loss`, :func:`patch_generator_loss`).
 """
 
 from __future__ import annotations
@@ -32,6 +39,9 @@ from torch import Tensor
 COLOR_WEIGHTS = {"context": 1.0, "synthesis": 6.0, "perceptual": 0.05, "style": 120.0,
                  "tv": 0.01}
 """The supplement's weights of the colour net's loss terms."""
+REFINE_WEIGHTS = {"hole": 5.0, "perceptual": 0.05, "style": 120.0, "hole_style": 0.0,
+                  "tv": 0.01}
+"""Weights of the refine net's loss terms (:func:`refine_loss`)."""
 FM_WEIGHT = 10.0
 """EdgeConnect's feature-matching weight (adversarial weight 1)."""
 GANS = ("nsgan", "hinge")
@@ -118,6 +128,62 @@ def color_loss(output: Tensor, target: Tensor, context: Tensor, synthesis: Tenso
              "synthesis": masked_l1(output, target, synthesis),
              "perceptual": perceptual, "style": style, "tv": tv_loss(output, synthesis)}
     terms["total"] = sum(COLOR_WEIGHTS[k] * v for k, v in terms.items())
+    return terms
+
+
+def masked_gram(features: Tensor, mask: Tensor) -> Tensor:
+    """Gram matrix of ``features`` ``(B, C, h, w)`` over ``mask`` ``(B, 1, H, W)`` only
+    (area-resized to ``h x w``): ``(f m)(f m)^T / (C sum m)``, ``(B, C, C)``.
+
+    Example:
+        >>> m = torch.zeros(1, 1, 2, 2); m[..., 0] = 1
+        >>> masked_gram(torch.ones(1, 2, 2, 2), m)
+        tensor([[[0.5000, 0.5000],
+                 [0.5000, 0.5000]]])
+    """
+    b, c, h, w = features.shape
+    m = F.adaptive_avg_pool2d(mask, (h, w)) if mask.shape[-2:] != (h, w) else mask
+    f = (features * m).reshape(b, c, h * w)
+    return f @ f.transpose(1, 2) / (c * m.sum((1, 2, 3)).clamp(min=1e-6)).view(b, 1, 1)
+
+
+def refine_loss(output: Tensor, target: Tensor, hole: Tensor,
+                features: Callable[[Tensor], list[Tensor]]) -> dict[str, Tensor]:
+    """The refine colour net's loss terms and their weighted sum ``"total"``
+    (:data:`REFINE_WEIGHTS`; see the module docstring). Terms of weight 0 are left out.
+
+    ``hole_style`` compares :func:`masked_gram` matrices inside the hole (the texture
+    the hole should have); ``style`` the Gram matrices of the whole crop, as the
+    colour loss does.
+
+    Args:
+        output, target: ``(B, 3, H, W)`` in [0, 1] (``output`` equals the input outside
+            the hole).
+        hole: ``(B, 1, H, W)`` 0/1, the net's hole channel.
+        features: VGG-16 feature extractor.
+
+    Example:
+        >>> x = torch.full((1, 3, 4, 4), 0.5); m = torch.zeros(1, 1, 4, 4); m[..., :2] = 1
+        >>> round(float(refine_loss(x + m * 0.1, x, m, lambda t: [t])["hole"]), 4)
+        0.1
+    """
+    composite = hole * output + (1 - hole) * target
+    with torch.no_grad():
+        real = features(target)
+    fake = features(composite)
+    pixels = (3 * hole.sum()).clamp(min=1.0)
+    zero = output.new_zeros(())
+    terms = {"hole": (hole * (output - target)).abs().sum() / pixels,
+             "perceptual": sum(((f - r).abs().mean() for f, r in zip(fake, real, strict=True)),
+                               zero),
+             "tv": tv_loss(output, hole)}
+    if REFINE_WEIGHTS.get("style"):
+        terms["style"] = sum(((gram(f) - gram(r)).abs().mean()
+                              for f, r in zip(fake, real, strict=True)), zero)
+    if REFINE_WEIGHTS.get("hole_style"):
+        terms["hole_style"] = sum(((masked_gram(f, hole) - masked_gram(r, hole)).abs().mean()
+                                   for f, r in zip(fake, real, strict=True)), zero)
+    terms["total"] = sum(REFINE_WEIGHTS[k] * v for k, v in terms.items())
     return terms
 
 
@@ -209,3 +275,43 @@ def edge_generator_loss(discriminator, gray: Tensor, fake: Tensor,
     terms = {"adv": adversarial(scores, True, gan=gan, discriminator=False), "fm": fm}
     terms["total"] = terms["adv"] + FM_WEIGHT * terms["fm"]
     return terms
+
+
+def patch_discriminator_loss(discriminator, real: Tensor, fake: Tensor) -> dict[str, Tensor]:
+    """Hinge loss of a PatchGAN discriminator (the refine net's): ``mean(relu(1 - D(real)))
+    + mean(relu(1 + D(fake)))``, halved; ``fake`` is detached.
+
+    Args:
+        discriminator: ``(B, C, H, W) -> (scores, features)`` with raw scores
+            (:class:`photo3d.nets.edge.EdgeDiscriminator`, ``use_sigmoid=False``).
+        real, fake: ``(B, C, H, W)``: the target and the net's output, each with the
+            hole mask as the last channel.
+
+    Example:
+        >>> from photo3d.nets.edge import EdgeDiscriminator
+        >>> d = EdgeDiscriminator(4, width=0.125, use_sigmoid=False)
+        >>> x = torch.rand(1, 4, 32, 32)
+        >>> sorted(patch_discriminator_loss(d, x, x))
+        ['d_fake', 'd_real', 'total']
+    """
+    real_scores, _ = discriminator(real)
+    fake_scores, _ = discriminator(fake.detach())
+    terms = {"d_real": adversarial(real_scores, True, gan="hinge"),
+             "d_fake": adversarial(fake_scores, False, gan="hinge")}
+    terms["total"] = (terms["d_real"] + terms["d_fake"]) / 2
+    return terms
+
+
+def patch_generator_loss(discriminator, fake: Tensor) -> Tensor:
+    """The generator's hinge adversarial loss ``-mean(D(fake))`` (gradients flow into
+    ``fake``; the discriminator's parameters get gradients too, which its own step
+    clears before use).
+
+    Example:
+        >>> from photo3d.nets.edge import EdgeDiscriminator
+        >>> d = EdgeDiscriminator(4, width=0.125, use_sigmoid=False)
+        >>> patch_generator_loss(d, torch.rand(1, 4, 32, 32)).shape
+        torch.Size([])
+    """
+    scores, _ = discriminator(fake)
+    return adversarial(scores, True, gan="hinge", discriminator=False)

@@ -5,6 +5,8 @@
     config.json                   the TrainConfig of the latest invocation
     data/                         prepared targets and region pool (reused if unchanged)
     losses.csv                    one row per step: step, seconds, loss terms
+    heldout.csv                   held-out scores every heldout_every steps (with a
+                                  held-out set; photo3d.train.heldout)
     samples/step_0000500.png      inputs | regions | output | target, 4 samples
     checkpoints/step_0000500/     see photo3d.train.trainer (the last 2 are kept)
     <kind>.safetensors            the final weights (photo3d make --weights RUN_DIR/..)
@@ -34,6 +36,7 @@ from photo3d.files.atomic import atomic_path, write_bytes, write_json
 from photo3d.files.staging import remove_leftovers, stage_output
 from photo3d.train.dataset import KINDS, TrainingData
 from photo3d.train.grid import sample_grid
+from photo3d.train.heldout import HeldoutLog, HeldoutSet, score_diffusion, score_net
 from photo3d.train.samples import make_batch
 from photo3d.train.trainer import ARCHITECTURE, TrainConfig, Trainer, to_tensors
 
@@ -161,14 +164,22 @@ def check_resumable(run_dir: Path, config: TrainConfig) -> None:
     check_run(run_dir, config)
 
 
+_DEFAULTS = {"center": False, "arch": "partialconv", "channels": 16, "edges": True}
+"""Values of the fields a run's config.json may lack (written before they existed)."""
+
+
 def _check_architecture(run_dir: Path, old: dict, config: TrainConfig) -> None:
     unused = ("levels", "center") if config.kind == "edge" else ("blocks", "gan")
     if config.kind == "depth":
         unused += ("center",)
+    if config.arch == "refine":
+        unused = ("width", "center", "gan")
+    else:
+        unused += ("channels", "edges")
     for name in ARCHITECTURE:
         if name in unused:
             continue
-        if old.get(name, False if name == "center" else None) != getattr(config, name):
+        if old.get(name, _DEFAULTS.get(name)) != getattr(config, name):
             raise ConfigError(f"{run_dir} holds a {old.get('kind')} run with {name} "
                               f"{old.get(name)}, not {getattr(config, name)}: resume with the "
                               "same options or use a new --out folder")
@@ -208,7 +219,8 @@ class _LossLog:
 
 
 def train(data: TrainingData, run_dir: str | Path, config: TrainConfig, *,
-          device=None, features=None, progress: StepProgress | None = None) -> TrainResult:
+          device=None, features=None, progress: StepProgress | None = None,
+          heldout: HeldoutSet | None = None) -> TrainResult:
     """Train ``config.kind`` on ``data`` in ``run_dir`` (resuming if it holds a run).
 
     Args:
@@ -218,6 +230,9 @@ def train(data: TrainingData, run_dir: str | Path, config: TrainConfig, *,
         device: torch device (default CUDA when available, else CPU).
         features: VGG-16 features for the colour loss (default: the ImageNet weights).
         progress: ``progress(step, total, losses)`` after each step.
+        heldout: colour net only: score it on this set every ``config.heldout_every``
+            steps, at the start of a fresh run and at the end, into ``heldout.csv``
+            (the diffusion fill once, for reference; :mod:`photo3d.train.heldout`).
 
     Returns:
         :class:`TrainResult`.
@@ -247,13 +262,21 @@ def train(data: TrainingData, run_dir: str | Path, config: TrainConfig, *,
     start = _resume(trainer, saved[-1]) if saved else 0
     write_json(run_dir / MARKER, config.to_dict())
     log = _LossLog(run_dir / "losses.csv", start)
+    scores = None
+    if heldout is not None and config.kind == "color":
+        scores = HeldoutLog(run_dir / "heldout.csv", start)
+        if not scores.has("diffusion"):
+            scores.add(0, "diffusion", score_diffusion(heldout))
+        if not scores.has("net", start):
+            scores.add(start, "net", score_net(heldout, trainer.net, trainer.device))
     terms: dict[str, float] = {}
     t_run = time.perf_counter()
     step = start
+    refine = config.arch == "refine"
     for step in range(start + 1, config.steps + 1):
         t = time.perf_counter()
         samples = make_batch(data, config.kind, size=config.size, batch=config.batch,
-                             seed=config.seed, step=step)
+                             seed=config.seed, step=step, refine=refine)
         batch = to_tensors(samples, trainer.device)
         terms, output = trainer.step(batch)
         log.write(step, time.perf_counter() - t, terms)
@@ -264,6 +287,8 @@ def train(data: TrainingData, run_dir: str | Path, config: TrainConfig, *,
                 sample_grid(tmp, config.kind, samples, output.cpu().numpy())
         if step % config.checkpoint_every == 0 or last:
             _checkpoint(trainer, run_dir, step)
+        if scores is not None and (step % config.heldout_every == 0 or last):
+            scores.add(step, "net", score_net(heldout, trainer.net, trainer.device))
         if progress is not None:
             progress(step, config.steps, terms)
     seconds = time.perf_counter() - t_run

@@ -136,7 +136,7 @@ def place_pair(pair: RegionPair, size: int, rng: np.random.Generator, *,
 
 
 def make_sample(data: TrainingData, kind: str, *, size: int, rng: np.random.Generator,
-                tries: int = 20) -> Sample:
+                tries: int = 20, refine: bool = False) -> Sample:
     """One random :class:`Sample` for the ``kind`` net (``"edge"``, ``"depth"``, ``"color"``).
 
     Args:
@@ -145,6 +145,8 @@ def make_sample(data: TrainingData, kind: str, *, size: int, rng: np.random.Gene
         size: crop side in pixels (a multiple of the net's input unit).
         rng: random generator (all choices are drawn from it).
         tries: placements drawn until the window holds ``MIN_PIXELS`` of both regions.
+        refine: colour net only: the RGB input holds the diffusion fill under the hole
+            (the refine net's input, :meth:`~photo3d.inpaint.netinputs.NetInputs.filled_rgb`).
 
     Example:
         >>> from photo3d.train.dataset import Target
@@ -192,7 +194,8 @@ def make_sample(data: TrainingData, kind: str, *, size: int, rng: np.random.Gene
         log_depth = np.log(_MAPPING.depth(disparity) + 1e-8) - it.log_mean
         out = log_depth[None].astype(np.float32)
     else:
-        inputs = np.concatenate([it.rgb, np.stack([known_edges, it.ctx, it.hole])])
+        rgb = it.filled_rgb() if refine else it.rgb
+        inputs = np.concatenate([rgb, np.stack([known_edges, it.ctx, it.hole])])
         out = np.moveaxis(image, 2, 0)
     gray = image @ np.array([0.299, 0.587, 0.114], np.float32)
     return Sample(inputs.astype(np.float32), np.ascontiguousarray(out, np.float32), ctx, syn,
@@ -200,9 +203,10 @@ def make_sample(data: TrainingData, kind: str, *, size: int, rng: np.random.Gene
 
 
 def make_batch(data: TrainingData, kind: str, *, size: int, batch: int, seed: int,
-               step: int) -> list[Sample]:
+               step: int, refine: bool = False) -> list[Sample]:
     """The ``batch`` samples of optimisation step ``step``: sample ``i`` draws from
-    ``numpy.random.default_rng([seed, step, i])``, so a resumed run sees the same data.
+    ``numpy.random.default_rng([seed, step, i])``, so a resumed run sees the same data
+    (``refine``: as :func:`make_sample`).
 
     Example:
         >>> from photo3d.train.dataset import Target
@@ -212,5 +216,5 @@ def make_batch(data: TrainingData, kind: str, *, size: int, batch: int, seed: in
         >>> len(make_batch(data, "color", size=32, batch=2, seed=0, step=7))
         2
     """
-    return [make_sample(data, kind, size=size, rng=np.random.default_rng([seed, step, i]))
-            for i in range(batch)]
+    return [make_sample(data, kind, size=size, rng=np.random.default_rng([seed, step, i]),
+                        refine=refine) for i in range(batch)]

@@ -3,7 +3,9 @@
 :class:`TrainConfig` holds every option that changes what training computes;
 :class:`Trainer` owns the net (plus the EdgeConnect discriminator for the edge net)
 and Adam (lr 1e-4, betas (0.9, 0.999); the discriminator at a tenth of the
-learning rate, EdgeConnect's ratio). A checkpoint is a folder: the net as
+learning rate, EdgeConnect's ratio). The refine colour net (``arch="refine"``) may add
+a PatchGAN discriminator on (colour, hole) pairs (``adversarial`` > 0, hinge loss,
+the generator's learning rate). A checkpoint is a folder: the net as
 ``<kind>.safetensors`` (:func:`photo3d.nets.save_safetensors`, loadable by the
 learned inpainter as is), the discriminator as ``discriminator.safetensors``, the
 optimiser states as ``optimizer.pt`` (tensors, numbers and lists only: read back with
@@ -34,8 +36,15 @@ from photo3d.train import losses
 from photo3d.train.dataset import KINDS
 from photo3d.train.samples import Sample
 
-ARCHITECTURE = ("kind", "width", "levels", "blocks", "gan", "center")
+REFINE_D_WIDTH = 0.25
+"""Channel multiplier of the refine net's PatchGAN discriminator (EdgeConnect's layout)."""
+
+ARCHITECTURE = ("kind", "arch", "width", "channels", "levels", "blocks", "edges", "gan",
+                "center")
 """Fields a resumed run must share with its checkpoint."""
+ARCHS = ("partialconv", "refine")
+"""Colour net architectures: the paper's partial-convolution U-Net, or the refine net
+(:mod:`photo3d.nets.refine`, a residual over the diffusion fill)."""
 
 
 @dataclass(frozen=True)
@@ -44,12 +53,23 @@ class TrainConfig:
 
     kind: str
     """Which net: ``"edge"``, ``"depth"`` or ``"color"``."""
+    arch: str = "partialconv"
+    """Colour net only: ``"partialconv"`` (the paper's U-Net) or ``"refine"`` (a
+    residual over the diffusion fill, :mod:`photo3d.nets.refine`)."""
     width: float = 1.0
-    """Channel multiplier (1.0 = the authors' nets)."""
-    levels: int = 7
-    """U-Net levels of the depth and colour nets (authors: 7)."""
-    blocks: int = 8
-    """Residual blocks of the edge net (authors: 8)."""
+    """Channel multiplier of the edge net and the partial-convolution U-Nets (1.0 =
+    the authors' nets)."""
+    channels: int = 16
+    """Refine net only: channels at its finest level (:class:`~photo3d.nets.refine.RefineNet`)."""
+    levels: int | None = None
+    """U-Net levels of the depth and colour nets (None: the authors' 7, the refine
+    net's 4)."""
+    blocks: int | None = None
+    """Residual blocks of the edge net (None: the authors' 8) or of the refine net
+    (None: 4)."""
+    edges: bool = True
+    """Refine net only: read the edge channel (False: the net zeroes it; for photos
+    without depth, whose training crops never hold an edge)."""
     center: bool = True
     """Colour net only: centre its colours on the context's mean (photo3d's nets; see
     :class:`~photo3d.nets.partialconv.PartialConvUNet`; False = the authors' net)."""
@@ -74,22 +94,44 @@ class TrainConfig:
     """Edge net adversarial loss: ``"nsgan"`` (BCE) or ``"hinge"``."""
     d_lr_ratio: float = 0.1
     """Discriminator learning rate / generator learning rate (EdgeConnect: 0.1)."""
+    adversarial: float = 0.0
+    """Refine net only: weight of a PatchGAN hinge adversarial term (0: none; a run
+    resumed with a weight > 0 starts its discriminator then)."""
     checkpoint_every: int = 500
     """Save a checkpoint every this many steps (and at the end)."""
     sample_every: int = 500
     """Write a sample grid every this many steps (and at the end)."""
+    heldout_every: int = 250
+    """Score the held-out set every this many steps (when the run has one)."""
 
     def __post_init__(self) -> None:
         if self.kind not in KINDS:
             raise ConfigError(f"unknown net {self.kind!r}; expected one of {', '.join(KINDS)}")
+        if self.arch not in ARCHS:
+            raise ConfigError(f"unknown architecture {self.arch!r}; expected one of "
+                              f"{', '.join(ARCHS)}")
+        if self.arch != "partialconv" and self.kind != "color":
+            raise ConfigError(f"--arch {self.arch} is a colour net; the {self.kind} net has "
+                              "one architecture")
+        refine = self.arch == "refine"
+        if self.levels is None:
+            object.__setattr__(self, "levels", 4 if refine else 7)
+        if self.blocks is None:
+            object.__setattr__(self, "blocks", 4 if refine else 8)
+        if self.adversarial < 0 or (self.adversarial > 0 and not refine):
+            raise ConfigError(f"adversarial weight {self.adversarial}: a weight >= 0, for the "
+                              "refine net only")
         unit = 4 if self.kind == "edge" else 2**self.levels
         if self.size <= 0 or self.size % unit:
             raise ConfigError(f"--size {self.size} must be a positive multiple of {unit} for "
                               f"the {self.kind} net" + ("" if self.kind == "edge" else
                                                         f" with {self.levels} levels"))
-        for name in ("batch", "steps", "checkpoint_every", "sample_every", "levels", "blocks"):
+        for name in ("batch", "steps", "checkpoint_every", "sample_every", "heldout_every",
+                     "levels", "channels"):
             if getattr(self, name) < (0 if name == "steps" else 1):
                 raise ConfigError(f"{name} must be positive, got {getattr(self, name)}")
+        if self.blocks < (0 if refine else 1):
+            raise ConfigError(f"blocks must be positive, got {self.blocks}")
         if not self.width > 0 or not self.lr > 0:
             raise ConfigError(f"width and lr must be positive, got {self.width} and {self.lr}")
         if self.gan not in losses.GANS:
@@ -109,6 +151,9 @@ class TrainConfig:
         """Keyword arguments of :func:`photo3d.nets.build_net` for this net."""
         if self.kind == "edge":
             return dict(width=self.width, blocks=self.blocks)
+        if self.arch == "refine":
+            return dict(arch="refine", channels=self.channels, levels=self.levels,
+                        blocks=self.blocks, edges=self.edges)
         if self.kind == "color" and self.center:
             return dict(levels=self.levels, width=self.width, center=True)
         return dict(levels=self.levels, width=self.width)
@@ -175,11 +220,16 @@ class Trainer:
         self.optimizer = torch.optim.Adam(self.net.parameters(), **adam)
         self.discriminator = None
         self.d_optimizer = None
-        if config.kind == "edge":
+        if config.kind == "edge" or config.adversarial > 0:
+            # edge: EdgeConnect's (grey image, edges) at a tenth of the learning rate;
+            # refine: (colour, hole) pairs, hinge, at the same learning rate
+            edge = config.kind == "edge"
             self.discriminator = EdgeDiscriminator(
-                2, width=config.width, use_sigmoid=config.gan == "nsgan").to(self.device).train()
+                2 if edge else 4, width=config.width if edge else REFINE_D_WIDTH,
+                use_sigmoid=edge and config.gan == "nsgan").to(self.device).train()
+            ratio = config.d_lr_ratio if edge else 1.0
             self.d_optimizer = torch.optim.Adam(self.discriminator.parameters(),
-                                                **{**adam, "lr": config.lr * config.d_lr_ratio})
+                                                **{**adam, "lr": config.lr * ratio})
         self.features = None
         if config.kind == "color":
             if features is None:
@@ -210,6 +260,18 @@ class Trainer:
             terms.update({f"d_{k}" if k == "total" else k: v for k, v in d_terms.items()})
         elif kind == "depth":
             terms = losses.depth_loss(out, batch["target"], batch["context"], batch["hole"])
+        elif self.config.arch == "refine":
+            terms = losses.refine_loss(out, batch["target"], batch["hole"], self.features)
+            if self.discriminator is not None:
+                real = torch.cat([batch["target"], batch["hole"]], 1)
+                fake = torch.cat([out, batch["hole"]], 1)
+                d_terms = losses.patch_discriminator_loss(self.discriminator, real, fake)
+                self.d_optimizer.zero_grad(set_to_none=True)
+                d_terms["total"].backward()
+                self.d_optimizer.step()
+                terms["adv"] = losses.patch_generator_loss(self.discriminator, fake)
+                terms["total"] = terms["total"] + self.config.adversarial * terms["adv"]
+                terms.update({f"d_{k}" if k == "total" else k: v for k, v in d_terms.items()})
         else:
             terms = losses.color_loss(out, batch["target"], batch["context"], batch["hole"],
                                       self.features)
@@ -248,6 +310,8 @@ class Trainer:
             raise InputError(f"cannot read {folder / 'optimizer.pt'}: {err}") from err
         self.optimizer.load_state_dict(optim["generator"])
         if self.discriminator is not None:
+            if self.config.kind != "edge" and "discriminator" not in optim:
+                return int(state["step"])  # the adversarial term starts with this run
             _load_module(self.discriminator, folder / "discriminator.safetensors")
             self.d_optimizer.load_state_dict(optim["discriminator"])
         return int(state["step"])
