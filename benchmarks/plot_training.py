@@ -4,8 +4,9 @@ Reads ``RUN_DIR/losses.csv`` (one row per step) and ``RUN_DIR/heldout.csv`` (wri
 every ``--heldout-every`` steps by ``photo3d train color ... --heldout DIR``) and draws
 three panels into one PNG (Pillow only, no matplotlib):
 
-1. the training loss (``total``, and ``6 x synthesis`` L1), a running mean over
-   ``--smooth`` steps;
+1. the training loss (``total``, and its L1 term: ``5 x hole`` for the refine net,
+   ``6 x synthesis`` for the partial-convolution net), a running mean over ``--smooth``
+   steps;
 2. the held-out regions LPIPS of the net, with diffusion's (the reference) as a
    dashed line and the issue's target (25 % below diffusion) dotted;
 3. the held-out PSNR, with diffusion's and the target (no more than 0.5 dB below).
@@ -86,7 +87,7 @@ def panel(series: dict[str, tuple[np.ndarray, np.ndarray]], lines: dict[str, flo
                 draw.ellipse([x - 3, y - 3, x + 3, y + 3], fill=colour)
         draw.text((left + 10, top + 6 + 14 * legend), name, fill=colour)
         legend += 1
-    draw.text((left, 12), f"{title}: {y_label}", fill="black")
+    draw.text((left, 12), f"{title} ({y_label})", fill="black")
     draw.text((w // 2 - 20, h - 18), "step", fill="black")
     return img
 
@@ -103,20 +104,21 @@ def plot(run: Path, out: Path, *, smooth: int = 100) -> Path:
     if losses:
         series = {f"total loss (mean of {smooth} steps)": (
             steps, running_mean(np.array([float(r["total"]) for r in losses]), smooth))}
-        if "synthesis" in losses[0]:
-            series["6 x synthesis L1"] = (steps, running_mean(
-                6 * np.array([float(r["synthesis"]) for r in losses]), smooth))
-        panels.append(panel(series, {}, title=f"training loss: {run.name}", y_label="loss",
-                            x_max=x_max))
+        for column, weight in (("hole", 5), ("synthesis", 6)):  # refine, partialconv
+            if column in losses[0]:
+                series[f"{weight} x {column} L1"] = (steps, running_mean(
+                    weight * np.array([float(r[column]) for r in losses]), smooth))
+        panels.append(panel(series, {}, title=f"training loss, run {run.name}",
+                            y_label="running mean", x_max=x_max))
     if net:
         xs = np.array([float(r["step"]) for r in net])
-        for metric, label, target in (("lpips", "LPIPS (lower is better)", 0.75),
-                                      ("psnr", "PSNR dB (higher is better)", None)):
+        for metric, label, target in (("lpips", "lower is better", 0.75),
+                                      ("psnr", "dB, higher is better", None)):
             ref = {}
             if diffusion:
                 d = float(diffusion[0][metric])
                 ref[f"diffusion {d:.3f}" if metric == "lpips" else f"diffusion {d:.2f}"] = d
-                ref["target"] = d * target if target else d - 0.5
+                ref["target (issue 28)"] = d * target if target else d - 0.5
             ys = np.array([float(r[metric]) for r in net])
             panels.append(panel({f"net, held-out ({len(net)} scores)": (xs, ys)}, ref,
                                 title=f"held-out regions {metric.upper()}", y_label=label,

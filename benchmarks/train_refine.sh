@@ -27,6 +27,6 @@ RUN=${1:-/work/runs/refine}
 STEPS=${2:-200000}
 exec nice -n 10 photo3d train color --arch refine --no-edges \
   --images data/photos/train --heldout data/photos/heldout --heldout-photos 24 \
-  --shape-scenes 64 --region-size 640 --size 128 --batch 4 --lr 3e-4 \
+  --shape-scenes 64 --region-size 640 --size 128 --batch 4 --lr 1e-3 \
   --steps "$STEPS" --checkpoint-every 250 --sample-every 1000 --heldout-every 250 \
   --threads 1 -q --out "$RUN"

@@ -97,7 +97,8 @@ def test_losses_fall_on_a_fixed_batch(data):
     history = [trainer.step(batch)[0] for _ in range(10)]
     totals = [h["total"] for h in history]
     assert all(np.isfinite(v) for h in history for v in h.values())
-    assert set(history[0]) == {"hole", "perceptual", "style", "tv", "total"}
+    assert {"hole", "perceptual", "hole_style", "total"} <= set(history[0])
+    assert "context" not in history[0]  # the net returns the context as given
     assert totals[-1] < totals[0] and np.mean(totals[-3:]) < np.mean(totals[:3])
 
 
@@ -214,3 +215,14 @@ def test_refine_loss_sees_the_hole_only():
     finally:
         losses.REFINE_WEIGHTS.clear()
         losses.REFINE_WEIGHTS.update(old)
+
+
+def test_swap_probability(data):
+    never = make_batch(data, "color", size=CROP, batch=6, seed=0, step=2, swap=0.0)
+    always = make_batch(data, "color", size=CROP, batch=6, seed=0, step=2, swap=1.0)
+    assert not any(s.swapped for s in never) and all(s.swapped for s in always)
+    paper = make_batch(data, "color", size=CROP, batch=6, seed=0, step=2)
+    again = make_batch(data, "color", size=CROP, batch=6, seed=0, step=2, swap=0.5)
+    assert [s.swapped for s in paper] == [s.swapped for s in again]
+    with pytest.raises(ConfigError, match="probability"):
+        TrainConfig("color", swap=1.5)

@@ -31,6 +31,9 @@ def add_parser(sub) -> None:
                       help="working size (longer side) of region growth (default 4 x --size)")
     data.add_argument("--builtin-scenes", type=int, default=48, metavar="N",
                       help="synthetic scenes in --images builtin (default 48)")
+    data.add_argument("--swap", type=float, metavar="P",
+                      help="probability of swapping a region pair's context and synthesis "
+                           "(default 0.5, the paper's)")
     data.add_argument("--shape-scenes", type=int, metavar="N",
                       help="photos without any depth map: region shapes from N synthetic "
                            "scenes (default 12)")
@@ -83,7 +86,8 @@ def add_parser(sub) -> None:
 
 
 _TRAIN_OPTIONS = ("arch", "width", "channels", "levels", "blocks", "edges", "size", "batch",
-                  "steps", "lr", "seed", "region_size", "depth_kind", "gan", "adversarial",
+                  "steps", "lr", "seed", "region_size", "depth_kind", "gan", "swap",
+                  "adversarial",
                   "checkpoint_every", "sample_every", "heldout_every")
 
 

@@ -276,7 +276,7 @@ def train(data: TrainingData, run_dir: str | Path, config: TrainConfig, *,
     for step in range(start + 1, config.steps + 1):
         t = time.perf_counter()
         samples = make_batch(data, config.kind, size=config.size, batch=config.batch,
-                             seed=config.seed, step=step, refine=refine)
+                             seed=config.seed, step=step, refine=refine, swap=config.swap)
         batch = to_tensors(samples, trainer.device)
         terms, output = trainer.step(batch)
         log.write(step, time.perf_counter() - t, terms)

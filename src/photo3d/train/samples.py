@@ -98,7 +98,8 @@ def _crop(mask: np.ndarray, y0: int, x0: int, size: int) -> np.ndarray:
 
 
 def place_pair(pair: RegionPair, size: int, rng: np.random.Generator, *,
-               swap: bool | None = None) -> tuple[np.ndarray, np.ndarray, bool]:
+               swap: bool | None = None,
+               swap_probability: float = 0.5) -> tuple[np.ndarray, np.ndarray, bool]:
     """Resize, flip, maybe swap and window one region pair.
 
     Args:
@@ -106,6 +107,7 @@ def place_pair(pair: RegionPair, size: int, rng: np.random.Generator, *,
         size: window side in pixels.
         rng: random generator.
         swap: force (True/False) or draw (None) the context/synthesis swap.
+        swap_probability: the chance of a drawn swap (paper: 1/2).
 
     Returns:
         ``(context, synthesis, swapped)``: two disjoint ``(size, size) bool`` masks;
@@ -125,7 +127,7 @@ def place_pair(pair: RegionPair, size: int, rng: np.random.Generator, *,
         ctx, syn = ctx[:, ::-1], syn[:, ::-1]
     if rng.random() < 0.5:
         ctx, syn = ctx[::-1], syn[::-1]
-    swapped = bool(rng.random() < 0.5) if swap is None else bool(swap)
+    swapped = bool(rng.random() < swap_probability) if swap is None else bool(swap)
     if swapped:
         ctx, syn = syn, ctx
     ys, xs = np.nonzero(syn)
@@ -136,7 +138,7 @@ def place_pair(pair: RegionPair, size: int, rng: np.random.Generator, *,
 
 
 def make_sample(data: TrainingData, kind: str, *, size: int, rng: np.random.Generator,
-                tries: int = 20, refine: bool = False) -> Sample:
+                tries: int = 20, refine: bool = False, swap: float = 0.5) -> Sample:
     """One random :class:`Sample` for the ``kind`` net (``"edge"``, ``"depth"``, ``"color"``).
 
     Args:
@@ -147,6 +149,7 @@ def make_sample(data: TrainingData, kind: str, *, size: int, rng: np.random.Gene
         tries: placements drawn until the window holds ``MIN_PIXELS`` of both regions.
         refine: colour net only: the RGB input holds the diffusion fill under the hole
             (the refine net's input, :meth:`~photo3d.inpaint.netinputs.NetInputs.filled_rgb`).
+        swap: probability of swapping context and synthesis (paper: 1/2).
 
     Example:
         >>> from photo3d.train.dataset import Target
@@ -163,7 +166,7 @@ def make_sample(data: TrainingData, kind: str, *, size: int, rng: np.random.Gene
     target = data.target(t)
     for _ in range(tries):
         pair = data.random_pair(t, rng)
-        ctx, syn, swapped = place_pair(pair, size, rng)
+        ctx, syn, swapped = place_pair(pair, size, rng, swap_probability=swap)
         if ctx.sum() >= MIN_PIXELS and syn.sum() >= MIN_PIXELS:
             break
     h, w = target.image.shape[:2]
@@ -203,10 +206,10 @@ def make_sample(data: TrainingData, kind: str, *, size: int, rng: np.random.Gene
 
 
 def make_batch(data: TrainingData, kind: str, *, size: int, batch: int, seed: int,
-               step: int, refine: bool = False) -> list[Sample]:
+               step: int, refine: bool = False, swap: float = 0.5) -> list[Sample]:
     """The ``batch`` samples of optimisation step ``step``: sample ``i`` draws from
     ``numpy.random.default_rng([seed, step, i])``, so a resumed run sees the same data
-    (``refine``: as :func:`make_sample`).
+    (``refine``, ``swap``: as :func:`make_sample`).
 
     Example:
         >>> from photo3d.train.dataset import Target
@@ -217,4 +220,4 @@ def make_batch(data: TrainingData, kind: str, *, size: int, batch: int, seed: in
         2
     """
     return [make_sample(data, kind, size=size, rng=np.random.default_rng([seed, step, i]),
-                        refine=refine) for i in range(batch)]
+                        refine=refine, swap=swap) for i in range(batch)]

@@ -94,6 +94,10 @@ class TrainConfig:
     """Edge net adversarial loss: ``"nsgan"`` (BCE) or ``"hinge"``."""
     d_lr_ratio: float = 0.1
     """Discriminator learning rate / generator learning rate (EdgeConnect: 0.1)."""
+    swap: float = 0.5
+    """Probability of swapping a region pair's context and synthesis (paper: 1/2; the
+    swapped pair is a wide hole beside a thin context, which the first pass never asks
+    for)."""
     adversarial: float = 0.0
     """Refine net only: weight of a PatchGAN hinge adversarial term (0: none; a run
     resumed with a weight > 0 starts its discriminator then)."""
@@ -118,6 +122,8 @@ class TrainConfig:
             object.__setattr__(self, "levels", 4 if refine else 7)
         if self.blocks is None:
             object.__setattr__(self, "blocks", 4 if refine else 8)
+        if not 0 <= self.swap <= 1:
+            raise ConfigError(f"swap must be a probability in [0, 1], got {self.swap}")
         if self.adversarial < 0 or (self.adversarial > 0 and not refine):
             raise ConfigError(f"adversarial weight {self.adversarial}: a weight >= 0, for the "
                               "refine net only")
