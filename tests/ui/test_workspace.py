@@ -126,3 +126,30 @@ def _big(path):
     path.write_bytes(b"x" * 101)
     return path
 
+
+
+def test_a_killed_servers_root_is_removed_by_the_next_and_a_live_one_is_kept(tmp_path):
+    import signal
+    import subprocess
+    import sys
+
+    from photo3d.ui.workspace import remove_stale
+
+    child = subprocess.Popen(
+        [sys.executable, "-c",
+         "import sys, time; from photo3d.ui.workspace import Workspace; "
+         f"ws = Workspace({str(tmp_path)!r} + '/photo3d-ui-00112233aabbccdd', ttl=60); "
+         "(ws.root / 'request-x').mkdir(); print('ready', flush=True); time.sleep(120)"],
+        stdout=subprocess.PIPE, text=True)
+    try:
+        assert child.stdout.readline().strip() == "ready"
+        root = tmp_path / "photo3d-ui-00112233aabbccdd"
+        assert remove_stale(tmp_path) == [] and root.is_dir()  # its server is alive
+        child.send_signal(signal.SIGKILL)
+        child.wait(timeout=30)
+        assert root.is_dir()  # SIGKILL: no clean-up ran
+        assert remove_stale(tmp_path) == [root] and not root.exists()
+    finally:
+        child.kill()
+        child.wait()
+        child.stdout.close()

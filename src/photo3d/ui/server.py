@@ -29,7 +29,7 @@ from photo3d.errors import ConfigError
 from photo3d.ui.options import UiOptions, check_host, url_of
 from photo3d.ui.runner import Runner
 from photo3d.ui.warmup import Warmup
-from photo3d.ui.workspace import Workspace
+from photo3d.ui.workspace import Workspace, remove_stale
 
 T = TypeVar("T")
 
@@ -109,6 +109,7 @@ def start(options: UiOptions | None = None) -> UiServer:
 
     upload_root = Path(get_upload_folder())
     upload_root.mkdir(parents=True, exist_ok=True)
+    remove_stale(upload_root)  # roots of servers killed before they could clean up
     workspace = Workspace(upload_root / f"photo3d-ui-{secrets.token_hex(8)}", ttl=options.ttl)
     try:
         warmup = Warmup(workspace.root / "warmup")

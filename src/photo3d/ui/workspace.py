@@ -4,7 +4,10 @@ Each request of ``photo3d ui`` works in its own folder under one root
 (:class:`Workspace`): the 3D photo folder, the depth preview and the zip are
 written there and served from there. A folder is kept ``ttl`` seconds after its
 request ends (so the page's download links keep working), then removed by a
-background sweeper; everything is removed when the server stops.
+background sweeper; everything is removed when the server stops. A server that
+could not clean up (killed with SIGKILL, a power cut) leaves its root behind; the
+root holds a lock file the live server keeps locked, so the next server removes
+the roots nobody holds (:func:`remove_stale`), and nothing else.
 
 Uploads are never opened by a path the client chose: :func:`check_upload` accepts
 only a regular file inside the upload folder the server created (not a link, not
@@ -24,6 +27,7 @@ Example:
 from __future__ import annotations
 
 import os
+import re
 import shutil
 import stat
 import tempfile
@@ -34,6 +38,65 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from photo3d.errors import InputError, OutputError
+
+try:
+    import fcntl
+except ImportError:  # pragma: no cover - Windows: no stale-root detection
+    fcntl = None
+
+LOCK_NAME = ".photo3d-ui.lock"
+"""The lock file in a workspace root, locked (``flock``) while its server runs."""
+ROOT_PATTERN = re.compile(r"photo3d-ui-[0-9a-f]{16}")
+"""The names of the roots ``photo3d ui`` creates in the upload folder."""
+
+
+def _hold(path: Path):
+    """Open ``path`` and lock it for this process's lifetime (None without ``fcntl``)."""
+    if fcntl is None:  # pragma: no cover - Windows
+        return None
+    handle = open(path, "a+b")  # noqa: SIM115 - held until close() or the process ends
+    fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    return handle
+
+
+def remove_stale(upload_root: str | os.PathLike[str]) -> list[Path]:
+    """Remove the workspace roots in ``upload_root`` left by servers that died
+    without cleaning up: folders named like photo3d's roots, holding photo3d's lock
+    file, which no running process holds. Returns the folders removed.
+
+    Example:
+        >>> import tempfile
+        >>> up = Path(tempfile.mkdtemp())
+        >>> live = Workspace(up / "photo3d-ui-0123456789abcdef", ttl=60)
+        >>> dead = up / "photo3d-ui-fedcba9876543210"; dead.mkdir()
+        >>> _ = (dead / LOCK_NAME).write_bytes(b"")        # its server was killed
+        >>> other = up / "photo3d-ui-notmine"; other.mkdir()  # not a photo3d name
+        >>> [p.name for p in remove_stale(up)], live.root.exists(), other.exists()
+        (['photo3d-ui-fedcba9876543210'], True, True)
+        >>> live.close()
+    """
+    removed: list[Path] = []
+    if fcntl is None:  # pragma: no cover - Windows
+        return removed
+    root = Path(upload_root)
+    try:
+        entries = sorted(root.iterdir())
+    except OSError:
+        return removed
+    for folder in entries:
+        lock = folder / LOCK_NAME
+        if (not ROOT_PATTERN.fullmatch(folder.name) or folder.is_symlink()
+                or not folder.is_dir() or lock.is_symlink() or not lock.is_file()):
+            continue
+        try:
+            with open(lock, "rb") as handle:
+                fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)  # held: a live server
+                shutil.rmtree(folder, ignore_errors=True)
+        except OSError:
+            continue
+        if not folder.exists():
+            removed.append(folder)
+    return removed
 
 
 class Workspace:
@@ -58,6 +121,7 @@ class Workspace:
         except OSError as err:
             raise OutputError(f"cannot create the working folder {self.root}: "
                               f"{err.strerror or err}") from None
+        self._held = _hold(self.root / LOCK_NAME)
         self._lock = threading.Lock()
         self._busy: set[Path] = set()
         self._expires: dict[Path, float] = {}
@@ -116,6 +180,9 @@ class Workspace:
             if not self.root.exists():
                 break
             time.sleep(0.2)
+        if self._held is not None:
+            self._held.close()
+            self._held = None
 
 
 def check_upload(path: str | os.PathLike[str], *, upload_root: str | os.PathLike[str],
