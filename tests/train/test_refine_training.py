@@ -226,3 +226,18 @@ def test_swap_probability(data):
     assert [s.swapped for s in paper] == [s.swapped for s in again]
     with pytest.raises(ConfigError, match="probability"):
         TrainConfig("color", swap=1.5)
+
+
+def test_a_resumed_log_gains_the_new_terms_columns(tmp_path):
+    from photo3d.train.run import _LossLog
+
+    path = tmp_path / "losses.csv"
+    log = _LossLog(path, 0)
+    log.write(1, 0.5, {"hole": 1.0, "total": 2.0})
+    log.write(2, 0.5, {"hole": 1.0, "total": 2.0})
+    resumed = _LossLog(path, 2)  # resumed with an adversarial term
+    resumed.write(3, 0.5, {"hole": 1.0, "total": 2.0, "adv": 0.3})
+    rows = path.read_text().splitlines()
+    assert rows[0] == "step,seconds,hole,total,adv"
+    assert [r.split(",")[0] for r in rows[1:]] == ["1", "2", "3"]
+    assert rows[1].endswith(",") and rows[3].endswith(",0.3")

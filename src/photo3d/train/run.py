@@ -212,6 +212,15 @@ class _LossLog:
         if self.columns is None:
             self.columns = ["step", "seconds", *terms]
             write_bytes(self.path, _csv_bytes([self.columns]))
+        elif any(k not in self.columns for k in terms):
+            # a resumed run with a new term (e.g. an adversarial weight): widen the
+            # header, earlier rows leave the new columns empty
+            self.columns = [*self.columns, *(k for k in terms if k not in self.columns)]
+            with open(self.path, newline="") as f:
+                rows = list(csv.reader(f))[1:]
+            n = len(self.columns)
+            write_bytes(self.path, _csv_bytes([self.columns, *(r + [""] * (n - len(r))
+                                                              for r in rows)]))
         values = {"step": step, "seconds": f"{seconds:.4f}",
                   **{k: f"{v:.6g}" for k, v in terms.items()}}
         with open(self.path, "a", newline="") as f:
