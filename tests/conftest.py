@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import signal
 import time
 
 import numpy as np
@@ -9,6 +10,16 @@ import pytest
 
 from photo3d.config import Config, PreprocessConfig, RegionConfig
 from photo3d.mesh.types import Mesh
+
+# A shell without job control starts background commands (`make test &`, a CI step
+# run with `&`) with SIGINT ignored, `nohup` ignores SIGHUP, and an ignored signal
+# stays ignored through exec: every process the tests start would then ignore the
+# signals the signal tests send it. A Python handler is reset to the default on exec,
+# so a no-op one keeps this process ignoring them and gives the children the
+# signals of a foreground run.
+for _sig in (signal.SIGINT, getattr(signal, "SIGHUP", None)):
+    if _sig is not None and signal.getsignal(_sig) == signal.SIG_IGN:
+        signal.signal(_sig, lambda *_: None)
 
 
 def texture(h: int, w: int, seed: int = 0) -> np.ndarray:
