@@ -56,6 +56,21 @@ class RegionConfig:
     """Flood-fill steps of the synthesis region (px at 1024)."""
     context_iterations: int = 100
     """Flood-fill steps of the context region (px at 1024)."""
+    thin_context: float = 0.5
+    """An edge whose context has fewer pixels than this fraction of its synthesis region
+    (its background is a sliver between two depth edges: a mirror's stem, a gap in
+    a railing) also takes as context the pixels at or behind its depth that bound the
+    synthesis region, grown ``thin_context_iterations`` px along their own layer;
+    without them a few pixels of the sliver colour the whole region (0: never)."""
+    context_around: bool = True
+    """Every edge's context also takes the pixels at its synthesis region's depth (within
+    the discontinuity threshold) that bound that region, grown
+    ``thin_context_iterations`` px along their own layer: what surrounds a hidden area
+    at its depth, not only the side it was seen from (the paper's context is that side
+    alone; the classical fills gain from the rest; the learned backend keeps the
+    paper's, which its nets were trained on, and so does ``thin_context``)."""
+    thin_context_iterations: int = 10
+    """Flood-fill steps of that extra context (px at 1024)."""
     edge_dilation: int = 5
     """Synthesis region dilated into the context near the edge (px at 1024): these
     pixels, often a mix of foreground and background colour where colour and depth

@@ -122,14 +122,19 @@ def make(
     for k in range(reg.max_passes):
         if edge_pixels.size == 0:
             break
-        # a backend may want thinner contexts after the first pass (learned: the authors')
+        # a backend may want thinner contexts after the first pass (learned: the authors'),
+        # or the paper's contexts only (learned: its nets were trained on those)
         thin = 1.0 if k == 0 else getattr(backend, "later_context", 1.0)
+        paper = getattr(backend, "paper_context", False)
         regions = find_regions(
             ldi, edge_ptr, edge_pixels,
             synthesis_iterations=px(reg.synthesis_iterations),
             context_iterations=max(1, round(px(reg.context_iterations) * thin)),
             dilation=px(reg.edge_dilation) if k == 0 else 0,
             threshold=thr,
+            thin_context=0.0 if paper else reg.thin_context,
+            context_around=reg.context_around and not paper,
+            thin_context_iterations=px(reg.thin_context_iterations),
         )
         jobs = extract_patches(ldi, regions, edge_pixels, margin=backend.margin, scale=scale)
 

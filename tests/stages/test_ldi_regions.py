@@ -61,6 +61,79 @@ def test_synthesis_never_enters_positions_in_front_of_it():
     assert np.all(d[r.synthesis_y, r.synthesis_x] == 1.0)
 
 
+def _edges_of(d):
+    edges = link_edges(d, threshold=0.04, min_length=1)
+    ldi = cut(from_image(np.zeros((*d.shape, 3), np.float32), d), edges.cuts)
+    labels = edges.labels.reshape(-1)
+    pix = np.nonzero(labels)[0]
+    order = np.argsort(labels[pix], kind="stable")
+    ptr = np.concatenate([[0], np.cumsum(np.bincount(labels[pix])[1:])])
+    return ldi, ptr, pix[order]
+
+
+def test_a_thin_context_takes_what_bounds_the_synthesis_at_its_depth():
+    # far background seen through a 2x2 gap in a near block: the gap's edge has a
+    # 4-pixel context; its synthesis grows 8 px behind the block, and the search goes
+    # on through the block to the far background around it
+    d = np.zeros((40, 60), np.float32)
+    d[5:35, 5:35] = 1.0
+    d[18:20, 18:20] = 0.0
+    ldi, ptr, pix = _edges_of(d)
+    kw = dict(synthesis_iterations=8, context_iterations=10, dilation=0, threshold=0.04)
+    plain = find_regions(ldi, ptr, pix, **kw)
+    thin = find_regions(ldi, ptr, pix, thin_context=0.5, thin_context_iterations=3, **kw)
+    gap = [e for e in range(ptr.size - 1)
+           if np.all(d[ldi.y[pix[ptr[e]:ptr[e + 1]]], ldi.x[pix[ptr[e]:ptr[e + 1]]]] == 0)
+           and ldi.x[pix[ptr[e]]] > 10][0]
+
+    def ctx(r, e):
+        return r.context[r.context_ptr[e]:r.context_ptr[e + 1]]
+
+    assert ctx(plain, gap).size == 4
+    extra = ctx(thin, gap)[4:]
+    assert extra.size > 30
+    ey, ex = ldi.y[extra], ldi.x[extra]
+    assert np.all(d[ey, ex] == 0.0)  # at the gap's depth, never the block
+    assert np.all((ey < 5) | (ey >= 35) | (ex < 5) | (ex >= 35))  # outside the block
+    assert np.all(thin.context_step[thin.context_ptr[gap] + 4:thin.context_ptr[gap + 1]] == 10)
+    # the synthesis regions are the same, and the extra context is disjoint from them
+    assert np.array_equal(plain.synthesis_x, thin.synthesis_x)
+    assert np.array_equal(plain.synthesis_y, thin.synthesis_y)
+    s = slice(thin.synthesis_ptr[gap], thin.synthesis_ptr[gap + 1])
+    assert not set(zip(ey.tolist(), ex.tolist(), strict=True)) & set(
+        zip(thin.synthesis_y[s].tolist(), thin.synthesis_x[s].tolist(), strict=True))
+    # an edge whose context is not thin keeps it as it was
+    ldi2, _, pix2 = planes_ldi()
+    a, b = (find_regions(ldi2, np.array([0, pix2.size]), pix2, synthesis_iterations=6,
+                         context_iterations=10, dilation=2, threshold=0.04, thin_context=t)
+            for t in (0.0, 0.5))
+    assert np.array_equal(a.context, b.context)
+
+
+def test_the_context_takes_what_surrounds_the_hidden_area_at_its_depth():
+    # a near bar (columns 20-29) on a background: the hidden area behind the bar is
+    # bounded on the far side by background at the same depth (a second, unlinked
+    # context) -- or, when that side lies farther back, by nothing that joins
+    for far_side, joins in ((0.0, True), (-0.5, False)):
+        d = np.zeros((24, 50), np.float32)
+        d[:, 30:] = far_side
+        d[:, 20:30] = 1.0
+        ldi, ptr, pix = _edges_of(d)
+        left = [e for e in range(ptr.size - 1) if np.all(ldi.x[pix[ptr[e]:ptr[e + 1]]] == 19)][0]
+        kw = dict(synthesis_iterations=12, context_iterations=4, dilation=0, threshold=0.04,
+                  thin_context_iterations=3)
+        plain = find_regions(ldi, ptr, pix, **kw)
+        around = find_regions(ldi, ptr, pix, context_around=True, **kw)
+        xs = ldi.x[around.context[around.context_ptr[left]:around.context_ptr[left + 1]]]
+        assert np.all(ldi.x[plain.context[plain.context_ptr[left]:plain.context_ptr[left + 1]]]
+                      < 20)
+        if joins:
+            assert sorted(set(xs[xs >= 20].tolist())) == [30, 31, 32]
+        else:
+            assert np.all(xs < 20)
+        assert np.array_equal(plain.synthesis_x, around.synthesis_x)
+
+
 def test_border_extension_replicates_pixels_and_cuts():
     ldi, _, _ = planes_ldi(border=4)
     ldi.check()

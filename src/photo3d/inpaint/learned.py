@@ -181,6 +181,10 @@ class LearnedInpainter:
     later_context = 0.5
     """Context depth after the first pass, as a fraction of the first pass's (read by the
     pipeline; the authors' code: 140 px, then 70 px)."""
+    paper_context = True
+    """The nets see the paper's context regions only (read by the pipeline): they were
+    trained on those, not on :attr:`~photo3d.config.RegionConfig.context_around` or
+    ``thin_context``'s larger ones."""
 
     def __init__(self, *, weights: str | Path | None = None,
                  device: str | torch.device | None = None, nets: InpaintingNets | None = None,
@@ -259,7 +263,8 @@ class LearnedInpainter:
                 "units": dict(self.units), "color_size": self.color_size,
                 "share": self.share, "joint_pixels": self.joint_pixels,
                 "edge_halo": self.edge_halo, "paths": self.paths,
-                "later_context": self.later_context, **self.batch}
+                "later_context": self.later_context, "paper_context": self.paper_context,
+                **self.batch}
 
     def _run(self, kind: str, inputs: list[np.ndarray]) -> list[np.ndarray]:
         if not inputs:

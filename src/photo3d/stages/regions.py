@@ -78,9 +78,10 @@ def _admissible(b, seed, disp, starts, order, margin):  # pragma: no cover - jit
 
 @numba.njit(cache=True)
 def _regions(pos, disp, links, starts, order, rows, cols, edge_ptr, edge_pix,
-             n_syn, n_ctx, margin):  # pragma: no cover - jit
+             n_syn, n_ctx, margin, extend, around, n_ext):  # pragma: no cover - jit
     n_edges = edge_ptr.shape[0] - 1
     stamp = np.full(rows * cols, -1, np.int64)
+    seen = np.full(rows * cols, -1, np.int64)
     ctx = np.empty(1024, np.int64)
     ctx_step = np.empty(1024, np.int32)
     syn = np.empty(1024, np.int64)
@@ -149,6 +150,69 @@ def _regions(pos, disp, links, starts, order, rows, cols, edge_ptr, edge_pix,
                             syn_seed[ns] = seed
                             ns += 1
                 s_lo, s_hi = s_hi, ns
+        thin = extend > 0 and nc - c0 < extend * (ns - s0)
+        if thin or around:
+            # what bounds the synthesis region joins the context: around every edge, a
+            # bounding position's pixel at the synthesis depth (within the threshold);
+            # for a thin context (the edge's background is a sliver between two edges,
+            # or a gap) also one behind it, searched for through positions that only
+            # hold nearer pixels for up to n_syn rings. Each position gives its nearest
+            # such pixel, and those then grow n_ext steps along their own links.
+            e0 = nc
+            q_lo = ns  # the search queue reuses syn's tail beyond ns (positions, seeds)
+            nq = ns
+            for k in range(s0, ns):
+                syn = _grow(syn, nq)
+                syn_seed = _grow(syn_seed, nq)
+                syn[nq] = syn[k]
+                syn_seed[nq] = syn_seed[k]
+                nq += 1
+            for _ring in range(n_syn if thin else 1):
+                q_hi = nq
+                for k in range(q_lo, q_hi):
+                    a = syn[k]
+                    seed = syn_seed[k]
+                    for d in range(4):
+                        b = step(a, d, rows, cols)
+                        if b < 0 or stamp[b] == e or seen[b] == e:
+                            continue
+                        seen[b] = e
+                        best = -1
+                        for j in range(starts[b], starts[b + 1]):
+                            q = order[j]
+                            if (disp[q] <= seed + margin and (thin or disp[q] >= seed - 2 * margin)
+                                    and (best < 0 or disp[q] > disp[best])):
+                                best = q
+                        if best >= 0:
+                            stamp[b] = e
+                            ctx = _grow(ctx, nc)
+                            ctx_step = _grow(ctx_step, nc)
+                            ctx[nc] = best
+                            ctx_step[nc] = n_ctx
+                            nc += 1
+                        else:
+                            syn = _grow(syn, nq)
+                            syn_seed = _grow(syn_seed, nq)
+                            syn[nq] = b
+                            syn_seed[nq] = seed
+                            nq += 1
+                q_lo = q_hi
+                if q_lo == nq:
+                    break
+            c_lo, c_hi = e0, nc
+            for _it in range(n_ext - 1):
+                for k in range(c_lo, c_hi):
+                    p = ctx[k]
+                    for d in range(4):
+                        q = links[p, d]
+                        if q >= 0 and stamp[pos[q]] != e:
+                            stamp[pos[q]] = e
+                            ctx = _grow(ctx, nc)
+                            ctx_step = _grow(ctx_step, nc)
+                            ctx[nc] = q
+                            ctx_step[nc] = n_ctx
+                            nc += 1
+                c_lo, c_hi = c_hi, nc
         ctx_ptr[e + 1] = nc
         syn_ptr[e + 1] = ns
     return ctx_ptr, ctx[:nc].copy(), ctx_step[:nc].copy(), syn_ptr, syn[:ns].copy()
@@ -163,6 +227,9 @@ def find_regions(
     context_iterations: int,
     dilation: int,
     threshold: float,
+    thin_context: float = 0.0,
+    context_around: bool = False,
+    thin_context_iterations: int = 10,
 ) -> Regions:
     """Grow context and synthesis regions for a batch of depth edges.
 
@@ -194,6 +261,7 @@ def find_regions(
         ldi.positions(), ldi.disparity, ldi.links, starts, order, rows, cols,
         np.asarray(edge_ptr, np.int64), np.asarray(edge_pixels, np.int64),
         max(1, synthesis_iterations), max(1, context_iterations), np.float32(threshold / 2),
+        np.float32(thin_context), bool(context_around), max(1, thin_context_iterations),
     )
     return Regions(
         context_ptr=ctx_ptr,
