@@ -1,18 +1,19 @@
 """Plot a colour-net training run: the training loss and the held-out score per step.
 
 Reads ``RUN_DIR/losses.csv`` (one row per step) and ``RUN_DIR/heldout.csv`` (written
-every ``--heldout-every`` steps by ``photo3d train color ... --heldout DIR``) and draws
-three panels into one PNG (Pillow only, no matplotlib):
+every ``--heldout-every`` steps by ``photo3d train color ... --heldout DIR``) of one or
+more runs and draws into one PNG (Pillow only, no matplotlib):
 
-1. the training loss (``total``, and its L1 term: ``5 x hole`` for the refine net,
+1. per run, the training loss (``total``, and its L1 term: ``5 x hole`` for the refine net,
    ``6 x synthesis`` for the partial-convolution net), a running mean over ``--smooth``
    steps;
-2. the held-out regions LPIPS of the net, with diffusion's (the reference) as a
-   dashed line and the issue's target (25 % below diffusion) dotted;
-3. the held-out PSNR, with diffusion's and the target (no more than 0.5 dB below).
+2. the held-out regions LPIPS of every run's net, with diffusion's (the reference) as a
+   dashed line, the issue's target (25 % below diffusion) and any ``--reference``;
+3. the held-out PSNR, likewise (the target: no more than 0.5 dB below diffusion).
 
-Usage: python benchmarks/plot_training.py RUN_DIR [--out docs/img/training_refine.png]
-           [--smooth 100]
+Usage: python benchmarks/plot_training.py RUN_DIR [RUN_DIR ...]
+           [--out docs/img/training_refine.png] [--smooth 100]
+           [--reference structured=0.2164,22.66]
 """
 
 from __future__ import annotations
@@ -92,42 +93,57 @@ def panel(series: dict[str, tuple[np.ndarray, np.ndarray]], lines: dict[str, flo
     return img
 
 
-def plot(run: Path, out: Path, *, smooth: int = 100) -> Path:
-    losses = read_csv(run / "losses.csv")
-    held = read_csv(run / "heldout.csv")
-    steps = np.array([int(r["step"]) for r in losses], float)
-    net = [r for r in held if r["method"] == "net"]
-    diffusion = [r for r in held if r["method"] == "diffusion"]
-    x_max = max([steps.max() if steps.size else 0.0]
-                + [float(r["step"]) for r in net]) or 1.0
+def plot(runs: list[Path], out: Path, *, smooth: int = 100,
+         references: dict[str, tuple[float, float]] | None = None) -> Path:
+    """One loss panel per run, then the held-out LPIPS and PSNR of every run's net
+    against diffusion's (read from the first run's ``heldout.csv``), the target, and
+    ``references`` (name -> (lpips, psnr), e.g. the structured fill on the same set)."""
     panels = []
-    if losses:
-        series = {f"total loss (mean of {smooth} steps)": (
-            steps, running_mean(np.array([float(r["total"]) for r in losses]), smooth))}
-        for column, weight in (("hole", 5), ("synthesis", 6)):  # refine, partialconv
-            if column in losses[0]:
-                series[f"{weight} x {column} L1"] = (steps, running_mean(
-                    weight * np.array([float(r[column]) for r in losses]), smooth))
-        panels.append(panel(series, {}, title=f"training loss, run {run.name}",
-                            y_label="running mean", x_max=x_max))
-    if net:
-        xs = np.array([float(r["step"]) for r in net])
-        for metric, label, target in (("lpips", "lower is better", 0.75),
-                                      ("psnr", "dB, higher is better", None)):
-            ref = {}
-            if diffusion:
-                d = float(diffusion[0][metric])
-                ref[f"diffusion {d:.3f}" if metric == "lpips" else f"diffusion {d:.2f}"] = d
-                ref["target (issue 28)"] = d * target if target else d - 0.5
-            ys = np.array([float(r[metric]) for r in net])
-            panels.append(panel({f"net, held-out ({len(net)} scores)": (xs, ys)}, ref,
-                                title=f"held-out regions {metric.upper()}", y_label=label,
-                                x_max=x_max))
+    curves: dict[str, list[dict[str, str]]] = {}
+    diffusion: list[dict[str, str]] = []
+    x_max = 1.0
+    for run in runs:
+        losses = read_csv(run / "losses.csv")
+        held = read_csv(run / "heldout.csv")
+        net = [r for r in held if r["method"] == "net"]
+        diffusion = diffusion or [r for r in held if r["method"] == "diffusion"]
+        steps = np.array([int(r["step"]) for r in losses], float)
+        x_max = max([x_max, steps.max() if steps.size else 0.0]
+                    + [float(r["step"]) for r in net])
+        if net:
+            curves[run.name] = net
+        if losses:
+            series = {f"total loss (mean of {smooth} steps)": (
+                steps, running_mean(np.array([float(r["total"]) for r in losses]), smooth))}
+            for column, weight in (("hole", 5), ("synthesis", 6)):  # refine, partialconv
+                if column in losses[0]:
+                    series[f"{weight} x {column} L1"] = (steps, running_mean(
+                        weight * np.array([float(r[column] or "nan") for r in losses]),
+                        smooth))
+            panels.append((series, {}, f"training loss, run {run.name}", "running mean"))
+    for k, (metric, label, target) in enumerate((("lpips", "lower is better", 0.75),
+                                                 ("psnr", "dB, higher is better", None))):
+        if not curves:
+            break
+        ref = {}
+        if diffusion:
+            d = float(diffusion[0][metric])
+            ref[f"diffusion {d:.3f}" if metric == "lpips" else f"diffusion {d:.2f}"] = d
+            ref["target (issue 28)"] = d * target if target else d - 0.5
+        for name, values in (references or {}).items():
+            ref[f"{name} {values[k]:.3f}" if metric == "lpips" else
+                f"{name} {values[k]:.2f}"] = values[k]
+        series = {f"{name}, held-out ({len(net)} scores)": (
+            np.array([float(r["step"]) for r in net]), np.array([float(r[metric]) for r in net]))
+            for name, net in curves.items()}
+        panels.append((series, ref, f"held-out regions {metric.upper()}", label))
     if not panels:
-        raise SystemExit(f"{run}: no losses.csv or heldout.csv")
-    canvas = Image.new("RGB", (panels[0].width, sum(p.height for p in panels)), "white")
+        raise SystemExit(f"{', '.join(map(str, runs))}: no losses.csv or heldout.csv")
+    images = [panel(series, ref, title=title, y_label=label, x_max=x_max)
+              for series, ref, title, label in panels]
+    canvas = Image.new("RGB", (images[0].width, sum(p.height for p in images)), "white")
     y = 0
-    for p in panels:
+    for p in images:
         canvas.paste(p, (0, y))
         y += p.height
     out.parent.mkdir(parents=True, exist_ok=True)
@@ -137,12 +153,21 @@ def plot(run: Path, out: Path, *, smooth: int = 100) -> Path:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("run", type=Path, help="the run folder (photo3d train --out)")
+    parser.add_argument("runs", type=Path, nargs="+",
+                        help="run folders (photo3d train --out)")
     parser.add_argument("--out", type=Path, default=Path(__file__).parents[1] / "docs" / "img"
                         / "training_refine.png")
     parser.add_argument("--smooth", type=int, default=100)
+    parser.add_argument("--reference", action="append", default=[], metavar="NAME=LPIPS,PSNR",
+                        help="another fill's held-out score on the same photos, drawn as a "
+                             "line (e.g. structured=0.2164,22.66)")
     args = parser.parse_args()
-    print(plot(args.run, args.out, smooth=args.smooth))
+    refs = {}
+    for item in args.reference:
+        name, _, values = item.partition("=")
+        lp, ps = (float(v) for v in values.split(","))
+        refs[name] = (lp, ps)
+    print(plot(args.runs, args.out, smooth=args.smooth, references=refs))
 
 
 if __name__ == "__main__":
