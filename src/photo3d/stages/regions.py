@@ -16,7 +16,10 @@ For every depth edge (a set of background silhouette pixels, links already cut):
   one of them (per edge);
 * context pixels closer than ``dilation`` steps to the silhouette move to the
   synthesis region (the paper's 5 px dilation for misaligned depth edges): their
-  colour and depth are re-synthesised in place.
+  colour and depth are re-synthesised in place;
+* optionally (photo3d's, not the paper's; :func:`_surround`) the context also takes
+  what bounds the synthesis region at its depth (``context_around``), and, when it is
+  thin (``thin_context``), what lies behind it.
 """
 
 from __future__ import annotations
@@ -74,6 +77,75 @@ def _admissible(b, seed, disp, starts, order, margin):  # pragma: no cover - jit
         if disp[order[k]] <= seed + margin:
             return False
     return True
+
+
+@numba.njit(cache=True)
+def _surround(e, thin, s0, ns, pos, disp, links, starts, order, rows, cols, stamp, seen,
+              ctx, ctx_step, nc, syn, syn_seed, n_syn, n_ctx, margin,
+              n_ext):  # pragma: no cover - jit
+    """Edge ``e``'s context also takes what bounds its synthesis region ``syn[s0:ns]``:
+    around every edge, a bounding position's pixel at the synthesis depth (within the
+    threshold, ``2 margin``); for a ``thin`` context (the edge's background is a sliver
+    between two edges, or a gap) also one behind it, searched for through positions
+    that only hold nearer pixels for up to ``n_syn`` rings. Each position gives its
+    nearest such pixel, and those then grow ``n_ext`` steps along their own links.
+    Returns the grown ``(ctx, ctx_step, nc, syn, syn_seed)``."""
+    e0 = nc
+    q_lo = ns  # the search queue reuses syn's tail beyond ns (positions, seeds)
+    nq = ns
+    for k in range(s0, ns):
+        syn = _grow(syn, nq)
+        syn_seed = _grow(syn_seed, nq)
+        syn[nq] = syn[k]
+        syn_seed[nq] = syn_seed[k]
+        nq += 1
+    for _ring in range(n_syn if thin else 1):
+        q_hi = nq
+        for k in range(q_lo, q_hi):
+            a = syn[k]
+            seed = syn_seed[k]
+            for d in range(4):
+                b = step(a, d, rows, cols)
+                if b < 0 or stamp[b] == e or seen[b] == e:
+                    continue
+                seen[b] = e
+                best = -1
+                for j in range(starts[b], starts[b + 1]):
+                    q = order[j]
+                    if (disp[q] <= seed + margin and (thin or disp[q] >= seed - 2 * margin)
+                            and (best < 0 or disp[q] > disp[best])):
+                        best = q
+                if best >= 0:
+                    stamp[b] = e
+                    ctx = _grow(ctx, nc)
+                    ctx_step = _grow(ctx_step, nc)
+                    ctx[nc] = best
+                    ctx_step[nc] = n_ctx
+                    nc += 1
+                else:
+                    syn = _grow(syn, nq)
+                    syn_seed = _grow(syn_seed, nq)
+                    syn[nq] = b
+                    syn_seed[nq] = seed
+                    nq += 1
+        q_lo = q_hi
+        if q_lo == nq:
+            break
+    c_lo, c_hi = e0, nc
+    for _it in range(n_ext - 1):
+        for k in range(c_lo, c_hi):
+            p = ctx[k]
+            for d in range(4):
+                q = links[p, d]
+                if q >= 0 and stamp[pos[q]] != e:
+                    stamp[pos[q]] = e
+                    ctx = _grow(ctx, nc)
+                    ctx_step = _grow(ctx_step, nc)
+                    ctx[nc] = q
+                    ctx_step[nc] = n_ctx
+                    nc += 1
+        c_lo, c_hi = c_hi, nc
+    return ctx, ctx_step, nc, syn, syn_seed
 
 
 @numba.njit(cache=True)
@@ -152,67 +224,9 @@ def _regions(pos, disp, links, starts, order, rows, cols, edge_ptr, edge_pix,
                 s_lo, s_hi = s_hi, ns
         thin = extend > 0 and nc - c0 < extend * (ns - s0)
         if thin or around:
-            # what bounds the synthesis region joins the context: around every edge, a
-            # bounding position's pixel at the synthesis depth (within the threshold);
-            # for a thin context (the edge's background is a sliver between two edges,
-            # or a gap) also one behind it, searched for through positions that only
-            # hold nearer pixels for up to n_syn rings. Each position gives its nearest
-            # such pixel, and those then grow n_ext steps along their own links.
-            e0 = nc
-            q_lo = ns  # the search queue reuses syn's tail beyond ns (positions, seeds)
-            nq = ns
-            for k in range(s0, ns):
-                syn = _grow(syn, nq)
-                syn_seed = _grow(syn_seed, nq)
-                syn[nq] = syn[k]
-                syn_seed[nq] = syn_seed[k]
-                nq += 1
-            for _ring in range(n_syn if thin else 1):
-                q_hi = nq
-                for k in range(q_lo, q_hi):
-                    a = syn[k]
-                    seed = syn_seed[k]
-                    for d in range(4):
-                        b = step(a, d, rows, cols)
-                        if b < 0 or stamp[b] == e or seen[b] == e:
-                            continue
-                        seen[b] = e
-                        best = -1
-                        for j in range(starts[b], starts[b + 1]):
-                            q = order[j]
-                            if (disp[q] <= seed + margin and (thin or disp[q] >= seed - 2 * margin)
-                                    and (best < 0 or disp[q] > disp[best])):
-                                best = q
-                        if best >= 0:
-                            stamp[b] = e
-                            ctx = _grow(ctx, nc)
-                            ctx_step = _grow(ctx_step, nc)
-                            ctx[nc] = best
-                            ctx_step[nc] = n_ctx
-                            nc += 1
-                        else:
-                            syn = _grow(syn, nq)
-                            syn_seed = _grow(syn_seed, nq)
-                            syn[nq] = b
-                            syn_seed[nq] = seed
-                            nq += 1
-                q_lo = q_hi
-                if q_lo == nq:
-                    break
-            c_lo, c_hi = e0, nc
-            for _it in range(n_ext - 1):
-                for k in range(c_lo, c_hi):
-                    p = ctx[k]
-                    for d in range(4):
-                        q = links[p, d]
-                        if q >= 0 and stamp[pos[q]] != e:
-                            stamp[pos[q]] = e
-                            ctx = _grow(ctx, nc)
-                            ctx_step = _grow(ctx_step, nc)
-                            ctx[nc] = q
-                            ctx_step[nc] = n_ctx
-                            nc += 1
-                c_lo, c_hi = c_hi, nc
+            ctx, ctx_step, nc, syn, syn_seed = _surround(
+                e, thin, s0, ns, pos, disp, links, starts, order, rows, cols, stamp, seen,
+                ctx, ctx_step, nc, syn, syn_seed, n_syn, n_ctx, margin, n_ext)
         ctx_ptr[e + 1] = nc
         syn_ptr[e + 1] = ns
     return ctx_ptr, ctx[:nc].copy(), ctx_step[:nc].copy(), syn_ptr, syn[:ns].copy()
@@ -240,6 +254,12 @@ def find_regions(
         synthesis_iterations, context_iterations, dilation: sizes in pixels (already
             scaled to the working size).
         threshold: the discontinuity threshold (normalised disparity).
+        thin_context: a context with fewer pixels than this fraction of its synthesis
+            region also takes the pixels behind the region that bound it (searched
+            for through nearer positions); 0: never.
+        context_around: every context also takes the pixels at the synthesis
+            region's depth (within ``threshold``) that bound the region.
+        thin_context_iterations: steps those extra pixels grow along their links.
 
     Returns:
         :class:`Regions`.
