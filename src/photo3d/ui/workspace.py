@@ -33,6 +33,7 @@ import stat
 import tempfile
 import threading
 import time
+import weakref
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -50,13 +51,19 @@ ROOT_PATTERN = re.compile(r"photo3d-ui-[0-9a-f]{16}")
 """The names of the roots ``photo3d ui`` creates in the upload folder."""
 
 
-def _hold(path: Path):
-    """Open ``path`` and lock it for this process's lifetime (None without ``fcntl``)."""
+def _hold(path: Path) -> int | None:
+    """Open ``path`` and lock it (``flock``, released when the descriptor closes: by
+    the caller, or by the system when the process ends however it ends); the file
+    descriptor, or None without ``fcntl``."""
     if fcntl is None:  # pragma: no cover - Windows
         return None
-    handle = open(path, "a+b")  # noqa: SIM115 - held until close() or the process ends
-    fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
-    return handle
+    fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o600)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError:
+        os.close(fd)
+        raise
+    return fd
 
 
 def remove_stale(upload_root: str | os.PathLike[str]) -> list[Path]:
@@ -121,7 +128,9 @@ class Workspace:
         except OSError as err:
             raise OutputError(f"cannot create the working folder {self.root}: "
                               f"{err.strerror or err}") from None
-        self._held = _hold(self.root / LOCK_NAME)
+        fd = _hold(self.root / LOCK_NAME)
+        # released by close(), or when the workspace is collected without one
+        self._release = weakref.finalize(self, os.close, fd) if fd is not None else None
         self._lock = threading.Lock()
         self._busy: set[Path] = set()
         self._expires: dict[Path, float] = {}
@@ -180,9 +189,8 @@ class Workspace:
             if not self.root.exists():
                 break
             time.sleep(0.2)
-        if self._held is not None:
-            self._held.close()
-            self._held = None
+        if self._release is not None:
+            self._release()
 
 
 def check_upload(path: str | os.PathLike[str], *, upload_root: str | os.PathLike[str],
