@@ -766,6 +766,40 @@ def section_viewer() -> str:
     return "\n".join(out)
 
 
+def section_training() -> str:
+    """Colour nets trained here on real photos, scored on held-out photos (issue 28)."""
+    import csv
+
+    out = ["## Colour nets trained on real photos, held-out score per checkpoint (issue 28)",
+           "", "Logs in `benchmarks/training/RUN/` (`heldout.csv`: the net scored every 250 "
+           "steps on 24 photos of `data/photos/heldout`, the protocol of `photo3d eval "
+           "--heldout`); commands `benchmarks/train_refine.sh` and "
+           "`benchmarks/train_pconv.sh` (2-core AMD EPYC, one `nice`d core each); plot and "
+           "extrapolation: `python benchmarks/plot_training.py benchmarks/training/refine "
+           "benchmarks/training/pconv --reference structured=0.2164,22.66` "
+           "([learned](../docs/learned.md#the-refine-colour-net-issue-28)).", "",
+           "| run | step | LPIPS | PSNR | SSIM |", "| --- | --- | --- | --- | --- |"]
+    rows = 0
+    for run in ("refine", "pconv"):
+        path = HERE / "training" / run / "heldout.csv"
+        if not path.is_file():
+            continue
+        with open(path, newline="") as f:
+            held = list(csv.DictReader(f))
+        for r in held:
+            if r["method"] == "diffusion" and not any(o.startswith("| diffusion") for o in out):
+                out.append(f"| diffusion (reference) | - | {float(r['lpips']):.4f} | "
+                           f"{float(r['psnr']):.2f} | {float(r['ssim']):.3f} |")
+        for r in held:
+            if r["method"] == "net" and int(r["step"]) % 500 == 0:
+                out.append(f"| {run} | {int(r['step']):,} | {float(r['lpips']):.4f} | "
+                           f"{float(r['psnr']):.2f} | {float(r['ssim']):.3f} |")
+                rows += 1
+    if not rows:
+        return "\n".join(out[:2]) + "\n" + missing("benchmarks/train_refine.sh") + "\n"
+    return "\n".join(out + [""])
+
+
 def section_json(name: str, title: str, cmd: str) -> str:
     """Sections owned by benchmark scripts that write their own markdown summary."""
     rec = load(name)
@@ -812,6 +846,7 @@ def main() -> None:
                      "benchmarks/results/heldout_debian.json"),
         section_json("border.json", "The frame beyond the photo, end to end (issue 27)",
                      "python benchmarks/bench_border.py"),
+        section_training(),
         section_light(load, machine_line, missing),
         (HERE / "history.md").read_text(),  # measurement history, written by hand
     ]

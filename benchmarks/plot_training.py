@@ -151,6 +151,30 @@ def plot(runs: list[Path], out: Path, *, smooth: int = 100,
     return out
 
 
+def steps_to(net: list[dict[str, str]], target: float, *, last: int | None = None
+             ) -> float | None:
+    """Steps at which the held-out LPIPS of ``net`` (``heldout.csv`` rows) would reach
+    ``target``, extrapolating a straight line in log(step) through its scores after
+    step 0 (the ``last`` of them if given; least squares); None if that line does not
+    fall.
+
+    Example:
+        >>> rows = [{"step": str(s), "lpips": str(0.5 - 0.1 * np.log10(s))}
+        ...         for s in (10, 100, 1000)]
+        >>> round(steps_to(rows, 0.1))
+        10000
+    """
+    pts = [(float(r["step"]), float(r["lpips"])) for r in net if float(r["step"]) > 0]
+    pts = pts[-last:] if last else pts
+    if len(pts) < 2:
+        return None
+    x = np.log10([p[0] for p in pts])
+    slope, intercept = np.polyfit(x, [p[1] for p in pts], 1)
+    if slope >= 0:
+        return None
+    return float(10 ** ((target - intercept) / slope))
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("runs", type=Path, nargs="+",
@@ -168,6 +192,18 @@ def main() -> None:
         lp, ps = (float(v) for v in values.split(","))
         refs[name] = (lp, ps)
     print(plot(args.runs, args.out, smooth=args.smooth, references=refs))
+    for run in args.runs:
+        held = read_csv(run / "heldout.csv")
+        net = [r for r in held if r["method"] == "net"]
+        diffusion = [float(r["lpips"]) for r in held if r["method"] == "diffusion"]
+        if not net or not diffusion:
+            continue
+        target = 0.75 * diffusion[0]
+        at = steps_to(net, target)
+        print(f"{run.name}: held-out LPIPS {float(net[-1]['lpips']):.4f} at step "
+              f"{net[-1]['step']}; target {target:.4f} at step "
+              + (f"{at:.2g}" if at else "never") + " (a line in log(step) through its "
+              "scores after step 0)")
 
 
 if __name__ == "__main__":
