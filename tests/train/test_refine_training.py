@@ -4,12 +4,11 @@ resume (with or without the adversarial term), the held-out score is logged."""
 from __future__ import annotations
 
 import csv
-import shutil
 from pathlib import Path
 
 import numpy as np
 import pytest
-from trainkit import CROP, REGION_SIZE, write_fake_vgg, write_folder
+from trainkit import ALEXNET, CROP, REGION_SIZE, one_thread_fake_cache, write_folder
 
 torch = pytest.importorskip("torch")
 
@@ -31,20 +30,11 @@ from photo3d.train import (  # noqa: E402
 from photo3d.train.heldout import HeldoutSet  # noqa: E402
 
 REFINE = dict(arch="refine", channels=4, levels=2, blocks=1)
-ALEXNET = Path.home() / ".cache" / "photo3d" / "lpips_alexnet_v0.1.npz"
 
 
 @pytest.fixture(autouse=True)
 def one_thread(tmp_path_factory, monkeypatch):
-    before = torch.get_num_threads()
-    torch.set_num_threads(1)
-    cache = tmp_path_factory.mktemp("cache")
-    write_fake_vgg(cache)
-    if ALEXNET.is_file():  # LPIPS of the held-out score (never downloaded by the tests)
-        shutil.copy(ALEXNET, cache / ALEXNET.name)
-    monkeypatch.setenv("PHOTO3D_CACHE", str(cache))
-    yield
-    torch.set_num_threads(before)
+    yield from one_thread_fake_cache(tmp_path_factory, monkeypatch, lpips=True)
 
 
 @pytest.fixture(scope="module")

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from test_robustness import snapshot
-from trainkit import CROP, REGION_SIZE, write_fake_vgg, write_folder
+from trainkit import CROP, REGION_SIZE, one_thread_fake_cache, write_folder
 
 torch = pytest.importorskip("torch")
 
@@ -21,13 +21,7 @@ TINY = ["--size", str(CROP), "--region-size", str(REGION_SIZE), "--batch", "2", 
 
 @pytest.fixture(autouse=True)
 def one_thread(tmp_path_factory, monkeypatch):
-    before = torch.get_num_threads()
-    torch.set_num_threads(1)
-    cache = tmp_path_factory.mktemp("cache")
-    write_fake_vgg(cache)
-    monkeypatch.setenv("PHOTO3D_CACHE", str(cache))
-    yield
-    torch.set_num_threads(before)
+    yield from one_thread_fake_cache(tmp_path_factory, monkeypatch)
 
 
 @pytest.fixture(scope="module")

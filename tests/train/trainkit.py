@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import pickle
+import shutil
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -58,3 +60,25 @@ def write_fake_vgg(cache: Path) -> Path:
     path = cache_weights("vgg16", flat, folder=cache)
     assert path == cache / CACHE_NAMES["vgg16"]
     return path
+
+
+ALEXNET = Path.home() / ".cache" / "photo3d" / "lpips_alexnet_v0.1.npz"
+"""LPIPS weights a developer may have cached (never downloaded by the tests)."""
+
+
+def one_thread_fake_cache(tmp_path_factory, monkeypatch, *, lpips: bool = False
+                          ) -> Iterator[None]:
+    """Body of an autouse fixture (``yield from`` it): torch on one thread, and
+    ``$PHOTO3D_CACHE`` a fresh folder holding the fake VGG-16 (and, with ``lpips``, the
+    developer's cached LPIPS weights if there are any)."""
+    import torch
+
+    before = torch.get_num_threads()
+    torch.set_num_threads(1)
+    cache = tmp_path_factory.mktemp("cache")
+    write_fake_vgg(cache)
+    if lpips and ALEXNET.is_file():
+        shutil.copy(ALEXNET, cache / ALEXNET.name)
+    monkeypatch.setenv("PHOTO3D_CACHE", str(cache))
+    yield
+    torch.set_num_threads(before)

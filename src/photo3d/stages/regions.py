@@ -80,6 +80,25 @@ def _admissible(b, seed, disp, starts, order, margin):  # pragma: no cover - jit
 
 
 @numba.njit(cache=True)
+def _link_ring(e, lo, hi, links, pos, stamp, ctx, ctx_step, nc, value):  # pragma: no cover
+    """Grow context ``ctx[lo:hi]`` of edge ``e`` one step along the LDI links: every
+    linked pixel whose position is not yet stamped ``e`` joins with step ``value``.
+    Returns ``(ctx, ctx_step, nc)``."""
+    for k in range(lo, hi):
+        p = ctx[k]
+        for d in range(4):
+            q = links[p, d]
+            if q >= 0 and stamp[pos[q]] != e:
+                stamp[pos[q]] = e
+                ctx = _grow(ctx, nc)
+                ctx_step = _grow(ctx_step, nc)
+                ctx[nc] = q
+                ctx_step[nc] = value
+                nc += 1
+    return ctx, ctx_step, nc
+
+
+@numba.njit(cache=True)
 def _surround(e, thin, s0, ns, pos, disp, links, starts, order, rows, cols, stamp, seen,
               ctx, ctx_step, nc, syn, syn_seed, n_syn, n_ctx, margin,
               n_ext):  # pragma: no cover - jit
@@ -91,14 +110,8 @@ def _surround(e, thin, s0, ns, pos, disp, links, starts, order, rows, cols, stam
     nearest such pixel, and those then grow ``n_ext`` steps along their own links.
     Returns the grown ``(ctx, ctx_step, nc, syn, syn_seed)``."""
     e0 = nc
-    q_lo = ns  # the search queue reuses syn's tail beyond ns (positions, seeds)
-    nq = ns
-    for k in range(s0, ns):
-        syn = _grow(syn, nq)
-        syn_seed = _grow(syn_seed, nq)
-        syn[nq] = syn[k]
-        syn_seed[nq] = syn_seed[k]
-        nq += 1
+    q_lo = s0  # the search starts from the region; positions it passes go to syn's
+    nq = ns    # tail beyond ns (with their seeds), which the next edge overwrites
     for _ring in range(n_syn if thin else 1):
         q_hi = nq
         for k in range(q_lo, q_hi):
@@ -133,17 +146,8 @@ def _surround(e, thin, s0, ns, pos, disp, links, starts, order, rows, cols, stam
             break
     c_lo, c_hi = e0, nc
     for _it in range(n_ext - 1):
-        for k in range(c_lo, c_hi):
-            p = ctx[k]
-            for d in range(4):
-                q = links[p, d]
-                if q >= 0 and stamp[pos[q]] != e:
-                    stamp[pos[q]] = e
-                    ctx = _grow(ctx, nc)
-                    ctx_step = _grow(ctx_step, nc)
-                    ctx[nc] = q
-                    ctx_step[nc] = n_ctx
-                    nc += 1
+        ctx, ctx_step, nc = _link_ring(e, c_lo, c_hi, links, pos, stamp, ctx, ctx_step, nc,
+                                       n_ctx)
         c_lo, c_hi = c_hi, nc
     return ctx, ctx_step, nc, syn, syn_seed
 
@@ -153,7 +157,7 @@ def _regions(pos, disp, links, starts, order, rows, cols, edge_ptr, edge_pix,
              n_syn, n_ctx, margin, extend, around, n_ext):  # pragma: no cover - jit
     n_edges = edge_ptr.shape[0] - 1
     stamp = np.full(rows * cols, -1, np.int64)
-    seen = np.full(rows * cols, -1, np.int64)
+    seen = np.full(rows * cols if extend > 0 or around else 1, -1, np.int64)
     ctx = np.empty(1024, np.int64)
     ctx_step = np.empty(1024, np.int32)
     syn = np.empty(1024, np.int64)
@@ -194,17 +198,8 @@ def _regions(pos, disp, links, starts, order, rows, cols, edge_ptr, edge_pix,
         s_lo, s_hi = s0, ns
         for it in range(max(n_ctx, n_syn) - 1):
             if it < n_ctx - 1:
-                for k in range(c_lo, c_hi):
-                    p = ctx[k]
-                    for d in range(4):
-                        q = links[p, d]
-                        if q >= 0 and stamp[pos[q]] != e:
-                            stamp[pos[q]] = e
-                            ctx = _grow(ctx, nc)
-                            ctx_step = _grow(ctx_step, nc)
-                            ctx[nc] = q
-                            ctx_step[nc] = it + 1
-                            nc += 1
+                ctx, ctx_step, nc = _link_ring(e, c_lo, c_hi, links, pos, stamp, ctx,
+                                               ctx_step, nc, it + 1)
                 c_lo, c_hi = c_hi, nc
             if it < n_syn - 1:
                 for k in range(s_lo, s_hi):
