@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from photo3d.config import Config, PreprocessConfig, RegionConfig
-from photo3d.mesh.types import Mesh
+from photo3d.structures.mesh import Mesh
 
 # A shell without job control starts background commands (`make test &`, a CI step
 # run with `&`) with SIGINT ignored, `nohup` ignores SIGHUP, and an ignored signal

@@ -4,8 +4,9 @@ from conftest import exact_config, texture
 
 import photo3d
 from photo3d.errors import ConfigError
-from photo3d.inpaint import Patch, get_inpainter
+from photo3d.inpaint import get_inpainter
 from photo3d.inpaint.diffusion import diffuse
+from photo3d.structures.patch import Patch
 
 
 def test_diffusion_reproduces_a_linear_ramp():

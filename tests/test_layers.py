@@ -16,8 +16,8 @@ LAYERS = {
     # 0: foundations every layer may use
     "photo3d.errors": 0, "photo3d.progress": 0, "photo3d.config": 0, "photo3d.camera": 0,
     "photo3d.holes": 0, "photo3d.files": 0,
-    # 1: the types that cross stage boundaries
-    "photo3d.stages.ldi": 1, "photo3d.mesh.types": 1, "photo3d.inpaint.base": 1,
+    # 1: the types that cross layers (the LDI, the meshes, the patch and its result)
+    "photo3d.structures": 1,
     # 2: file formats
     "photo3d.io": 2,
     # 3: depth sources, the bundled sample

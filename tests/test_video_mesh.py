@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 import photo3d
-from photo3d.mesh.types import Mesh, TexturedMesh
 from photo3d.output import _video_mesh
 from photo3d.render.renderer import RenderSettings
+from photo3d.structures.mesh import Mesh, TexturedMesh
 
 
 def _photo():

@@ -31,12 +31,12 @@ from photo3d.io.npz import load_npz, save_npz
 from photo3d.io.ply import write_ply
 from photo3d.mesh.light import LIGHT_ERROR, build_light_mesh
 from photo3d.owned import FINISHED_FILES, LDI_FILE, claim_files, owned_photo, record_files
-from photo3d.stages.ldi import LDI
+from photo3d.structures.ldi import LDI
 
 if TYPE_CHECKING:
-    from photo3d.mesh.types import Mesh, TexturedMesh
     from photo3d.render.animate import VideoSpec
     from photo3d.render.renderer import RenderSettings
+    from photo3d.structures.mesh import Mesh, TexturedMesh
 
 class SavedPhoto(Protocol):
     """What is saved of a 3D photo (a :class:`photo3d.Photo3D`)."""
@@ -251,8 +251,8 @@ def write_videos(photo: SavedPhoto, mesh, folder: Path, videos: Sequence[VideoSp
                  progress: Callable[[str, float], None] | None = None) -> list[Path]:
     """Render ``videos`` of ``photo`` into ``folder/video/`` (one renderer for all).
 
-    ``mesh``: the mesh to draw, a full :class:`~photo3d.mesh.types.Mesh` or a light
-    :class:`~photo3d.mesh.types.TexturedMesh`; None: the light one with the OpenGL
+    ``mesh``: the mesh to draw, a full :class:`~photo3d.structures.mesh.Mesh` or a light
+    :class:`~photo3d.structures.mesh.TexturedMesh`; None: the light one with the OpenGL
     backend, else the full one (built here).
 
     Nothing is written through a symbolic link, and no file photo3d did not write is

@@ -12,12 +12,12 @@ from photo3d.camera import Camera
 from photo3d.config import Config
 from photo3d.errors import InputError
 from photo3d.mesh.full import build_mesh
-from photo3d.mesh.types import Mesh
-from photo3d.stages.ldi import LDI
+from photo3d.structures.ldi import LDI
+from photo3d.structures.mesh import Mesh
 
 if TYPE_CHECKING:
-    from photo3d.mesh.types import TexturedMesh
     from photo3d.render.renderer import RenderSettings, View
+    from photo3d.structures.mesh import TexturedMesh
 
 
 @dataclass

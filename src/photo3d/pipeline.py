@@ -13,7 +13,7 @@ from photo3d.depth.normalize import prepare_depth
 from photo3d.depth.sources import describe_depth, read_photo
 from photo3d.errors import InputError
 from photo3d.inpaint import get_inpainter
-from photo3d.inpaint.base import Inpainter, Patch
+from photo3d.inpaint.base import Inpainter
 from photo3d.inpaint.frame import fill_frame
 from photo3d.io.depth import read_depth
 from photo3d.io.images import MIN_SIDE
@@ -27,6 +27,7 @@ from photo3d.stages.merge import merge
 from photo3d.stages.patches import extract_patches
 from photo3d.stages.preprocess import preprocess
 from photo3d.stages.regions import find_regions
+from photo3d.structures.patch import Patch
 
 
 def make(

@@ -26,7 +26,7 @@ from photo3d.eval.heldout import (
     make_border,
 )
 from photo3d.eval.heldout_data import first_pass_shapes, photo_files, place
-from photo3d.inpaint.base import InpaintResult
+from photo3d.structures.patch import InpaintResult
 
 CONFIG = Config(size=None, spatial_scale=1.0,
                 regions=RegionConfig(synthesis_iterations=10, context_iterations=14,

@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from photo3d.inpaint import Patch
 from photo3d.inpaint.canvas import joint_patch, share_canvases
+from photo3d.structures.patch import Patch
 
 
 def strip(x0: int, *, ctx_cols: int, syn_cols: int, disparity: float, h: int = 16,

@@ -20,9 +20,10 @@ import photo3d  # noqa: E402
 import photo3d.inpaint.learned  # noqa: E402,F401  (registers "learned")
 from photo3d.camera import DepthMapping  # noqa: E402
 from photo3d.errors import ConfigError  # noqa: E402
-from photo3d.inpaint import Patch, get_inpainter  # noqa: E402
+from photo3d.inpaint import get_inpainter  # noqa: E402
 from photo3d.inpaint.learned import LearnedInpainter, close_gaps  # noqa: E402
 from photo3d.nets import InpaintingNets, build_net, save_safetensors  # noqa: E402
+from photo3d.structures.patch import Patch  # noqa: E402
 
 SMALL = {"edge": dict(width=0.125, blocks=1), "depth": dict(levels=3, width=0.125),
          "color": dict(levels=3, width=0.125)}

@@ -3,10 +3,11 @@ import pytest
 from conftest import exact_config
 
 import photo3d
-from photo3d.inpaint import Patch, get_inpainter
+from photo3d.inpaint import get_inpainter
 from photo3d.inpaint.continuation import continue_edges
 from photo3d.inpaint.exemplar import exemplar_fill
 from photo3d.inpaint.structured import piecewise_diffuse
+from photo3d.structures.patch import Patch
 
 H, W = 96, 128
 SLOPE, ROW0 = 0.2, 45.0  # hidden edge: y = ROW0 + SLOPE * (x - 64), pixel centres

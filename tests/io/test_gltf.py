@@ -232,7 +232,7 @@ def test_textured_reader_rejects_hostile_files(tmp_path, keys, message):
     """Indices past the vertices, or attributes of different lengths, raise InputError
     instead of building a mesh whose faces point outside its vertex arrays."""
     from photo3d.io.gltf_textured import read_textured_glb, write_textured_glb
-    from photo3d.mesh.types import TexturedMesh
+    from photo3d.structures.mesh import TexturedMesh
 
     n = 9
     mesh = TexturedMesh(np.random.default_rng(0).random((n, 3), np.float32) + [0, 0, 1],

@@ -11,7 +11,7 @@ from conftest import grid_mesh
 
 from photo3d.errors import InputError, OutputError
 from photo3d.io.ply import read_ply, write_ply
-from photo3d.mesh.types import Mesh
+from photo3d.structures.mesh import Mesh
 
 
 def assert_same_mesh(got: Mesh, want: Mesh) -> None:

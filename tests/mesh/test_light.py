@@ -13,9 +13,9 @@ from photo3d.camera import Camera, Intrinsics, unproject
 from photo3d.errors import InputError
 from photo3d.mesh.full import build_mesh
 from photo3d.mesh.light import build_light_mesh
-from photo3d.mesh.types import TexturedMesh
 from photo3d.render.renderer import Renderer, RenderSettings
 from photo3d.stages.ldi import from_image
+from photo3d.structures.mesh import TexturedMesh
 
 
 def psnr(a: np.ndarray, b: np.ndarray) -> float:

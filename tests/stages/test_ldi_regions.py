@@ -6,8 +6,9 @@ from photo3d.errors import InputError
 from photo3d.io.npz import load_npz, save_npz
 from photo3d.stages.border import extend_border
 from photo3d.stages.edges import link_edges
-from photo3d.stages.ldi import LABEL_BORDER, cut, from_image
+from photo3d.stages.ldi import cut, from_image
 from photo3d.stages.regions import find_regions
+from photo3d.structures.ldi import LABEL_BORDER
 
 
 def planes_ldi(border=0):

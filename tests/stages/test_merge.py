@@ -1,12 +1,12 @@
 import numpy as np
 import pytest
 
-from photo3d.inpaint.base import InpaintResult
 from photo3d.stages.edges import link_edges
 from photo3d.stages.ldi import cut, from_image
 from photo3d.stages.merge import merge
 from photo3d.stages.patches import extract_patches
 from photo3d.stages.regions import find_regions
+from photo3d.structures.patch import InpaintResult
 
 THR = 0.04
 

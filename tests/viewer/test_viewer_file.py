@@ -15,7 +15,7 @@ from viewer_scenes import box_photo, canonical_faces, shuffled
 
 from photo3d.errors import InputError, OutputError
 from photo3d.io.gltf import write_glb
-from photo3d.mesh.types import Mesh
+from photo3d.structures.mesh import Mesh
 from photo3d.viewer import read_viewer, write_viewer
 from photo3d.viewer._codec import decode_mesh, encode_mesh
 
@@ -119,7 +119,7 @@ def test_unwritable_path_and_foreign_files(tmp_path):
 
 def test_textured_mesh_round_trip(tmp_path):
     """A light textured mesh: uv within 1/65535, texture as JPEG, faces and labels exact."""
-    from photo3d.mesh.types import TexturedMesh
+    from photo3d.structures.mesh import TexturedMesh
 
     light = box_photo().light_mesh()
     back = read_viewer(write_viewer(light, tmp_path / "viewer.html"))

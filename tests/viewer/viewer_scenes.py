@@ -8,7 +8,7 @@ import numpy as np
 from conftest import exact_config, texture
 
 import photo3d
-from photo3d.mesh.types import Mesh
+from photo3d.structures.mesh import Mesh
 
 WIDTH, HEIGHT = 96, 64
 

@@ -57,7 +57,8 @@ from photo3d.eval.heldout_data import (
     region_bank,
 )
 from photo3d.eval.metrics import psnr, ssim
-from photo3d.inpaint.base import Inpainter, InpaintResult, Patch
+from photo3d.inpaint.base import Inpainter
+from photo3d.structures.patch import InpaintResult, Patch
 
 BORDER = 48
 """Width of the hidden frame of the border test, in pixels."""

@@ -37,13 +37,13 @@ import numpy as np
 from photo3d.config import Config
 from photo3d.depth.normalize import prepare_depth
 from photo3d.errors import InputError
-from photo3d.inpaint.base import Patch
 from photo3d.stages.border import extend_border
 from photo3d.stages.edges import edges_csr
 from photo3d.stages.ldi import cut, from_image
 from photo3d.stages.patches import extract_patches
 from photo3d.stages.preprocess import preprocess
 from photo3d.stages.regions import find_regions
+from photo3d.structures.patch import Patch
 
 MIN_SYNTHESIS = 256
 """Smallest synthesis region kept, in pixels (a 16 x 16 square). LPIPS's first layer

@@ -17,7 +17,8 @@ import importlib
 from collections.abc import Callable
 
 from photo3d.errors import ConfigError
-from photo3d.inpaint.base import Inpainter, InpaintResult, Patch
+from photo3d.inpaint.base import Inpainter
+from photo3d.structures.patch import InpaintResult, Patch
 
 _BUILTIN = {
     "diffusion": ("photo3d.inpaint.diffusion", "DiffusionInpainter"),

@@ -23,7 +23,7 @@ run, without letting one edge's synthesis read another edge's foreground:
    canvas (their union bounding box) when that box is no larger than the boxes it
    replaces (so merging never adds pixels); the others stay canvases of their own.
 
-A canvas is an ordinary :class:`~photo3d.inpaint.base.Patch`; the result of each
+A canvas is an ordinary :class:`~photo3d.structures.patch.Patch`; the result of each
 member patch is the canvas result cropped to the member's window (only its synthesis
 pixels are used). Where two members' syntheses overlap they get one prediction
 instead of two different ones.
@@ -37,8 +37,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.ndimage import binary_dilation
 
-from photo3d.inpaint.base import InpaintResult, Patch
 from photo3d.inpaint.crops import overlap
+from photo3d.structures.patch import InpaintResult, Patch
 
 
 @dataclass(frozen=True)

@@ -18,8 +18,8 @@ from concurrent.futures import ThreadPoolExecutor
 import numba
 import numpy as np
 
-from photo3d.inpaint.base import InpaintResult, Patch
 from photo3d.progress import CountProgress
+from photo3d.structures.patch import InpaintResult, Patch
 
 
 @numba.njit(cache=True, nogil=True)

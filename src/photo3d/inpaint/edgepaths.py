@@ -17,7 +17,7 @@ import numba
 import numpy as np
 from scipy import ndimage
 
-from photo3d.inpaint.base import Patch
+from photo3d.structures.patch import Patch
 
 _EIGHT = np.ones((3, 3), bool)
 

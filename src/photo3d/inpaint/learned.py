@@ -70,7 +70,6 @@ import numpy as np
 
 from photo3d.camera import DepthMapping
 from photo3d.errors import ConfigError
-from photo3d.inpaint.base import InpaintResult, Patch
 from photo3d.inpaint.canvas import edges_in, joint_patch, share_canvases, trim, window
 from photo3d.inpaint.crops import Box, cover, grow
 from photo3d.inpaint.edgepaths import reported_edges
@@ -85,6 +84,7 @@ from photo3d.inpaint.netrun import (  # noqa: F401  (re-exported)
     run_batched,
 )
 from photo3d.progress import CountProgress
+from photo3d.structures.patch import InpaintResult, Patch
 
 if TYPE_CHECKING:  # torch is imported lazily: photo3d works without it
     import torch

@@ -1,6 +1,6 @@
 """What the learned backend's nets see of a patch (also what training feeds them).
 
-:class:`NetInputs` builds every net input from a :class:`~photo3d.inpaint.base.Patch`:
+:class:`NetInputs` builds every net input from a :class:`~photo3d.structures.patch.Patch`:
 the learned backend at inference and :mod:`photo3d.train.samples` in training use it
 both, so the two cannot drift apart. :func:`close_gaps` is the hole channel of the
 depth and colour nets (the authors' ``open_small_mask``). :func:`diffusion_rgb` is
@@ -14,8 +14,8 @@ import numpy as np
 from scipy.ndimage import binary_dilation, maximum_filter, minimum_filter
 
 from photo3d.camera import DepthMapping
-from photo3d.inpaint.base import Patch
 from photo3d.inpaint.diffusion import diffuse
+from photo3d.structures.patch import Patch
 
 
 def close_gaps(context: np.ndarray, synthesis: np.ndarray, *, size: int = 41,

@@ -28,11 +28,11 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
-from photo3d.inpaint.base import InpaintResult, Patch
 from photo3d.inpaint.continuation import continue_edges
 from photo3d.inpaint.diffusion import diffuse, diffuse_in_place
 from photo3d.inpaint.exemplar import exemplar_fill
 from photo3d.progress import CountProgress
+from photo3d.structures.patch import InpaintResult, Patch
 
 
 def piecewise_diffuse(values: np.ndarray, context: np.ndarray, synthesis: np.ndarray,

@@ -38,7 +38,7 @@ from photo3d.io.glb import (
     read_chunks,
     write_glb_file,
 )
-from photo3d.mesh.types import Mesh
+from photo3d.structures.mesh import Mesh
 
 PathLike = str | os.PathLike[str]
 

@@ -27,7 +27,7 @@ from photo3d.io.glb import (
 )
 
 if TYPE_CHECKING:
-    from photo3d.mesh.types import TexturedMesh
+    from photo3d.structures.mesh import TexturedMesh
 
 PathLike = str | os.PathLike[str]
 
@@ -42,7 +42,7 @@ def write_textured_glb(path: PathLike, mesh: TexturedMesh, *, quality: int = 90)
 
     Args:
         path: file to create (overwritten if it exists).
-        mesh: :class:`~photo3d.mesh.types.TexturedMesh` with ``N >= 1``, ``M >= 1``.
+        mesh: :class:`~photo3d.structures.mesh.TexturedMesh` with ``N >= 1``, ``M >= 1``.
         quality: JPEG quality of the texture (1-95).
 
     Raises:
@@ -84,13 +84,13 @@ def read_textured_glb(path: PathLike) -> TexturedMesh:
     """Read a ``.glb`` written by :func:`write_textured_glb` (tests, tools).
 
     Returns:
-        :class:`~photo3d.mesh.types.TexturedMesh` (texture decoded from its JPEG).
+        :class:`~photo3d.structures.mesh.TexturedMesh` (texture decoded from its JPEG).
 
     Raises:
         InputError: the file is not such a GLB (or is inconsistent: attribute
             lengths, indices out of range).
     """
-    from photo3d.mesh.types import TexturedMesh
+    from photo3d.structures.mesh import TexturedMesh
 
     document, binary = read_chunks(path)
     try:

@@ -1,6 +1,6 @@
 """The LDI file format, ``photo3d.npz``: a zip of ``.npy`` arrays read without pickle.
 
-:func:`save_npz` writes an :class:`~photo3d.stages.ldi.LDI` with its metadata,
+:func:`save_npz` writes an :class:`~photo3d.structures.ldi.LDI` with its metadata,
 :func:`load_npz` reads one back and checks it (sizes, links, labels) so a hostile
 file gives an :class:`~photo3d.errors.InputError`, never a crash.
 """
@@ -17,7 +17,7 @@ import numpy as np
 from photo3d.camera import DepthMapping, Intrinsics
 from photo3d.errors import InputError
 from photo3d.io.npy import read_npy, read_npy_header
-from photo3d.stages.ldi import LDI
+from photo3d.structures.ldi import LDI
 
 FORMAT_VERSION = 2
 """Version 2 stores ``links`` relative to the pixel (``links[i] - i``, 0 = none):

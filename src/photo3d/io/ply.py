@@ -34,7 +34,7 @@ from typing import BinaryIO
 import numpy as np
 
 from photo3d.errors import InputError, OutputError
-from photo3d.mesh.types import Mesh
+from photo3d.structures.mesh import Mesh
 
 PathLike = str | os.PathLike[str]
 

@@ -13,8 +13,8 @@ import numpy as np
 
 from photo3d.camera import unproject
 from photo3d.mesh._faces import mesh_faces
-from photo3d.mesh.types import Mesh
-from photo3d.stages.ldi import LDI
+from photo3d.structures.ldi import LDI
+from photo3d.structures.mesh import Mesh
 
 
 def build_mesh(ldi: LDI) -> Mesh:

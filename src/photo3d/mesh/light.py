@@ -55,8 +55,8 @@ from photo3d.mesh._charts import chart_vertices, claim_faces, fill_charts, pixel
 from photo3d.mesh._planar import merged_faces, planar_blocks, quad_counts
 from photo3d.mesh._simplify import simplify as _simplify
 from photo3d.mesh.full import build_mesh
-from photo3d.mesh.types import Mesh, TexturedMesh
-from photo3d.stages.ldi import LDI
+from photo3d.structures.ldi import LDI
+from photo3d.structures.mesh import Mesh, TexturedMesh
 
 _GUTTER = 1
 _BLOCKS = (32, 2)  # sides of the planar blocks merged before the simplifier

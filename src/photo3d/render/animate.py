@@ -16,7 +16,7 @@ from photo3d.render._resolve import to_rgb8
 from photo3d.render.paths import STANDARD_PATHS, load_path, preset_path
 from photo3d.render.renderer import Renderer, output_intrinsics
 from photo3d.render.stereo import compose, eye_cameras
-from photo3d.stages.ldi import LDI
+from photo3d.structures.ldi import LDI
 
 
 @dataclass(frozen=True)

@@ -22,8 +22,8 @@ import numpy as np
 from photo3d.camera import Camera, Intrinsics
 from photo3d.errors import ConfigError, require
 from photo3d.holes import fill_holes
-from photo3d.mesh.types import Mesh, TexturedMesh
 from photo3d.render._resolve import grow_fill, grow_fill_far
+from photo3d.structures.mesh import Mesh, TexturedMesh
 
 AUTHORS_CROP = (0.03, 0.03, 0.05, 0.03)
 """Border crop of the authors' videos: top, left, bottom, right fractions."""
@@ -124,8 +124,8 @@ class Renderer:
 
     def __init__(self, mesh: Mesh | TexturedMesh, settings: RenderSettings | None = None
                  ) -> None:
-        """``mesh``: a vertex-coloured :class:`~photo3d.mesh.types.Mesh` or a
-        :class:`~photo3d.mesh.types.TexturedMesh` (drawn with its texture)."""
+        """``mesh``: a vertex-coloured :class:`~photo3d.structures.mesh.Mesh` or a
+        :class:`~photo3d.structures.mesh.TexturedMesh` (drawn with its texture)."""
         self.settings = settings or RenderSettings()
         self.mesh = mesh
         texture = None

@@ -20,7 +20,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from photo3d.stages.ldi import LABEL_BORDER, LDI
+from photo3d.structures.ldi import LABEL_BORDER, LDI
 
 
 def extend_border(ldi: LDI, border: int) -> LDI:

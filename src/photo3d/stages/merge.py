@@ -37,10 +37,10 @@ from dataclasses import dataclass, replace
 import numba
 import numpy as np
 
-from photo3d.inpaint.base import InpaintResult
 from photo3d.stages._lattice import find_root, step, union
-from photo3d.stages.ldi import LDI
 from photo3d.stages.patches import PatchJob
+from photo3d.structures.ldi import LDI
+from photo3d.structures.patch import InpaintResult
 
 
 @dataclass(frozen=True)

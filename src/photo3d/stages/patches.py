@@ -6,9 +6,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from photo3d.inpaint.base import Patch
-from photo3d.stages.ldi import LDI
 from photo3d.stages.regions import Regions
+from photo3d.structures.ldi import LDI
+from photo3d.structures.patch import Patch
 
 
 @dataclass(frozen=True)

@@ -30,7 +30,7 @@ import numba
 import numpy as np
 
 from photo3d.stages._lattice import step
-from photo3d.stages.ldi import LDI
+from photo3d.structures.ldi import LDI
 
 
 @dataclass(frozen=True)

@@ -29,7 +29,7 @@ from torch import nn
 
 from photo3d.errors import InputError
 from photo3d.files.atomic import write_bytes
-from photo3d.inpaint.base import InpaintResult, Patch
+from photo3d.structures.patch import InpaintResult, Patch
 
 PHOTOS = 24
 """Held-out photos scored (the first of the folder, by name)."""

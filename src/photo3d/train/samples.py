@@ -12,7 +12,7 @@ has a colour cast, orange-brown and grey for the built-in one, that a briefly tr
 net otherwise learns as the colour of every hole; docs/learned.md).
 
 Net inputs are built by the learned backend's own code
-(:class:`photo3d.inpaint.learned.NetInputs` on a :class:`~photo3d.inpaint.base.Patch`
+(:class:`photo3d.inpaint.learned.NetInputs` on a :class:`~photo3d.structures.patch.Patch`
 whose colour, disparity and edges are zero outside the context), so they match
 inference exactly: zeros under synthesis, disparity / max for the edge net,
 zero-mean log depth for the depth net, the :func:`~photo3d.inpaint.learned.close_gaps`
@@ -30,8 +30,8 @@ import numpy as np
 
 from photo3d.camera import DepthMapping
 from photo3d.errors import InputError
-from photo3d.inpaint.base import Patch
 from photo3d.inpaint.learned import NetInputs
+from photo3d.structures.patch import Patch
 from photo3d.train.dataset import TrainingData
 from photo3d.train.pairs import RegionPair
 

@@ -1,4 +1,4 @@
-"""Compact binary form of a :class:`~photo3d.mesh.types.Mesh` for the HTML viewer.
+"""Compact binary form of a :class:`~photo3d.structures.mesh.Mesh` for the HTML viewer.
 
 The viewer page (``viewer.js``) decodes exactly this layout; keep both in step and
 bump :data:`VERSION` on any change.
@@ -14,7 +14,7 @@ four sections, each starting at a multiple of 4 bytes (offsets in the header):
   pixels (0.01 px for the 1024 px sample) and a parallax error of ``f * shift *
   (hi - lo) / 131070`` (under 0.001 px for the authors' shifts).
 * ``color``: ``(N, 3)`` uint8 sRGB, interleaved (vertex-coloured meshes), or
-* ``uv`` and ``texture`` (textured meshes, :class:`~photo3d.mesh.types.TexturedMesh`):
+* ``uv`` and ``texture`` (textured meshes, :class:`~photo3d.structures.mesh.TexturedMesh`):
   two planes of ``N`` uint16, ``u * 65535`` and ``v * 65535`` (glTF texture
   coordinates, origin top-left), and the texture as JPEG bytes; the header's
   ``texture`` gives its ``width``, ``height`` and ``mime``.
@@ -38,7 +38,7 @@ import numpy as np
 
 from photo3d.errors import InputError
 from photo3d.io.gltf_textured import decode_jpeg, encode_jpeg
-from photo3d.mesh.types import Mesh, TexturedMesh
+from photo3d.structures.mesh import Mesh, TexturedMesh
 
 VERSION = 2
 SECTIONS = ("position", "color", "label", "faces")
@@ -54,7 +54,7 @@ def encode_mesh(mesh: Mesh | TexturedMesh, *, level: int = 6) -> tuple[dict, byt
     Args:
         mesh: vertices ``(N, 3) float32`` with ``z > 0`` (in front of the input
             camera, as every photo3d mesh), colors ``(N, 3) uint8`` (or uv and a
-            texture: :class:`~photo3d.mesh.types.TexturedMesh`), labels ``(N,)``, faces
+            texture: :class:`~photo3d.structures.mesh.TexturedMesh`), labels ``(N,)``, faces
             ``(M, 3) int32``; ``N, M >= 1``.
         level: zlib compression level (1 fastest .. 9 smallest).
 
@@ -150,7 +150,7 @@ def decode_mesh(header: dict, payload: bytes) -> Mesh | TexturedMesh:
     a, b, d = lo + q / _LEVELS * (hi - lo)
     vertices = np.stack([a / d, b / d, 1.0 / d], axis=1).astype(np.float32)
     if "texture" in header:
-        from photo3d.mesh.types import TexturedMesh
+        from photo3d.structures.mesh import TexturedMesh
 
         uv = np.frombuffer(section("uv"), "<u2").reshape(2, n).T / _LEVELS
         return TexturedMesh(

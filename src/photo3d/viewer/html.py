@@ -34,7 +34,7 @@ from importlib import resources
 from pathlib import Path
 
 from photo3d.errors import InputError, OutputError
-from photo3d.mesh.types import Mesh, TexturedMesh
+from photo3d.structures.mesh import Mesh, TexturedMesh
 from photo3d.viewer._codec import decode_mesh, encode_mesh
 
 PathLike = str | os.PathLike[str]
@@ -52,7 +52,7 @@ def write_viewer(mesh: Mesh | TexturedMesh, path: PathLike, *, title: str = "pho
             ``z > 0``, colors ``(N, 3) uint8`` sRGB, labels ``(N,) uint8``, faces
             ``(M, 3) int32``; ``width``, ``height``, ``hfov``, ``vfov`` give the
             camera (principal point at the centre). A
-            :class:`~photo3d.mesh.types.TexturedMesh` is embedded with its texture (JPEG).
+            :class:`~photo3d.structures.mesh.TexturedMesh` is embedded with its texture (JPEG).
         path: file to create (overwritten), usually ``OUT/viewer.html``.
         title: page title (plain text; escaped).
         animate: start with the camera moving along the authors' ``circle`` path
