@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -20,13 +21,10 @@ from photo3d.io.images import MIN_SIDE
 from photo3d.photo import Photo3D
 from photo3d.progress import StageProgress
 from photo3d.resources import check_memory
-from photo3d.stages.border import extend_border, fill_border
-from photo3d.stages.edges import edges_csr
-from photo3d.stages.ldi import cut, from_image
+from photo3d.stages.border import fill_border
 from photo3d.stages.merge import merge
-from photo3d.stages.patches import extract_patches
+from photo3d.stages.passes import PassInput, pass_patches, start
 from photo3d.stages.preprocess import preprocess
-from photo3d.stages.regions import find_regions
 from photo3d.structures.patch import Patch
 
 
@@ -94,11 +92,6 @@ def make(
     done("preprocess")
 
     reg = config.regions
-    thr = config.preprocess.discontinuity
-
-    def px(value: int) -> int:
-        return config.spatial(value, pre.working_size)
-
     h, w = pre.image.shape[:2]
     if intrinsics is not None:
         if (intrinsics.width, intrinsics.height) != (img.shape[1], img.shape[0]):
@@ -109,50 +102,41 @@ def make(
     if config.metric:
         lo, hi = pre.disparity_range  # of 1 / z: normalised d maps back to z exactly
         mapping = DepthMapping.from_inverse_depth(lo, hi)
-    ldi = from_image(pre.image, pre.disparity, intrinsics=intrinsics, mapping=mapping)
-    ldi = cut(ldi, pre.edges.cuts)
-    ldi = extend_border(ldi, px(reg.border))
+    state = start(pre, config=config, intrinsics=intrinsics, mapping=mapping)
     scale = max(w / img.shape[1], h / img.shape[0])
     if reg.border_fill != "replicate":
-        ldi = fill_border(ldi, _border_fill(reg.border_fill, backend, scale),
-                          context=px(reg.border_context))
-    edge_ptr, edge_pixels = edges_csr(pre.edges.labels, pre.edges.count)
+        state = replace(state, ldi=fill_border(
+            state.ldi, _border_fill(reg.border_fill, backend, scale),
+            context=config.spatial(reg.border_context, pre.working_size)))
     done("ldi")
 
     edges_per_pass, added_per_pass = [], []
     for k in range(reg.max_passes):
-        if edge_pixels.size == 0:
+        if state.edge_pixels.size == 0:
             break
         # a backend may want thinner contexts after the first pass (learned: the authors'),
         # or the paper's contexts only (learned: its nets were trained on those)
-        thin = 1.0 if k == 0 else getattr(backend, "later_context", 1.0)
-        paper = getattr(backend, "paper_context", False)
-        regions = find_regions(
-            ldi, edge_ptr, edge_pixels,
-            synthesis_iterations=px(reg.synthesis_iterations),
-            context_iterations=max(1, round(px(reg.context_iterations) * thin)),
-            dilation=px(reg.edge_dilation) if k == 0 else 0,
-            threshold=thr,
-            thin_context=0.0 if paper else reg.thin_context,
-            context_around=reg.context_around and not paper,
-            thin_context_iterations=px(reg.thin_context_iterations),
-        )
-        jobs = extract_patches(ldi, regions, edge_pixels, margin=backend.margin, scale=scale)
+        jobs = pass_patches(state, config=config, working_size=pre.working_size,
+                            margin=backend.margin, scale=scale, pass_index=k,
+                            later_context=getattr(backend, "later_context", 1.0),
+                            paper_context=getattr(backend, "paper_context", False))
 
         def on_patch(i: int, n: int, k: int = k) -> None:
             report("inpaint", (k + i / max(n, 1)) / reg.max_passes)
 
         results = backend.inpaint([j.patch for j in jobs], progress=on_patch, pass_index=k)
-        merged = merge(ldi, jobs, results, label=min(k + 2, 3), threshold=thr,
-                       min_edge_length=px(config.preprocess.min_edge_length),
+        merged = merge(state.ldi, jobs, results, label=min(k + 2, 3),
+                       threshold=config.preprocess.discontinuity,
+                       min_edge_length=config.spatial(config.preprocess.min_edge_length,
+                                                      pre.working_size),
                        overwrite_band=reg.overwrite_dilation)
-        edges_per_pass.append(int(edge_ptr.size - 1))
+        edges_per_pass.append(state.edges)
         added_per_pass.append(merged.added)
-        ldi, edge_ptr, edge_pixels = merged.ldi, merged.edge_ptr, merged.edge_pixels
+        state = PassInput(merged.ldi, merged.edge_ptr, merged.edge_pixels)
     done("inpaint")
 
     return Photo3D(
-        ldi=ldi,
+        ldi=state.ldi,
         config=config,
         timings=timings,
         inpainter=inpainter_settings(backend),

@@ -7,8 +7,14 @@ from photo3d.io.npz import load_npz, save_npz
 from photo3d.stages.border import extend_border
 from photo3d.stages.edges import link_edges
 from photo3d.stages.ldi import cut, from_image
-from photo3d.stages.regions import find_regions
+from photo3d.stages.regions import RegionSizes, find_regions
 from photo3d.structures.ldi import LABEL_BORDER
+
+
+def grow(ldi, ptr, pix, **sizes):
+    """find_regions with the paper's context rule unless ``sizes`` says otherwise."""
+    rule = dict(thin_context=0.0, context_around=False, thin_context_iterations=10)
+    return find_regions(ldi, ptr, pix, RegionSizes(**{**rule, **sizes}))
 
 
 def planes_ldi(border=0):
@@ -33,7 +39,7 @@ def test_initial_ldi_is_fully_connected_and_cut_is_symmetric():
 
 def test_regions_of_two_planes_have_the_known_extent():
     ldi, _, pix = planes_ldi()
-    r = find_regions(ldi, np.array([0, pix.size]), pix, synthesis_iterations=6,
+    r = grow(ldi, np.array([0, pix.size]), pix, synthesis_iterations=6,
                      context_iterations=10, dilation=2, threshold=0.04)
     assert sorted(set(r.synthesis_x.tolist())) == list(range(48, 54))
     assert r.synthesis_x.size == 6 * 64  # every row, no duplicates
@@ -56,7 +62,7 @@ def test_synthesis_never_enters_positions_in_front_of_it():
     pix = np.nonzero(edges.labels.reshape(-1))[0]
     order = np.argsort(edges.labels.reshape(-1)[pix], kind="stable")
     ptr = np.concatenate([[0], np.cumsum(np.bincount(edges.labels.reshape(-1)[pix])[1:])])
-    r = find_regions(ldi, ptr, pix[order], synthesis_iterations=30, context_iterations=5,
+    r = grow(ldi, ptr, pix[order], synthesis_iterations=30, context_iterations=5,
                      dilation=0, threshold=0.04)
     assert r.synthesis_y.size > 0
     assert np.all(d[r.synthesis_y, r.synthesis_x] == 1.0)
@@ -81,8 +87,8 @@ def test_a_thin_context_takes_what_bounds_the_synthesis_at_its_depth():
     d[18:20, 18:20] = 0.0
     ldi, ptr, pix = _edges_of(d)
     kw = dict(synthesis_iterations=8, context_iterations=10, dilation=0, threshold=0.04)
-    plain = find_regions(ldi, ptr, pix, **kw)
-    thin = find_regions(ldi, ptr, pix, thin_context=0.5, thin_context_iterations=3, **kw)
+    plain = grow(ldi, ptr, pix, **kw)
+    thin = grow(ldi, ptr, pix, thin_context=0.5, thin_context_iterations=3, **kw)
     gap = [e for e in range(ptr.size - 1)
            if np.all(d[ldi.y[pix[ptr[e]:ptr[e + 1]]], ldi.x[pix[ptr[e]:ptr[e + 1]]]] == 0)
            and ldi.x[pix[ptr[e]]] > 10][0]
@@ -105,7 +111,7 @@ def test_a_thin_context_takes_what_bounds_the_synthesis_at_its_depth():
         zip(thin.synthesis_y[s].tolist(), thin.synthesis_x[s].tolist(), strict=True))
     # an edge whose context is not thin keeps it as it was
     ldi2, _, pix2 = planes_ldi()
-    a, b = (find_regions(ldi2, np.array([0, pix2.size]), pix2, synthesis_iterations=6,
+    a, b = (grow(ldi2, np.array([0, pix2.size]), pix2, synthesis_iterations=6,
                          context_iterations=10, dilation=2, threshold=0.04, thin_context=t)
             for t in (0.0, 0.5))
     assert np.array_equal(a.context, b.context)
@@ -123,8 +129,8 @@ def test_the_context_takes_what_surrounds_the_hidden_area_at_its_depth():
         left = [e for e in range(ptr.size - 1) if np.all(ldi.x[pix[ptr[e]:ptr[e + 1]]] == 19)][0]
         kw = dict(synthesis_iterations=12, context_iterations=4, dilation=0, threshold=0.04,
                   thin_context_iterations=3)
-        plain = find_regions(ldi, ptr, pix, **kw)
-        around = find_regions(ldi, ptr, pix, context_around=True, **kw)
+        plain = grow(ldi, ptr, pix, **kw)
+        around = grow(ldi, ptr, pix, context_around=True, **kw)
         xs = ldi.x[around.context[around.context_ptr[left]:around.context_ptr[left + 1]]]
         assert np.all(ldi.x[plain.context[plain.context_ptr[left]:plain.context_ptr[left + 1]]]
                       < 20)

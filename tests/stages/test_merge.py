@@ -5,10 +5,16 @@ from photo3d.stages.edges import link_edges
 from photo3d.stages.ldi import cut, from_image
 from photo3d.stages.merge import merge
 from photo3d.stages.patches import extract_patches
-from photo3d.stages.regions import find_regions
+from photo3d.stages.regions import RegionSizes, find_regions
 from photo3d.structures.patch import InpaintResult
 
 THR = 0.04
+
+
+def grow(ldi, ptr, pix, **sizes):
+    """find_regions with the paper's context rule unless ``sizes`` says otherwise."""
+    rule = dict(thin_context=0.0, context_around=False, thin_context_iterations=10)
+    return find_regions(ldi, ptr, pix, RegionSizes(**{**rule, **sizes}))
 
 
 def one_job(back=None):
@@ -19,7 +25,7 @@ def one_job(back=None):
     edges = link_edges(d, threshold=THR, min_length=5)
     ldi = cut(from_image(np.full((24, 24, 3), 0.5, np.float32), d), edges.cuts)
     pix = np.nonzero(edges.labels.reshape(-1))[0]
-    regions = find_regions(ldi, np.array([0, pix.size]), pix, synthesis_iterations=8,
+    regions = grow(ldi, np.array([0, pix.size]), pix, synthesis_iterations=8,
                            context_iterations=8, dilation=0, threshold=THR)
     jobs = extract_patches(ldi, regions, pix, margin=2)
     assert len(jobs) == 1

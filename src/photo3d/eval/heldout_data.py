@@ -4,17 +4,15 @@ photo, and the photos (paper, Sec. 3.3 and the supplement's dataset generation: 
 region shapes from one image's depth, pasted onto *other* photos whose pixels under
 the synthesis region are the ground truth).
 
-The shapes are exactly what :func:`photo3d.make` hands a backend in its first pass:
-:func:`~photo3d.stages.preprocess.preprocess` (working size, normalised and sharpened
-disparity, linked depth edges), the LDI cut along the edges with its extrapolated
-border (:func:`~photo3d.stages.border.extend_border`, as ``make`` does, so an edge
-that reaches the frame keeps its whole shape), :func:`~photo3d.stages.regions.find_regions`
-with the first pass's sizes (synthesis 40, context 100, dilation 5 px at 1024, scaled
-to the working size) and :func:`~photo3d.stages.patches.extract_patches` (the dilation
-band joins the synthesis region). Each pair is cropped to the bounding box of its two
-masks. Sources: the Middlebury motorcycle's ground-truth disparity and the synthetic
-scenes' depth (:mod:`photo3d.eval.synthetic`, seeds 0-4: the evaluation scenes), both
-at 640 px. Only the depth of a source is used, never its pixels.
+The shapes are exactly what :func:`photo3d.make` hands a backend in its first pass,
+made by the same code (:mod:`photo3d.stages.passes`: the LDI cut along the edges with
+its extrapolated border, so an edge that reaches the frame keeps its whole shape, and
+the first pass's region sizes scaled to the working size), with the paper's context
+rule (``paper_context``: comparable with the paper's construction and with earlier
+results); the dilation band joins the synthesis region. Each pair is cropped to the
+bounding box of its two masks. Sources: the Middlebury motorcycle's ground-truth
+disparity and the synthetic scenes' depth (:mod:`photo3d.eval.synthetic`, seeds 0-4:
+the evaluation scenes), both at 640 px. Only the depth of a source is used, never its pixels.
 
 Pairs whose synthesis region has fewer than :data:`MIN_SYNTHESIS` pixels, or whose
 context has fewer than :data:`MIN_CONTEXT`, are left out (see there why).
@@ -37,12 +35,8 @@ import numpy as np
 from photo3d.config import Config
 from photo3d.depth.normalize import prepare_depth
 from photo3d.errors import InputError
-from photo3d.stages.border import extend_border
-from photo3d.stages.edges import edges_csr
-from photo3d.stages.ldi import cut, from_image
-from photo3d.stages.patches import extract_patches
+from photo3d.stages.passes import pass_patches, start
 from photo3d.stages.preprocess import preprocess
-from photo3d.stages.regions import find_regions
 from photo3d.structures.patch import Patch
 
 MIN_SYNTHESIS = 256
@@ -89,8 +83,8 @@ class RegionShape:
 
 
 def first_pass_shapes(disparity: np.ndarray, *, source: str, config: Config | None = None,
-                      min_synthesis: int = MIN_SYNTHESIS,
-                      min_context: int = MIN_CONTEXT) -> list[RegionShape]:
+                      min_synthesis: int = MIN_SYNTHESIS, min_context: int = MIN_CONTEXT,
+                      paper_context: bool = True) -> list[RegionShape]:
     """The region pairs :func:`photo3d.make`'s first pass finds on ``disparity``.
 
     Args:
@@ -100,6 +94,8 @@ def first_pass_shapes(disparity: np.ndarray, *, source: str, config: Config | No
         config: pipeline configuration (working size, region sizes, thresholds);
             default ``Config(size=640)``.
         min_synthesis, min_context: smallest regions kept, in pixels.
+        paper_context: the paper's context rule (the benchmark's); ``False``: the
+            classical fills' rule, what ``make`` gives them.
 
     Returns:
         The pairs in the pipeline's edge order.
@@ -114,23 +110,12 @@ def first_pass_shapes(disparity: np.ndarray, *, source: str, config: Config | No
     disp = prepare_depth(np.asarray(disparity, np.float32), disparity.shape,
                          kind="disparity").disparity
     pre = preprocess(np.zeros((*disp.shape, 3), np.float32), disp, config=config)
-    edge_ptr, edge_pixels = edges_csr(pre.edges.labels, pre.edges.count)
-    if edge_pixels.size == 0:
+    first = start(pre, config=config)
+    if first.edge_pixels.size == 0:
         return []
-    reg = config.regions
-
-    def px(value: int) -> int:
-        return config.spatial(value, pre.working_size)
-
-    ldi = extend_border(cut(from_image(pre.image, pre.disparity), pre.edges.cuts),
-                        px(reg.border))
-    regions = find_regions(ldi, edge_ptr, edge_pixels,
-                           synthesis_iterations=px(reg.synthesis_iterations),
-                           context_iterations=px(reg.context_iterations),
-                           dilation=px(reg.edge_dilation),
-                           threshold=config.preprocess.discontinuity)
     shapes = []
-    for job in extract_patches(ldi, regions, edge_pixels, margin=0):
+    for job in pass_patches(first, config=config, working_size=pre.working_size, margin=0,
+                            paper_context=paper_context):
         ctx = job.patch.context
         syn = job.patch.synthesis & ~ctx
         if syn.sum() >= min_synthesis and ctx.sum() >= min_context:

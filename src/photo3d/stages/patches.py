@@ -44,13 +44,15 @@ def extract_patches(ldi: LDI, regions: Regions, edge_pixels: np.ndarray, *,
 
     Example:
         >>> from photo3d.stages.ldi import from_image, cut
-        >>> from photo3d.stages.regions import find_regions
+        >>> from photo3d.stages.regions import RegionSizes, find_regions
         >>> d = np.zeros((8, 8), np.float32); d[:, 4:] = 1.0
         >>> cuts = np.zeros((8, 8), np.uint8); cuts[:, 3] = 2
         >>> ldi = cut(from_image(np.ones((8, 8, 3), np.float32), d), cuts)
         >>> sil = np.arange(8) * 8 + 3
-        >>> r = find_regions(ldi, np.array([0, 8]), sil, synthesis_iterations=2,
-        ...                  context_iterations=3, dilation=1, threshold=0.04)
+        >>> sizes = RegionSizes(synthesis_iterations=2, context_iterations=3, dilation=1,
+        ...                     threshold=0.04, thin_context=0.0, context_around=False,
+        ...                     thin_context_iterations=1)
+        >>> r = find_regions(ldi, np.array([0, 8]), sil, sizes)
         >>> job = extract_patches(ldi, r, sil, margin=1)[0]
         >>> job.patch.shape, int(job.patch.context.sum()), int(job.patch.synthesis.sum())
         ((10, 7), 16, 24)

@@ -227,27 +227,15 @@ def _regions(pos, disp, links, starts, order, rows, cols, edge_ptr, edge_pix,
     return ctx_ptr, ctx[:nc].copy(), ctx_step[:nc].copy(), syn_ptr, syn[:ns].copy()
 
 
-def find_regions(
-    ldi: LDI,
-    edge_ptr: np.ndarray,
-    edge_pixels: np.ndarray,
-    *,
-    synthesis_iterations: int,
-    context_iterations: int,
-    dilation: int,
-    threshold: float,
-    thin_context: float = 0.0,
-    context_around: bool = False,
-    thin_context_iterations: int = 10,
-) -> Regions:
-    """Grow context and synthesis regions for a batch of depth edges.
+@dataclass(frozen=True)
+class RegionSizes:
+    """The sizes and rules of one pass's regions, in working pixels (made from a
+    :class:`~photo3d.config.Config` by :func:`photo3d.stages.passes.region_sizes`, the
+    one place that scales them; no defaults here, so none can drift from the config's).
 
-    Args:
-        ldi: the LDI with links already cut along the edges.
-        edge_ptr: ``(E + 1,) int64`` CSR offsets into ``edge_pixels``.
-        edge_pixels: ``(K,) int64`` background silhouette pixels of each edge.
-        synthesis_iterations, context_iterations, dilation: sizes in pixels (already
-            scaled to the working size).
+    Attributes:
+        synthesis_iterations, context_iterations: flood-fill steps of each region.
+        dilation: context pixels closer than this to the silhouette are re-synthesised.
         threshold: the discontinuity threshold (normalised disparity).
         thin_context: a context with fewer pixels than this fraction of its synthesis
             region also takes the pixels behind the region that bound it (searched
@@ -255,6 +243,30 @@ def find_regions(
         context_around: every context also takes the pixels at the synthesis
             region's depth (within ``threshold``) that bound the region.
         thin_context_iterations: steps those extra pixels grow along their links.
+    """
+
+    synthesis_iterations: int
+    context_iterations: int
+    dilation: int
+    threshold: float
+    thin_context: float
+    context_around: bool
+    thin_context_iterations: int
+
+
+def find_regions(
+    ldi: LDI,
+    edge_ptr: np.ndarray,
+    edge_pixels: np.ndarray,
+    sizes: RegionSizes,
+) -> Regions:
+    """Grow context and synthesis regions for a batch of depth edges.
+
+    Args:
+        ldi: the LDI with links already cut along the edges.
+        edge_ptr: ``(E + 1,) int64`` CSR offsets into ``edge_pixels``.
+        edge_pixels: ``(K,) int64`` background silhouette pixels of each edge.
+        sizes: the pass's :class:`RegionSizes` (already scaled to the working size).
 
     Returns:
         :class:`Regions`.
@@ -265,8 +277,10 @@ def find_regions(
         >>> cuts = np.zeros((8, 8), np.uint8); cuts[:, 3] = 2  # cut towards the right
         >>> ldi = cut(from_image(np.zeros((8, 8, 3), np.float32), d), cuts)
         >>> sil = np.arange(8) * 8 + 3
-        >>> r = find_regions(ldi, np.array([0, 8]), sil, synthesis_iterations=2,
-        ...                  context_iterations=3, dilation=0, threshold=0.04)
+        >>> sizes = RegionSizes(synthesis_iterations=2, context_iterations=3, dilation=0,
+        ...                     threshold=0.04, thin_context=0.0, context_around=False,
+        ...                     thin_context_iterations=1)
+        >>> r = find_regions(ldi, np.array([0, 8]), sil, sizes)
         >>> sorted(set(r.synthesis_x.tolist())), sorted(set(ldi.x[r.context].tolist()))
         ([4, 5], [1, 2, 3])
     """
@@ -275,8 +289,9 @@ def find_regions(
     ctx_ptr, ctx, ctx_step, syn_ptr, syn = _regions(
         ldi.positions(), ldi.disparity, ldi.links, starts, order, rows, cols,
         np.asarray(edge_ptr, np.int64), np.asarray(edge_pixels, np.int64),
-        max(1, synthesis_iterations), max(1, context_iterations), np.float32(threshold / 2),
-        np.float32(thin_context), bool(context_around), max(1, thin_context_iterations),
+        max(1, sizes.synthesis_iterations), max(1, sizes.context_iterations),
+        np.float32(sizes.threshold / 2), np.float32(sizes.thin_context),
+        bool(sizes.context_around), max(1, sizes.thin_context_iterations),
     )
     return Regions(
         context_ptr=ctx_ptr,
@@ -285,5 +300,5 @@ def find_regions(
         synthesis_ptr=syn_ptr,
         synthesis_y=(syn // cols - ldi.border).astype(np.int32),
         synthesis_x=(syn % cols - ldi.border).astype(np.int32),
-        dilation=int(dilation),
+        dilation=int(sizes.dilation),
     )

@@ -1,14 +1,11 @@
 """Context/synthesis region pairs from an image's depth (paper, Sec. 3.3, "Training
 data generation").
 
-The pipeline's own stages find them, so training regions have exactly the shapes
-inference produces: :func:`photo3d.stages.preprocess.preprocess` (working size, normalised
-and sharpened disparity, linked depth edges), the LDI with links cut along the
-edges, :func:`photo3d.stages.regions.find_regions` (first pass: 40 / 100 px synthesis /
-context flood fills and the 5 px dilation, scaled to the working size) and
-:func:`photo3d.stages.patches.extract_patches` (bounding box + the learned
-backend's 20 px margin). No border is extrapolated: it would only add shapes that
-hug the image frame. At most ``max_pairs`` pairs per image are kept (paper: 3).
+The pipeline's own first pass finds them (:mod:`photo3d.stages.passes`, the code
+``make`` runs), so training regions have exactly the shapes inference produces, with the
+paper's context rule (the learned backend's) and the learned backend's 20 px margin.
+No border is extrapolated: it would only add shapes that hug the image frame. At most
+``max_pairs`` pairs per image are kept (paper: 3).
 """
 
 from __future__ import annotations
@@ -19,11 +16,8 @@ import numpy as np
 
 from photo3d.config import Config
 from photo3d.inpaint.learned import LearnedInpainter
-from photo3d.stages.edges import edges_csr
-from photo3d.stages.ldi import cut, from_image
-from photo3d.stages.patches import extract_patches
+from photo3d.stages.passes import pass_patches, start
 from photo3d.stages.preprocess import Preprocessed
-from photo3d.stages.regions import find_regions
 
 
 @dataclass(frozen=True)
@@ -68,21 +62,11 @@ def extract_region_pairs(pre: Preprocessed, *, config: Config, source: int = 0,
         (1, False)
     """
     rng = rng if rng is not None else np.random.default_rng(source)
-    edge_ptr, edge_pixels = edges_csr(pre.edges.labels, pre.edges.count)
-    if edge_pixels.size == 0:
+    first = start(pre, config=config, border=False)
+    if first.edge_pixels.size == 0:
         return []
-    ldi = cut(from_image(pre.image, pre.disparity), pre.edges.cuts)
-    reg = config.regions
-
-    def px(value: int) -> int:
-        return config.spatial(value, pre.working_size)
-
-    regions = find_regions(ldi, edge_ptr, edge_pixels,
-                           synthesis_iterations=px(reg.synthesis_iterations),
-                           context_iterations=px(reg.context_iterations),
-                           dilation=px(reg.edge_dilation),
-                           threshold=config.preprocess.discontinuity)
-    jobs = extract_patches(ldi, regions, edge_pixels, margin=LearnedInpainter.margin)
+    jobs = pass_patches(first, config=config, working_size=pre.working_size,
+                        margin=LearnedInpainter.margin, paper_context=True)
     usable = [j.patch for j in jobs if j.patch.context.sum() >= min_pixels
               and j.patch.synthesis.sum() >= min_pixels]
     keep = sorted(rng.choice(len(usable), size=min(max_pairs, len(usable)), replace=False))
