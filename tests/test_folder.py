@@ -16,26 +16,32 @@ from photo3d.errors import ConfigError, InputError, OutputError
 from photo3d.folder import MakeOptions, make_folder, output_bytes, prepare
 from photo3d.render.animate import VideoSpec
 from photo3d.render.renderer import RenderSettings
+from photo3d.save_options import SaveOptions
 
 BASE = MakeOptions(config=Config(size=None, inpainter="diffusion"))
 VIDEO = (VideoSpec(path="circle", size=(32, 24), frames=2),)
 
-# One change per MakeOptions field, and where config.json shows it. A field missing
-# here fails test_every_option_field_changes_what_config_json_records.
+# One change per MakeOptions field (and per field of its SaveOptions), and where
+# config.json shows it. A field missing here fails
+# test_every_option_field_changes_what_config_json_records.
 CHANGES = {
     "config": ({"config": Config(size=64)}, lambda m: m["config"]["size"] == 64),
     "inpainter_options": ({"inpainter_options": {"tolerance": 0.01}},
                           lambda m: m["inpainter"]["tolerance"] == 0.01),
     "depth_kind": ({"depth_kind": "depth"}, lambda m: m["config"]["depth_kind"] == "depth"
                    and m["depth_source"] == "depth array (depth)"),
-    "ply": ({"ply": "ascii"}, lambda m: m["save"]["ply"] == "ascii"),
-    "glb": ({"glb": False}, lambda m: m["save"]["glb"] is None),
-    "full_glb": ({"full_glb": True}, lambda m: m["save"]["glb"] == "full"),
-    "light_error": ({"light_error": 2.0}, lambda m: m["save"]["light_error"] == 2.0),
-    "viewer": ({"viewer": False}, lambda m: m["save"]["viewer"] is False),
-    "videos": ({"videos": VIDEO}, lambda m: m["save"]["videos"][0]["size"] == [32, 24]),
-    "render_settings": ({"videos": VIDEO, "render_settings": RenderSettings(ssaa=1)},
-                        lambda m: m["save"]["render_settings"]["ssaa"] == 1),
+    "save.ply": ({"save": SaveOptions(ply="ascii")}, lambda m: m["save"]["ply"] == "ascii"),
+    "save.glb": ({"save": SaveOptions(glb=False)},
+                 lambda m: m["save"]["glb"] is None),
+    "save.full_glb": ({"save": SaveOptions(full_glb=True)}, lambda m: m["save"]["glb"] == "full"),
+    "save.light_error": ({"save": SaveOptions(light_error=2.0)},
+                         lambda m: m["save"]["light_error"] == 2.0),
+    "save.viewer": ({"save": SaveOptions(viewer=False)}, lambda m: m["save"]["viewer"] is False),
+    "save.videos": ({"save": SaveOptions(videos=VIDEO)},
+                    lambda m: m["save"]["videos"][0]["size"] == [32, 24]),
+    "save.render_settings": ({"save": SaveOptions(videos=VIDEO,
+                                                  render_settings=RenderSettings(ssaa=1))},
+                             lambda m: m["save"]["render_settings"]["ssaa"] == 1),
 }
 NOT_RECORDED = {
     "depth_model": "the model for photos without any depth: a depth array is used here "
@@ -50,8 +56,9 @@ def recorded(out) -> dict:
 
 
 def test_every_option_field_changes_what_config_json_records(tmp_path):
-    fields = {f.name for f in dataclasses.fields(MakeOptions)}
-    assert fields == set(CHANGES) | set(NOT_RECORDED), "a MakeOptions field without a check"
+    fields = {f.name for f in dataclasses.fields(MakeOptions) if f.name != "save"}
+    fields |= {f"save.{f.name}" for f in dataclasses.fields(SaveOptions)}
+    assert fields == set(CHANGES) | set(NOT_RECORDED), "an option field without a check"
     img, d = two_planes(32, 48, 24)
     make_folder(img, tmp_path / "base", depth=d, options=BASE)
     base = recorded(tmp_path / "base")
@@ -95,11 +102,12 @@ def test_make_folder_checks_the_output_before_the_depth_and_leaves_nothing(tmp_p
 
 
 def test_make_options_validate_and_normalise():
-    options = MakeOptions(inpainter_options={"weights": "w"}, videos=list(VIDEO))
-    assert options.inpainter_options == (("weights", "w"),) and options.videos == VIDEO
+    options = MakeOptions(inpainter_options={"weights": "w"},
+                          save=SaveOptions(videos=list(VIDEO)))
+    assert options.inpainter_options == (("weights", "w"),) and options.save.videos == VIDEO
     assert str(options.weights()) == "w" and MakeOptions().weights() is None
     with pytest.raises(ConfigError, match="ply must be"):
-        MakeOptions(ply="stl")
+        SaveOptions(ply="stl")
     with pytest.raises(ConfigError, match="depth_kind must be"):
         MakeOptions(depth_kind="z")
     assert pickle.loads(pickle.dumps(options)) == options  # it travels to the workers

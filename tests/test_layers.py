@@ -29,7 +29,8 @@ LAYERS = {
     # 6: rendering, the viewer
     "photo3d.render": 6, "photo3d.viewer": 6,
     # 7: the 3D photo, its folder, the memory check
-    "photo3d.photo": 7, "photo3d.output": 7, "photo3d.owned": 7, "photo3d.resources": 7,
+    "photo3d.photo": 7, "photo3d.output": 7, "photo3d.save_options": 7,
+    "photo3d.owned": 7, "photo3d.resources": 7,
     # 8: make, and make into an output folder (the path `make` and `batch` share)
     "photo3d.pipeline": 8, "photo3d.folder": 8,
     # 9: what runs make many times

@@ -8,7 +8,11 @@ import pytest
 import photo3d
 from photo3d.output import _video_mesh
 from photo3d.render.renderer import RenderSettings
+from photo3d.save_options import SaveOptions
 from photo3d.structures.mesh import Mesh, TexturedMesh
+
+NUMBA = SaveOptions(render_settings=RenderSettings(backend="numba"), light_error=0.5)
+GL = SaveOptions(render_settings=RenderSettings(backend="gl"), light_error=0.5)
 
 
 def _photo():
@@ -19,7 +23,7 @@ def _photo():
 def test_numba_videos_use_the_full_mesh():
     photo = _photo()
     mesh = photo.mesh()
-    assert _video_mesh(photo, mesh, None, RenderSettings(backend="numba"), 0.5) is mesh
+    assert _video_mesh(photo, mesh, None, NUMBA) is mesh
 
 
 def test_opengl_videos_use_the_light_mesh():
@@ -31,7 +35,7 @@ def test_opengl_videos_use_the_light_mesh():
         pytest.skip(f"no OpenGL here: {err}")
     photo = _photo()
     mesh = photo.mesh()
-    chosen = _video_mesh(photo, mesh, None, RenderSettings(backend="gl"), 0.5)
+    chosen = _video_mesh(photo, mesh, None, GL)
     assert isinstance(chosen, TexturedMesh) and not isinstance(chosen, Mesh)
     light = photo.light_mesh()
-    assert _video_mesh(photo, mesh, light, RenderSettings(backend="gl"), 0.5) is light
+    assert _video_mesh(photo, mesh, light, GL) is light

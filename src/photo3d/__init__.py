@@ -19,7 +19,8 @@ from photo3d.errors import ConfigError, InputError, MissingExtra, OutputError, P
 __version__ = "0.1.0"
 
 _LAZY = {"load": ("photo3d.photo", "load"), "make": ("photo3d.pipeline", "make"),
-         "Photo3D": ("photo3d.photo", "Photo3D")}
+         "Photo3D": ("photo3d.photo", "Photo3D"),
+         "SaveOptions": ("photo3d.save_options", "SaveOptions")}
 
 
 def __getattr__(name: str):
@@ -41,6 +42,7 @@ __all__ = [
     "OutputError",
     "Photo3D",
     "Photo3DError",
+    "SaveOptions",
     "load",
     "make",
 ]

@@ -26,6 +26,7 @@ from typing import TYPE_CHECKING
 from photo3d.config import Config
 from photo3d.errors import ConfigError
 from photo3d.progress import StageProgress
+from photo3d.save_options import SaveOptions
 
 if TYPE_CHECKING:
     import numpy as np
@@ -34,7 +35,6 @@ if TYPE_CHECKING:
     from photo3d.inpaint.base import Inpainter
     from photo3d.photo import Photo3D
     from photo3d.render.animate import VideoSpec
-    from photo3d.render.renderer import RenderSettings
 
 PathLike = str | os.PathLike[str]
 OnDepth = Callable[["DepthEstimate", "np.ndarray"], None]
@@ -58,42 +58,28 @@ class MakeOptions:
         depth_model: the monocular model for a photo with no depth source and no
             embedded map (None: the default, see
             :func:`photo3d.depth.fetch.default_depth_model`).
-        ply: ``"binary"``, ``"ascii"`` or None (no ``mesh.ply``).
-        glb: write ``mesh.glb``.
-        full_glb: ``mesh.glb`` is the full vertex-coloured mesh (one vertex per LDI
-            pixel) instead of the light textured one.
-        light_error: error bound of the light mesh in pixels (None:
-            :data:`photo3d.mesh.light.LIGHT_ERROR`).
-        viewer: write ``viewer.html``.
-        videos: the videos to render (:class:`~photo3d.render.animate.VideoSpec` s).
-        render_settings: how videos are rendered (None: defaults).
+        save: the files of the folder and how they are made
+            (:class:`~photo3d.save_options.SaveOptions`), passed whole to
+            :meth:`photo3d.Photo3D.save`.
         overwrite: replace a finished output folder (``batch``: redo finished photos).
 
     Example:
-        >>> options = MakeOptions(config=Config(size=512), inpainter_options={"tolerance": 1e-2})
-        >>> options.inpainter_options, options.glb, options.full_glb
-        ((('tolerance', 0.01),), True, False)
+        >>> options = MakeOptions(config=Config(size=512), inpainter_options={"tolerance": 1e-2},
+        ...                       save=SaveOptions(glb=False))
+        >>> options.inpainter_options, options.save.glb, options.save.full_glb
+        ((('tolerance', 0.01),), False, False)
     """
 
     config: Config = field(default_factory=Config)
     inpainter_options: tuple[tuple[str, object], ...] = ()
     depth_kind: str | None = None
     depth_model: str | None = None
-    ply: str | None = "binary"
-    glb: bool = True
-    full_glb: bool = False
-    light_error: float | None = None
-    viewer: bool = True
-    videos: tuple[VideoSpec, ...] = ()
-    render_settings: RenderSettings | None = None
+    save: SaveOptions = field(default_factory=SaveOptions)
     overwrite: bool = False
 
     def __post_init__(self) -> None:
         if isinstance(self.inpainter_options, Mapping):
             object.__setattr__(self, "inpainter_options", tuple(self.inpainter_options.items()))
-        object.__setattr__(self, "videos", tuple(self.videos))
-        if self.ply not in ("binary", "ascii", None):
-            raise ConfigError(f"ply must be 'binary', 'ascii' or None, got {self.ply!r}")
         if self.depth_kind not in (None, "disparity", "depth"):
             raise ConfigError(f"depth_kind must be 'disparity', 'depth' or None, got "
                               f"{self.depth_kind!r}")
@@ -155,7 +141,8 @@ def prepare(options: MakeOptions) -> Inpainter:
     from photo3d.resources import check_memory
 
     check_memory((9, 16), options.config, at_least=True)
-    if options.videos and options.render_settings and options.render_settings.backend == "gl":
+    save = options.save
+    if save.videos and save.render_settings and save.render_settings.backend == "gl":
         from photo3d.render.renderer import select_backend
 
         select_backend("gl")
@@ -208,7 +195,8 @@ def make_folder(image: np.ndarray | PathLike, out: PathLike, *,
         >>> disp = np.ones((32, 32), np.float32); disp[:, 16:] = 2.0
         >>> out = Path(tempfile.mkdtemp()) / "out"
         >>> photo = make_folder(np.full((32, 32, 3), 0.5), out, depth=disp,
-        ...                     options=MakeOptions(config=Config(size=None), glb=False))
+        ...                     options=MakeOptions(config=Config(size=None),
+        ...                                         save=SaveOptions(glb=False)))
         >>> photo.depth_source, sorted(p.name for p in out.iterdir())
         ('depth array (disparity)', ['config.json', 'mesh.ply', 'photo3d.npz', 'viewer.html'])
     """
@@ -220,7 +208,8 @@ def make_folder(image: np.ndarray | PathLike, out: PathLike, *,
     report = progress or (lambda stage, fraction: None)
     backend = inpainter or options.inpainter()
     inputs = _inputs(image, depth, right, depth_model, options)
-    need = output_bytes(options.config, options.videos) if need_bytes is None else need_bytes
+    need = (output_bytes(options.config, options.save.videos) if need_bytes is None
+            else need_bytes)
     with stage_photo(out, overwrite=options.overwrite, inputs=inputs,
                      need_bytes=need) as staging:  # removed on any error unless committed
         est = resolve_depth(image, depth=depth, right=right, depth_model=depth_model,
@@ -236,19 +225,16 @@ def make_folder(image: np.ndarray | PathLike, out: PathLike, *,
         photo = dataclasses.replace(photo, depth_source=est.source)
         report("mesh", 0.0)
         start = time.perf_counter()
-        photo.save(staging, ply=options.ply, glb=options.glb, full_glb=options.full_glb,
-                   light_error=options.light_error, viewer=options.viewer,
-                   videos=options.videos, render_settings=options.render_settings,
-                   progress=progress)
-        photo.timings["save + video" if options.videos else "save"] = (time.perf_counter()
-                                                                       - start)
+        photo.save(staging, options.save, progress=progress)
+        photo.timings["save + video" if options.save.videos else "save"] = (
+            time.perf_counter() - start)
         report("video", 1.0)
     return photo
 
 
 def _inputs(image, depth, right, depth_model, options: MakeOptions) -> list[Path]:
     """The files a run reads (its output folder may not hold any of them)."""
-    keyframes = [v.path for v in options.videos
+    keyframes = [v.path for v in options.save.videos
                  if Path(v.path).suffix.lower() in (".json", ".yaml", ".yml")]
     given = [image, depth, right, depth_model, options.depth_model, options.weights(),
              *keyframes]

@@ -31,6 +31,7 @@ from photo3d.io.npz import load_npz, save_npz
 from photo3d.io.ply import write_ply
 from photo3d.mesh.light import LIGHT_ERROR, build_light_mesh
 from photo3d.owned import FINISHED_FILES, LDI_FILE, claim_files, owned_photo, record_files
+from photo3d.save_options import SaveOptions
 from photo3d.structures.ldi import LDI
 
 if TYPE_CHECKING:
@@ -102,11 +103,9 @@ def stage_photo(out: str | Path, *, overwrite: bool, inputs: Sequence[str | Path
                         need_bytes=need_bytes)
 
 
-def save_photo(photo: SavedPhoto, out: str | Path | Staging, *, overwrite: bool = False,
-               ply: str | None = "binary", glb: bool = True, viewer: bool = True,
-               videos: Sequence[VideoSpec] = (), render_settings: RenderSettings | None = None,
-               progress: Callable[[str, float], None] | None = None, full_glb: bool = False,
-               light_error: float = LIGHT_ERROR) -> Path:
+def save_photo(photo: SavedPhoto, out: str | Path | Staging,
+               options: SaveOptions | None = None, *, overwrite: bool = False,
+               progress: Callable[[str, float], None] | None = None) -> Path:
     """Write a 3D photo folder atomically.
 
     Args:
@@ -114,18 +113,10 @@ def save_photo(photo: SavedPhoto, out: str | Path | Staging, *, overwrite: bool 
         out: destination folder; must not exist or be empty unless ``overwrite``
             (which only replaces a 3D photo folder). Or the :class:`Staging` that
             :func:`stage_photo` returned before the work.
-        ply: ``"binary"``, ``"ascii"`` or None (no PLY).
-        glb: also write ``mesh.glb``: the light textured mesh
-            (:func:`~photo3d.mesh.light.build_light_mesh`) unless ``full_glb``.
-        viewer: also write ``viewer.html`` (the interactive, self-contained viewer).
-        videos: videos to render into ``out/video/`` (see
-            :class:`~photo3d.render.animate.VideoSpec`).
-        render_settings: how videos are rendered.
+        options: which files and how (:class:`~photo3d.save_options.SaveOptions`;
+            default: ``mesh.ply`` binary, the light ``mesh.glb``, ``viewer.html``, no
+            videos).
         progress: ``progress(stage, fraction)`` with stages ``save`` and ``video``.
-        full_glb: write the full vertex-coloured mesh (one vertex per LDI pixel) as
-            ``mesh.glb`` instead of the light one.
-        light_error: error bound in pixels of the light mesh (see
-            :func:`~photo3d.mesh.light.build_light_mesh`).
 
     Returns:
         ``out`` as a :class:`~pathlib.Path`.
@@ -135,50 +126,53 @@ def save_photo(photo: SavedPhoto, out: str | Path | Staging, *, overwrite: bool 
         >>> photo = photo3d.make(np.zeros((16, 16, 3)), depth=np.ones((16, 16)),
         ...                      config=photo3d.Config(size=None))
         >>> tmp = pathlib.Path(tempfile.mkdtemp()) / "out"
-        >>> sorted(p.name for p in photo.save(tmp).iterdir())
-        ['config.json', 'mesh.glb', 'mesh.ply', 'photo3d.npz', 'viewer.html']
+        >>> sorted(p.name for p in save_photo(photo, tmp, SaveOptions(ply=None)).iterdir())
+        ['config.json', 'mesh.glb', 'photo3d.npz', 'viewer.html']
     """
-    if ply not in ("binary", "ascii", None):
-        raise OutputError(f"ply must be 'binary', 'ascii' or None, got {ply!r}")
+    options = options or SaveOptions()
     staging = out if isinstance(out, Staging) else stage_photo(out, overwrite=overwrite)
     with staging:
         try:
-            _write_photo(photo, staging.path, title=staging.final.name, ply=ply, glb=glb,
-                         viewer=viewer, videos=videos, render_settings=render_settings,
-                         progress=progress, full_glb=full_glb, light_error=light_error)
+            _write_photo(photo, staging.path, title=staging.final.name, options=options,
+                         progress=progress)
         except OSError as err:
             raise OutputError(f"cannot write {staging.out}: {err.strerror or err}") from None
         staging.commit()
     return Path(staging.out)
 
 
-def _write_photo(photo: SavedPhoto, tmp: Path, *, title: str, ply, glb, viewer, videos,
-                 render_settings, progress, full_glb, light_error) -> None:
+def light_error(options: SaveOptions) -> float:
+    """The light mesh's error bound of ``options`` (its default when None).
+
+    Example:
+        >>> light_error(SaveOptions()) == LIGHT_ERROR, light_error(SaveOptions(light_error=2))
+        (True, 2)
+    """
+    return LIGHT_ERROR if options.light_error is None else options.light_error
+
+
+def _write_photo(photo: SavedPhoto, tmp: Path, *, title: str, options: SaveOptions,
+                 progress) -> None:
     """Write the files of a 3D photo folder into ``tmp``.
 
     The meshes are built in this thread; the files are written by two writer threads
     as soon as what they hold is ready (``photo3d.npz`` first, its deflate and the
     writes release the GIL), so writing overlaps building the light mesh."""
-    meta = photo_meta(photo, ply=ply, glb=glb, full_glb=full_glb, light_error=light_error,
-                      viewer=viewer, videos=videos, render_settings=render_settings)
+    meta = photo_meta(photo, options)
     with ThreadPoolExecutor(max_workers=2) as pool:
         jobs = [pool.submit(save_npz, photo.ldi, tmp / LDI_FILE, meta=meta)]
         (tmp / "config.json").write_text(json.dumps(meta, indent=2))
-        mesh, light = _write_meshes(photo, tmp, pool, jobs, title=title, ply=ply, glb=glb,
-                                    viewer=viewer, full_glb=full_glb, light_error=light_error)
+        mesh, light = _write_meshes(photo, tmp, pool, jobs, title=title, options=options)
         for job in jobs:
             job.result()
     if progress:
         progress("save", 1.0)
-    if videos:
-        write_videos(photo, _video_mesh(photo, mesh, light, render_settings, light_error), tmp,
-                     videos, settings=render_settings, progress=progress)
+    if options.videos:
+        write_videos(photo, _video_mesh(photo, mesh, light, options), tmp, options.videos,
+                     settings=options.render_settings, progress=progress)
 
 
-def photo_meta(photo: SavedPhoto, *, ply: str | None = "binary", glb: bool = True,
-               full_glb: bool = False, light_error: float = LIGHT_ERROR, viewer: bool = True,
-               videos: Sequence[VideoSpec] = (),
-               render_settings: RenderSettings | None = None) -> dict:
+def photo_meta(photo: SavedPhoto, options: SaveOptions | None = None) -> dict:
     """What ``config.json`` (and the metadata of ``photo3d.npz``) records: everything
     that changes the output.
 
@@ -192,43 +186,47 @@ def photo_meta(photo: SavedPhoto, *, ply: str | None = "binary", glb: bool = Tru
         >>> import photo3d, numpy as np
         >>> photo = photo3d.make(np.zeros((16, 16, 3)), depth=np.ones((16, 16)),
         ...                      config=photo3d.Config(size=None))
-        >>> meta = photo_meta(photo, full_glb=True)
+        >>> meta = photo_meta(photo, SaveOptions(full_glb=True))
         >>> list(meta)
         ['config', 'inpainter', 'depth_source', 'save', 'stats', 'timings', 'written']
         >>> meta["save"]["glb"], meta["inpainter"]["name"]
         ('full', 'structured')
     """
-    save = {"ply": ply, "glb": ("full" if full_glb else "light") if glb else None,
-            "light_error": light_error, "viewer": viewer,
+    options = options or SaveOptions()
+    videos = options.videos
+    save = {"ply": options.ply,
+            "glb": ("full" if options.full_glb else "light") if options.glb else None,
+            "light_error": light_error(options), "viewer": options.viewer,
             "videos": [dataclasses.asdict(v) for v in videos], "render_settings": None}
     written = sorted(f"video/{v.name}.{v.format}" for v in videos)
     if videos:
         from photo3d.render.renderer import RenderSettings
 
-        save["render_settings"] = dataclasses.asdict(render_settings or RenderSettings())
+        save["render_settings"] = dataclasses.asdict(options.render_settings
+                                                     or RenderSettings())
     return {"config": photo.config.to_dict(), "inpainter": dict(photo.inpainter),
             "depth_source": photo.depth_source, "save": save, "stats": photo.stats,
             "timings": photo.timings, "written": written}
 
 
-def _video_mesh(photo: SavedPhoto, mesh, light, settings: RenderSettings | None, light_error):
+def _video_mesh(photo: SavedPhoto, mesh, light, options: SaveOptions):
     """The mesh videos are drawn from: the light one with the OpenGL backend (about
     3 times faster per frame there at the same look), the full one with numba (the
     light one is not faster there); benchmarks/RESULTS.md, light mesh."""
     from photo3d.render.renderer import RenderSettings, select_backend
 
-    if select_backend((settings or RenderSettings()).backend) != "gl":
+    if select_backend((options.render_settings or RenderSettings()).backend) != "gl":
         return mesh
-    return light if light is not None else build_light_mesh(photo.ldi, full=mesh,
-                                                            max_error=light_error)
+    return light if light is not None else build_light_mesh(
+        photo.ldi, full=mesh, max_error=light_error(options))
 
 
 def _write_meshes(photo: SavedPhoto, tmp: Path, pool: ThreadPoolExecutor, jobs: list, *,
-                  title: str, ply, glb, viewer, full_glb,
-                  light_error) -> tuple[Mesh | None, TexturedMesh | None]:
+                  title: str, options: SaveOptions) -> tuple[Mesh | None, TexturedMesh | None]:
     """Build the meshes and have ``pool`` write ``mesh.ply``, ``mesh.glb`` and
     ``viewer.html`` as asked into ``tmp`` (their futures are added to ``jobs``);
     returns the full and light meshes if they were built."""
+    ply, glb, viewer, full_glb = options.ply, options.glb, options.viewer, options.full_glb
     mesh = photo.mesh() if ply or glb or viewer else None
     light = None
     if ply:
@@ -236,7 +234,7 @@ def _write_meshes(photo: SavedPhoto, tmp: Path, pool: ThreadPoolExecutor, jobs: 
     if glb and full_glb:
         jobs.append(pool.submit(write_glb, tmp / "mesh.glb", mesh))
     if (glb and not full_glb) or viewer:
-        light = build_light_mesh(photo.ldi, full=mesh, max_error=light_error)
+        light = build_light_mesh(photo.ldi, full=mesh, max_error=light_error(options))
     if glb and not full_glb:
         jobs.append(pool.submit(write_textured_glb, tmp / "mesh.glb", light))
     if viewer:
@@ -271,7 +269,8 @@ def write_videos(photo: SavedPhoto, mesh, folder: Path, videos: Sequence[VideoSp
         (folder / "video").mkdir(exist_ok=True)
         written = []
         if mesh is None:
-            mesh = _video_mesh(photo, photo.mesh(), None, settings, LIGHT_ERROR)
+            mesh = _video_mesh(photo, photo.mesh(), None,
+                               SaveOptions(render_settings=settings))
         with Renderer(mesh, settings) as renderer:
             for i, spec in enumerate(videos):
                 def on_frame(done: int, total: int, i: int = i) -> None:

@@ -12,6 +12,7 @@ from photo3d.camera import Camera
 from photo3d.config import Config
 from photo3d.errors import InputError
 from photo3d.mesh.full import build_mesh
+from photo3d.save_options import SaveOptions
 from photo3d.structures.ldi import LDI
 from photo3d.structures.mesh import Mesh
 
@@ -91,22 +92,33 @@ class Photo3D:
         with Renderer(self.mesh(), settings) as renderer:
             return renderer.render(camera)
 
-    def save(self, out: str | Path, *, overwrite: bool = False, ply: str | None = "binary",
-             glb: bool = True, viewer: bool = True, videos=(), render_settings=None,
-             progress=None, full_glb: bool = False, light_error: float | None = None) -> Path:
+    def save(self, out: str | Path, options: SaveOptions | None = None, *,
+             overwrite: bool = False, progress=None, **changes) -> Path:
         """Write ``photo3d.npz``, ``mesh.ply``, ``mesh.glb``, ``viewer.html``,
         ``config.json`` and the requested videos (``video/NAME.mp4``) to ``out``,
-        atomically; ``light_error`` None: :data:`photo3d.mesh.light.LIGHT_ERROR`.
+        atomically.
+
+        Args:
+            out: the folder (must not exist or be empty unless ``overwrite``).
+            options: :class:`~photo3d.save_options.SaveOptions` (default: its defaults).
+            overwrite: replace a 3D photo folder photo3d wrote.
+            progress: ``progress(stage, fraction)``.
+            changes: fields of ``options`` to replace, e.g. ``glb=False``.
 
         See :func:`photo3d.output.save_photo`.
+
+        Example:
+            >>> import numpy as np, photo3d, tempfile, pathlib
+            >>> photo = photo3d.make(np.zeros((16, 16, 3)), depth=np.ones((16, 16)),
+            ...                      config=photo3d.Config(size=None))
+            >>> out = photo.save(pathlib.Path(tempfile.mkdtemp()) / "o", ply=None, viewer=False)
+            >>> sorted(p.name for p in out.iterdir())
+            ['config.json', 'mesh.glb', 'photo3d.npz']
         """
-        from photo3d.mesh.light import LIGHT_ERROR
         from photo3d.output import save_photo
 
-        return save_photo(self, out, overwrite=overwrite, ply=ply, glb=glb, viewer=viewer,
-                          videos=videos, render_settings=render_settings, progress=progress,
-                          full_glb=full_glb,
-                          light_error=LIGHT_ERROR if light_error is None else light_error)
+        options = (options or SaveOptions()).with_(**changes)
+        return save_photo(self, out, options, overwrite=overwrite, progress=progress)
 
     @classmethod
     def load(cls, path: str | Path) -> Photo3D:

@@ -21,6 +21,7 @@ from photo3d.errors import InputError
 from photo3d.io.images import write_image
 from photo3d.io.npz import load_npz
 from photo3d.output import stage_photo
+from photo3d.save_options import SaveOptions
 
 FAST = ["--size", "64", "--no-video", "--no-glb", "--no-viewer"]
 
@@ -133,8 +134,9 @@ def test_batch_library_reports_progress_and_keeps_going(tmp_path):
     jobs = find_photos(tmp_path) + [PhotoJob("missing", tmp_path / "missing.png")]
     jobs[0] = PhotoJob("a", tmp_path / "a.png", tmp_path / "a.npy")
     seen = []
-    summary = run_batch(jobs, tmp_path / "out", MakeOptions(config=Config(size=64), glb=False,
-                        viewer=False, ply=None), workers=1,
+    options = MakeOptions(config=Config(size=64),
+                          save=SaveOptions(glb=False, viewer=False, ply=None))
+    summary = run_batch(jobs, tmp_path / "out", options, workers=1,
                         progress=lambda r, done, total: seen.append((r.status, done, total)))
     assert (summary.ok, summary.failed, summary.skipped) == (1, 2, 0)
     assert sorted(s for s, _, _ in seen) == ["failed", "failed", "ok"]

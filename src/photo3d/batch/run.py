@@ -108,11 +108,13 @@ def run_batch(jobs: Sequence[PhotoJob], out: str | Path, options: MakeOptions | 
         >>> from photo3d.batch import find_photos
         >>> from photo3d.config import Config
         >>> from photo3d.io.images import write_image
+        >>> from photo3d.save_options import SaveOptions
         >>> d = Path(tempfile.mkdtemp()); (d / "depth").mkdir()
         >>> write_image(d / "a.png", np.full((32, 32, 3), 0.5, np.float32))
         >>> np.save(d / "depth" / "a.npy", np.ones((32, 32), np.float32))
         >>> jobs = find_photos(d, depth=d / "depth")
-        >>> options = MakeOptions(config=Config(size=None), glb=False, viewer=False)
+        >>> options = MakeOptions(config=Config(size=None),
+        ...                       save=SaveOptions(glb=False, viewer=False))
         >>> s = run_batch(jobs, d / "out", options, workers=1)
         >>> s.ok, s.failed, s.skipped
         (1, 0, 0)

@@ -71,11 +71,13 @@ class PhotoMaker:
     Example:
         >>> import tempfile, numpy as np
         >>> from photo3d.config import Config
+        >>> from photo3d.save_options import SaveOptions
         >>> from photo3d.io.images import write_image
         >>> d = Path(tempfile.mkdtemp())
         >>> write_image(d / "a.png", np.full((32, 32, 3), 0.5, np.float32))
         >>> np.save(d / "a.npy", np.ones((32, 32), np.float32))
-        >>> maker = PhotoMaker(MakeOptions(config=Config(size=None), glb=False, viewer=False))
+        >>> maker = PhotoMaker(MakeOptions(config=Config(size=None),
+        ...                                    save=SaveOptions(glb=False, viewer=False)))
         >>> result = maker(PhotoJob("a", d / "a.png", d / "a.npy"), d / "out")
         >>> result.status, is_complete(d / "out" / "a")
         ('ok', True)

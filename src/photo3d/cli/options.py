@@ -243,20 +243,23 @@ def make_options(args: argparse.Namespace):
         >>> args = build_parser().parse_args(["batch", "in", "-o", "o", "--full-glb",
         ...                                   "--no-video", "--size", "512"])
         >>> options = make_options(args)
-        >>> options.full_glb, options.videos, options.config.size
+        >>> options.save.full_glb, options.save.videos, options.config.size
         (True, (), 512)
     """
     from photo3d.folder import MakeOptions
+    from photo3d.save_options import SaveOptions
 
     config = config_from(args)
     inpainter = inpainter_options(args, config.inpainter)
     return MakeOptions(config=config, inpainter_options=tuple(inpainter.items()),
                        depth_kind=getattr(args, "depth_kind", None),
                        depth_model=getattr(args, "depth_model", None),
-                       ply=None if args.ply == "none" else args.ply, glb=not args.no_glb,
-                       full_glb=args.full_glb, viewer=not args.no_viewer,
-                       videos=() if args.no_video else tuple(videos_from(args)),
-                       render_settings=render_settings_from(args), overwrite=args.overwrite)
+                       save=SaveOptions(
+                           ply=None if args.ply == "none" else args.ply, glb=not args.no_glb,
+                           full_glb=args.full_glb, viewer=not args.no_viewer,
+                           videos=() if args.no_video else tuple(videos_from(args)),
+                           render_settings=render_settings_from(args)),
+                       overwrite=args.overwrite)
 
 
 def depth_from_args(args: argparse.Namespace):

@@ -28,6 +28,7 @@ from pathlib import Path
 from photo3d.config import Config
 from photo3d.errors import ConfigError
 from photo3d.folder import MakeOptions, output_bytes
+from photo3d.save_options import SaveOptions
 from photo3d.ui.bundle import safe_stem, zip_folder
 from photo3d.ui.progress import StageMeter
 
@@ -69,7 +70,7 @@ class JobOptions:
     Example:
         >>> options = JobOptions(size=512, paths=["swing"])
         >>> make = options.make_options()
-        >>> make.config.size, [v.path for v in make.videos], make.ply
+        >>> make.config.size, [v.path for v in make.save.videos], make.save.ply
         (512, ['swing'], None)
         >>> JobOptions(paths=["/etc/passwd"])  # doctest: +ELLIPSIS
         Traceback (most recent call last):
@@ -107,9 +108,9 @@ class JobOptions:
 
         config = Config().with_(size=self.size or None, inpainter=self.fill)
         videos = tuple(VideoSpec(path=p) for p in self.paths) if self.videos else ()
-        return MakeOptions(config=config, depth_kind=self.depth_kind,
-                           ply="binary" if self.ply else None, glb=True, viewer=True,
-                           videos=videos, render_settings=RenderSettings(crop=AUTHORS_CROP))
+        return MakeOptions(config=config, depth_kind=self.depth_kind, save=SaveOptions(
+            ply="binary" if self.ply else None, glb=True, viewer=True, videos=videos,
+            render_settings=RenderSettings(crop=AUTHORS_CROP)))
 
 
 def _one_of(what: str, value: object, allowed: tuple[str, ...]) -> None:
@@ -186,7 +187,7 @@ def run_job(photo: Path, folder: Path, *, options: JobOptions, depth: Path | Non
     if options.source == "model" and (depth is not None or right is not None):
         raise ConfigError("depth source 'model' estimates the depth: remove the uploaded "
                           "depth map or right view, or choose 'auto'")
-    meter = StageMeter(videos=bool(make.videos))
+    meter = StageMeter(videos=bool(make.save.videos))
 
     def report(stage: str, fraction: float) -> None:
         if cancel is not None and cancel.is_set():
@@ -212,7 +213,8 @@ def run_job(photo: Path, folder: Path, *, options: JobOptions, depth: Path | Non
     still = dataclasses.replace(make, videos=())
     photo3d = make_folder(photo, out, options=still, depth=depth, right=right,
                           depth_model=depth_model, inpainter=inpainter, progress=report,
-                          on_depth=on_depth, need_bytes=output_bytes(make.config, make.videos))
+                          on_depth=on_depth,
+                          need_bytes=output_bytes(make.config, make.save.videos))
     bundle = folder / f"{safe_stem(name)}-3d.zip"
     zip_folder(out, bundle, extra=found["previews"], progress=lambda f: report("zip", f))
     uploads = [p for p in (photo, depth, right) if p is not None]
@@ -224,7 +226,7 @@ def run_job(photo: Path, folder: Path, *, options: JobOptions, depth: Path | Non
                        warnings=tuple(redact(note, uploads) for note in estimate.warnings))
     line = (f"{w}x{h}, {photo3d.stats['passes']} inpainting pass(es), depth from "
             f"{redact(estimate.source, uploads)}")
-    if not make.videos:
+    if not make.save.videos:
         yield dataclasses.replace(result, summary=f"3D photo made in {result.seconds:.1f} s: "
                                                   f"{line}")
         return
@@ -232,7 +234,8 @@ def run_job(photo: Path, folder: Path, *, options: JobOptions, depth: Path | Non
                                               f"({line}); rendering the videos...")
     from photo3d.output import write_videos
 
-    videos = write_videos(photo3d, None, out, make.videos, settings=make.render_settings,
+    videos = write_videos(photo3d, None, out, make.save.videos,
+                          settings=make.save.render_settings,
                           progress=report)
     zip_folder(out, bundle, extra=found["previews"], progress=lambda f: report("rezip", f))
     seconds = time.perf_counter() - start

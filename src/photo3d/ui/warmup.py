@@ -121,7 +121,7 @@ def _tiny_make(out: Path):
     disparity = np.ones((48, 64), np.float32)
     disparity[:, 32:] = 2.0
     return make_folder(image.astype(np.float32), out, depth=disparity,
-                       options=MakeOptions(config=Config(size=None), ply="binary"))
+                       options=MakeOptions(config=Config(size=None)))
 
 
 def _tiny_video(photo, out: Path) -> None:
