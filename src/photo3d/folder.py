@@ -91,7 +91,7 @@ class MakeOptions:
             ConfigError: unknown backend or bad options (the learned one: bad weights).
 
         Example:
-            >>> MakeOptions(inpainter_options={"iterations": 10}).inpainter().iterations
+            >>> MakeOptions(inpainter_options={"iterations": 10}).inpainter().options.iterations
             10
         """
         from photo3d.inpaint import get_inpainter

@@ -14,6 +14,7 @@ from __future__ import annotations
 import os
 from collections.abc import Sequence
 from concurrent.futures import ThreadPoolExecutor
+from dataclasses import asdict, dataclass, replace
 
 import numba
 import numpy as np
@@ -161,6 +162,19 @@ def diffuse(
     return out
 
 
+@dataclass(frozen=True)
+class DiffusionOptions:
+    """What changes the ``diffusion`` backend's output (``config.json`` records it).
+
+    Attributes:
+        iterations: at most this many solver iterations (:func:`diffuse`).
+        tolerance: the solver stops when no value changes by more than this.
+    """
+
+    iterations: int = 300
+    tolerance: float = 1e-3
+
+
 class DiffusionInpainter:
     """Backend ``"diffusion"``: fills colour and disparity by :func:`diffuse`.
 
@@ -182,11 +196,16 @@ class DiffusionInpainter:
 
     name = "diffusion"
     margin = 1
+    later_context = 1.0
+    """Later passes grow contexts as deep as the first (read by the pipeline)."""
+    paper_context = False
+    """Contexts take photo3d's rules too (read by the pipeline)."""
 
-    def __init__(self, *, iterations: int = 300, tolerance: float = 1e-3,
-                 workers: int | None = None) -> None:
-        self.iterations = iterations
-        self.tolerance = tolerance
+    def __init__(self, options: DiffusionOptions | None = None, *,
+                 workers: int | None = None, **changes) -> None:
+        """``options`` (default: its defaults) with ``changes`` (e.g. ``iterations=50``);
+        ``workers``: threads (the solver releases the GIL; does not change the output)."""
+        self.options = replace(options or DiffusionOptions(), **changes)
         self.workers = workers or os.cpu_count() or 1
 
     def settings(self) -> dict[str, object]:
@@ -197,7 +216,7 @@ class DiffusionInpainter:
             >>> DiffusionInpainter(iterations=50).settings()
             {'name': 'diffusion', 'iterations': 50, 'tolerance': 0.001}
         """
-        return {"name": self.name, "iterations": self.iterations, "tolerance": self.tolerance}
+        return {"name": self.name, **asdict(self.options)}
 
     def inpaint(
         self, patches: Sequence[Patch], *, progress: CountProgress | None = None,
@@ -207,8 +226,8 @@ class DiffusionInpainter:
 
         def one(p: Patch) -> InpaintResult:
             stacked = np.concatenate([p.color, p.disparity[..., None]], axis=2)
-            out = diffuse(stacked, p.context, p.synthesis, iterations=self.iterations,
-                          tolerance=self.tolerance)
+            out = diffuse(stacked, p.context, p.synthesis, iterations=self.options.iterations,
+                          tolerance=self.options.tolerance)
             return InpaintResult(
                 color=np.clip(out[..., :3], 0.0, 1.0),
                 disparity=out[..., 3],

@@ -63,6 +63,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Sequence
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -117,22 +118,18 @@ def bundled_weights() -> Path:
     return Path(__file__).resolve().parents[1] / "nets" / "compact"
 
 
-class LearnedInpainter:
-    """Backend ``"learned"``: edge, depth and colour nets (see the module docstring).
+@dataclass(frozen=True)
+class LearnedOptions:
+    """What changes the ``learned`` backend's output besides its weights (``config.json``
+    records it with them).
 
-    Args:
-        weights: folder with the authors' ``*-model.pth`` or our ``*.safetensors``
-            (see :func:`photo3d.nets.load_inpainting_nets`); default: the compact nets
-            shipped with photo3d (:func:`bundled_weights`).
-        device: torch device (default CUDA when available, else CPU).
-        nets: :class:`photo3d.nets.InpaintingNets` already in memory (instead of
-            ``weights``).
+    Attributes:
         edge_threshold: edge probability above which a synthesis pixel is an edge.
         edge_repeats: extra edge-net runs with the new edges fed back.
         edge_passes: inpainting passes in which the edge net runs (authors: 1, the
             first; later passes use the context's edges as they are).
         edge_unit: the edge net's input is padded to multiples of this (any
-            multiple of 4; default :func:`net_unit`: 128 for the authors'
+            multiple of 4; None: :func:`net_unit`: 128 for the authors'
             architecture, 4 for other edge nets; 8 is the opt-in speed-up for the
             authors' net, see the module docstring).
         precision: ``"fp32"`` or ``"bf16"`` (autocast, opt-in speed-up).
@@ -153,6 +150,50 @@ class LearnedInpainter:
             pixels than 64 px.
         paths: report new edges as one-pixel paths continuing context edges (see the
             module docstring; False: every pixel the edge net marks).
+
+    Example:
+        >>> LearnedOptions(precision="bf16").precision
+        'bf16'
+        >>> LearnedOptions(edge_unit=6)
+        Traceback (most recent call last):
+        ...
+        photo3d.errors.ConfigError: edge_unit must be a positive multiple of 4, not 6
+    """
+
+    edge_threshold: float = 0.002
+    edge_repeats: int = 2
+    edge_passes: int = 1
+    edge_unit: int | None = None
+    precision: str = "fp32"
+    color_size: int = 512
+    batch_size: int = 8
+    batch_pixels: int = 8 * 256 * 256
+    share: bool = True
+    joint_pixels: int = 600_000
+    edge_halo: int | None = 48
+    paths: bool = True
+
+    def __post_init__(self) -> None:
+        if self.edge_unit is not None and (self.edge_unit <= 0 or self.edge_unit % 4):
+            raise ConfigError(f"edge_unit must be a positive multiple of 4, not "
+                              f"{self.edge_unit}")
+        if self.precision not in PRECISIONS:
+            raise ConfigError(f"precision must be one of {', '.join(PRECISIONS)}, "
+                              f"not {self.precision!r}")
+
+
+class LearnedInpainter:
+    """Backend ``"learned"``: edge, depth and colour nets (see the module docstring).
+
+    Args:
+        weights: folder with the authors' ``*-model.pth`` or our ``*.safetensors``
+            (see :func:`photo3d.nets.load_inpainting_nets`); default: the compact nets
+            shipped with photo3d (:func:`bundled_weights`).
+        device: torch device (default CUDA when available, else CPU).
+        nets: :class:`photo3d.nets.InpaintingNets` already in memory (instead of
+            ``weights``).
+        options: :class:`LearnedOptions` (default: its defaults).
+        changes: fields of ``options`` to replace, e.g. ``precision="bf16"``.
 
     Attributes:
         units: per net (``"edge"``, ``"depth"``, ``"color"``), the multiple its
@@ -186,18 +227,10 @@ class LearnedInpainter:
     trained on those, not on :attr:`~photo3d.config.RegionConfig.context_around` or
     ``thin_context``'s larger ones."""
 
-    def __init__(self, *, weights: str | Path | None = None,
-                 device: str | torch.device | None = None, nets: InpaintingNets | None = None,
-                 edge_threshold: float = 0.002, edge_repeats: int = 2, edge_passes: int = 1,
-                 edge_unit: int | None = None, precision: str = "fp32", color_size: int = 512,
-                 batch_size: int = 8, batch_pixels: int = 8 * 256 * 256,
-                 share: bool = True, joint_pixels: int = 600_000,
-                 edge_halo: int | None = 48, paths: bool = True) -> None:
-        if edge_unit is not None and (edge_unit <= 0 or edge_unit % 4):
-            raise ConfigError(f"edge_unit must be a positive multiple of 4, not {edge_unit}")
-        if precision not in PRECISIONS:
-            raise ConfigError(f"precision must be one of {', '.join(PRECISIONS)}, "
-                              f"not {precision!r}")
+    def __init__(self, options: LearnedOptions | None = None, *,
+                 weights: str | Path | None = None, device: str | torch.device | None = None,
+                 nets: InpaintingNets | None = None, **changes) -> None:
+        options = replace(options or LearnedOptions(), **changes)
         if nets is None:
             if weights is None and not bundled_weights().is_dir():
                 raise ConfigError("the learned inpainter needs its network weights: pass "
@@ -208,24 +241,16 @@ class LearnedInpainter:
 
             nets = load_inpainting_nets(weights, device=device)
         self.nets = nets
-        self.edge_threshold = edge_threshold
-        self.edge_repeats = edge_repeats
-        self.edge_passes = edge_passes
+        self.options = options
         self.units = {kind: net_unit(getattr(nets, kind)) for kind in ("edge", "depth", "color")}
-        if edge_unit is not None:
-            self.units["edge"] = edge_unit
-        self.precision = precision
-        self.color_size = color_size
-        self.share = share
-        self.joint_pixels = joint_pixels
-        self.edge_halo = edge_halo
-        self.paths = paths
+        if options.edge_unit is not None:
+            self.units["edge"] = options.edge_unit
         # the weights folder, for settings() (None: ``nets`` were given in memory)
         self.weights = None if weights is None else Path(weights)
         self._sha256: dict[str, str] | None = None  # of the weights files, once
         # Windows of the joint edge-net runs, one list per run over the pass's crops.
         self.edge_runs: list[list[Box]] = []
-        self.batch = dict(batch_size=batch_size, batch_pixels=batch_pixels)
+        self.batch = dict(batch_size=options.batch_size, batch_pixels=options.batch_pixels)
         self.mapping = DepthMapping()
         # Seconds spent in each net since construction (read by the benchmark).
         self.timings: dict[str, float] = {"edge": 0.0, "depth": 0.0, "color": 0.0}
@@ -258,13 +283,8 @@ class LearnedInpainter:
             weights = str(self.weights.resolve())
         return {"name": self.name, "weights": weights, "sha256": dict(self._sha256),
                 "nets": dict(self.nets.sources), "device": str(self.nets.device),
-                "precision": self.precision, "edge_threshold": self.edge_threshold,
-                "edge_repeats": self.edge_repeats, "edge_passes": self.edge_passes,
-                "units": dict(self.units), "color_size": self.color_size,
-                "share": self.share, "joint_pixels": self.joint_pixels,
-                "edge_halo": self.edge_halo, "paths": self.paths,
-                "later_context": self.later_context, "paper_context": self.paper_context,
-                **self.batch}
+                **asdict(self.options), "units": dict(self.units),
+                "later_context": self.later_context, "paper_context": self.paper_context}
 
     def _run(self, kind: str, inputs: list[np.ndarray]) -> list[np.ndarray]:
         if not inputs:
@@ -274,7 +294,7 @@ class LearnedInpainter:
         t = time.perf_counter()
         out = run_batched(getattr(self.nets, kind), inputs, device=self.nets.device,
                           unit=self.units[kind],
-                          autocast=torch.bfloat16 if self.precision == "bf16" else None,
+                          autocast=torch.bfloat16 if self.options.precision == "bf16" else None,
                           **self.batch)
         release_memory()
         self.timings[kind] += time.perf_counter() - t
@@ -285,11 +305,11 @@ class LearnedInpainter:
         if not run:
             return edges
         todo = [i for i, it in enumerate(items) if it.needs_edges]
-        for _ in range(1 + self.edge_repeats):
+        for _ in range(1 + self.options.edge_repeats):
             if not todo:
                 break
             outs = self._run("edge", [items[i].edge_input(edges[i]) for i in todo])
-            new = {i: ((o[0] > self.edge_threshold) & (items[i].syn > 0)).astype(np.float32)
+            new = {i: ((o[0] > self.options.edge_threshold) & (items[i].syn > 0)).astype(np.float32)
                    for i, o in zip(todo, outs, strict=True)}
             changed = [i for i in todo if (np.maximum(items[i].edges, new[i]) != edges[i]).any()]
             for i in todo:
@@ -298,7 +318,7 @@ class LearnedInpainter:
         return edges
 
     def _tears(self, edges: np.ndarray, p: Patch) -> np.ndarray:
-        return reported_edges(edges, p) if self.paths else edges.astype(np.float32)
+        return reported_edges(edges, p) if self.options.paths else edges.astype(np.float32)
 
     def _colors(self, items: list[NetInputs], edges: list[np.ndarray]) -> list[np.ndarray]:
         import torch
@@ -308,7 +328,7 @@ class LearnedInpainter:
         inputs, scaled, fills = [], [], []
         for it, e in zip(items, edges, strict=True):
             h, w = it.ctx.shape
-            frac = color_scale(h, w, self.color_size)
+            frac = color_scale(h, w, self.options.color_size)
             rgb = it.filled_rgb() if refine else it.rgb
             fills.append(rgb if refine else None)
             if frac >= 1:
@@ -375,9 +395,9 @@ class LearnedInpainter:
         it = NetInputs(whole, self.mapping)
         syn = it.syn > 0
         new, target = np.zeros(whole.shape, bool), syn
-        for _ in range(1 + self.edge_repeats):
-            crops = cover(target, halo=self.edge_halo, unit=self.units["edge"],
-                          max_pixels=self.joint_pixels,
+        for _ in range(1 + self.options.edge_repeats):
+            crops = cover(target, halo=self.options.edge_halo, unit=self.units["edge"],
+                          max_pixels=self.options.joint_pixels,
                           phase=getattr(self.nets.edge, "input_multiple", 1))
             full = it.edge_input(np.maximum(it.edges, new))
             outs = self._run("edge", [c.take(full) for c in crops])
@@ -385,13 +405,13 @@ class LearnedInpainter:
             before = new.copy()
             for c, o in zip(crops, outs, strict=True):
                 core = c.slices()
-                new[core] = np.where(target[core], o[0][c.local()] > self.edge_threshold,
+                new[core] = np.where(target[core], o[0][c.local()] > self.options.edge_threshold,
                                      new[core])
             self.edge_runs.append([c.window for c in crops])
             changed = new != before
             if not changed.any():  # the next run would see the same input
                 break
-            target = syn & grow(changed, self.edge_halo)
+            target = syn & grow(changed, self.options.edge_halo)
         return [(new, whole.origin)]
 
     def _depths(self, items: list[NetInputs], edges: list[np.ndarray]) -> list[np.ndarray]:
@@ -461,8 +481,8 @@ class LearnedInpainter:
         (:func:`~photo3d.inpaint.canvas.joint_patch`), the depth net on clusters and
         the colour net on groups of non-conflicting patches
         (:func:`~photo3d.inpaint.canvas.share_canvases`); else once per patch."""
-        run_edges = pass_index < self.edge_passes
-        if self.share and patches:
+        run_edges = pass_index < self.options.edge_passes
+        if self.options.share and patches:
             joint = self._joint_edges(patches) if run_edges else []
             if joint is not None:
                 return self._shared(patches, joint, progress)

@@ -23,8 +23,9 @@ from the patch's context: nothing from the foreground or outside the context.
 from __future__ import annotations
 
 import os
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass, fields, replace
 
 import numpy as np
 
@@ -121,21 +122,61 @@ def texture_weight(color: np.ndarray, context: np.ndarray, synthesis: np.ndarray
     return np.clip((carried - smooth) / span, 0.0, 1.0).astype(np.float32)
 
 
+@dataclass(frozen=True)
+class StructuredOptions:
+    """What changes the ``structured`` backend's output (``config.json`` records it).
+
+    Attributes:
+        iterations, tolerance: the diffusion's (:func:`photo3d.inpaint.diffusion.diffuse`).
+        lines: step 1 (continued edges) on or off.
+        texture: step 3's weight: 0 = no texture, 1 = its colours as they are.
+        patch_radius: texture patch radius in pixels of the input photo (an enlarged
+            small photo gets patches as large in its own pixels as a photo at the
+            working size; at least 2 lattice pixels).
+        pm_iterations, em_steps, guide_weight, copy: the exemplar fill's
+            (:func:`~photo3d.inpaint.exemplar.exemplar_fill`; ``pm_iterations`` is its
+            ``iterations``).
+        support_factor, coherence: the edge continuation's
+            (:func:`~photo3d.inpaint.continuation.continue_edges`).
+        continuation: any other keyword of ``continue_edges``, as ``(name, value)``
+            pairs (a mapping is turned into pairs).
+        smooth, textured: :func:`texture_weight`'s: texture only where the context next
+            to a pixel has detail, so a smooth context gets the smooth fill
+            (``textured=0`` copies texture everywhere).
+
+    Example:
+        >>> StructuredOptions(continuation={"reach": 4}).continuation
+        (('reach', 4),)
+    """
+
+    iterations: int = 300
+    tolerance: float = 1e-3
+    lines: bool = True
+    texture: float = 1.0
+    patch_radius: float = 1.5
+    pm_iterations: int = 3
+    em_steps: int = 1
+    guide_weight: float = 0.5
+    copy: bool = True
+    support_factor: float = 1.0
+    coherence: float = 0.8
+    continuation: tuple[tuple[str, object], ...] = ()
+    smooth: float = 0.003
+    textured: float = 0.012
+
+    def __post_init__(self) -> None:
+        if isinstance(self.continuation, Mapping):
+            object.__setattr__(self, "continuation", tuple(self.continuation.items()))
+
+
 class StructuredInpainter:
     """Backend ``"structured"``: continued edges, piecewise diffusion, exemplar texture.
 
-    Options (keyword-only): ``iterations``, ``tolerance`` (diffusion, as
-    :func:`photo3d.inpaint.diffusion.diffuse`); ``lines`` (step 1 on/off);
-    ``texture`` (0 = no step 3, 1 = its colours as they are, in between a blend);
-    ``patch_radius`` (in pixels of the input photo, so an enlarged small photo gets
-    patches as large in its own pixels as a photo at the working size; at least 2
-    lattice pixels), ``pm_iterations``, ``em_steps``, ``guide_weight``, ``copy``
-    (:func:`~photo3d.inpaint.exemplar.exemplar_fill`); ``support_factor``,
-    ``coherence`` and any other keyword of
-    :func:`~photo3d.inpaint.continuation.continue_edges`; ``smooth`` and ``textured``
-    (:func:`texture_weight`: texture only where the context next to a pixel has
-    detail, so a smooth context gets the smooth fill; ``textured=0`` copies texture
-    everywhere); ``workers`` (threads; the kernels release the GIL).
+    Args:
+        options: :class:`StructuredOptions` (default: its defaults).
+        workers: threads (the kernels release the GIL; does not change the output).
+        changes: fields of ``options`` to replace, e.g. ``texture=0.5``; a keyword that
+            is not a field goes to the edge continuation (``continuation``).
 
     Example:
         >>> from photo3d.inpaint import get_inpainter
@@ -151,23 +192,24 @@ class StructuredInpainter:
 
     name = "structured"
     margin = 1
+    later_context = 1.0
+    """Later passes grow contexts as deep as the first (read by the pipeline)."""
+    paper_context = False
+    """Contexts take photo3d's rules too (read by the pipeline)."""
 
-    def __init__(self, *, iterations: int = 300, tolerance: float = 1e-3,
-                 workers: int | None = None, lines: bool = True, texture: float = 1.0,
-                 patch_radius: float = 1.5, pm_iterations: int = 3, em_steps: int = 1,
-                 guide_weight: float = 0.5, copy: bool = True, support_factor: float = 1.0,
-                 coherence: float = 0.8, smooth: float = 0.003, textured: float = 0.012,
-                 **structure) -> None:
-        self.lines = lines
-        self.texture = texture
-        self.smooth, self.textured = smooth, textured
-        self.patch_radius = patch_radius
-        self.exemplar = dict(iterations=pm_iterations,
-                             em_steps=em_steps, guide_weight=guide_weight, copy=copy)
-        self.iterations = iterations
-        self.tolerance = tolerance
+    def __init__(self, options: StructuredOptions | None = None, *,
+                 workers: int | None = None, **changes) -> None:
+        known = {f.name for f in fields(StructuredOptions)}
+        extra = {k: changes.pop(k) for k in list(changes) if k not in known}
+        options = replace(options or StructuredOptions(), **changes)
+        if extra:
+            options = replace(options, continuation=(*options.continuation, *extra.items()))
+        self.options = options
         self.workers = workers or os.cpu_count() or 1
-        self.structure = dict(structure, support_factor=support_factor, coherence=coherence)
+        self.exemplar = dict(iterations=options.pm_iterations, em_steps=options.em_steps,
+                             guide_weight=options.guide_weight, copy=options.copy)
+        self.structure = dict(options.continuation, support_factor=options.support_factor,
+                              coherence=options.coherence)
 
     def settings(self) -> dict[str, object]:
         """What changes this backend's output, JSON-able (``config.json`` records it;
@@ -178,13 +220,9 @@ class StructuredInpainter:
             >>> s["name"], s["texture"], s["pm_iterations"], s["coherence"]
             ('structured', 0.5, 3, 0.8)
         """
-        return {"name": self.name, "iterations": self.iterations,
-                "tolerance": self.tolerance, "lines": self.lines, "texture": self.texture,
-                "patch_radius": self.patch_radius, "smooth": self.smooth,
-                "textured": self.textured,
-                **{("pm_iterations" if k == "iterations" else k): v
-                   for k, v in self.exemplar.items()},
-                **self.structure}
+        record = {f.name: getattr(self.options, f.name) for f in fields(self.options)
+                  if f.name != "continuation"}
+        return {"name": self.name, **record, **dict(self.options.continuation)}
 
     def radius(self, scale: float) -> int:
         """Texture patch radius in lattice pixels for a patch of this ``scale``.
@@ -194,28 +232,29 @@ class StructuredInpainter:
             >>> inp.radius(1.0), inp.radius(1.4), inp.radius(3.2)
             (2, 2, 5)
         """
-        return max(2, round(self.patch_radius * scale))
+        return max(2, round(self.options.patch_radius * scale))
 
     def fill(self, p: Patch) -> InpaintResult:
         """Fill one patch (see the module doc)."""
         context = p.context
-        if self.lines:
+        o = self.options
+        if o.lines:
             lines = continue_edges(p.color, p.disparity, context, p.synthesis,
                                    **self.structure)
         else:
             lines = np.zeros(p.shape, bool)
         stacked = np.concatenate([p.color, p.disparity[..., None]], axis=2)
         out = piecewise_diffuse(stacked, context, p.synthesis, lines,
-                                iterations=self.iterations, tolerance=self.tolerance)
+                                iterations=o.iterations, tolerance=o.tolerance)
         color = out[..., :3]
-        if self.texture > 0:
+        if o.texture > 0:
             tex = exemplar_fill(color, context, p.synthesis, radius=self.radius(p.scale),
                                 **self.exemplar)
-            amount = np.float32(self.texture)
-            if self.textured > 0:  # per pixel: texture only where the context has detail
+            amount = np.float32(o.texture)
+            if o.textured > 0:  # per pixel: texture only where the context has detail
                 amount = amount * texture_weight(p.color, context, p.synthesis,
-                                                 smooth=self.smooth,
-                                                 textured=self.textured)[..., None]
+                                                 smooth=o.smooth,
+                                                 textured=o.textured)[..., None]
             color = color + amount * (tex - color)
         return InpaintResult(color=np.clip(color, 0.0, 1.0), disparity=out[..., 3],
                              edges=lines.astype(np.float32))
