@@ -125,3 +125,34 @@ def test_prepare_checks_memory_and_builds_the_inpainter(monkeypatch):
 def test_output_bytes_grows_with_the_videos():
     none = output_bytes(Config(size=512))
     assert output_bytes(Config(size=512), VIDEO) == none + int(0.02 * 2 * 32 * 24)
+
+
+def test_the_photo_is_decoded_and_its_depth_prepared_once(tmp_path, monkeypatch):
+    """make_folder reads the photo file once and prepares the depth once (resolve_depth
+    does both; the pipeline takes its results), and the output is what photo3d.make
+    makes from the same files."""
+    import photo3d.depth.sources as sources
+    import photo3d.pipeline as pipeline
+    from photo3d.io.images import write_image
+
+    img, d = two_planes(32, 48, 24)
+    write_image(tmp_path / "p.png", img)
+    np.save(tmp_path / "d.npy", d)
+    calls = {"read": 0, "prepare": 0}
+
+    def counted(name, fn):
+        def wrapper(*args, **kwargs):
+            calls[name] += 1
+            return fn(*args, **kwargs)
+        return wrapper
+
+    monkeypatch.setattr(sources, "read_image", counted("read", sources.read_image))
+    monkeypatch.setattr(sources, "prepare_depth", counted("prepare", sources.prepare_depth))
+    monkeypatch.setattr(pipeline, "prepare_depth", counted("prepare", pipeline.prepare_depth))
+    photo = make_folder(tmp_path / "p.png", tmp_path / "out", depth=tmp_path / "d.npy",
+                        options=BASE)
+    assert calls == {"read": 1, "prepare": 1}
+    direct = photo3d.make(str(tmp_path / "p.png"), depth=str(tmp_path / "d.npy"),
+                          config=BASE.config)
+    assert np.array_equal(photo.ldi.color, direct.ldi.color)
+    assert np.array_equal(photo.ldi.disparity, direct.ldi.disparity)

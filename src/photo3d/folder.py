@@ -216,11 +216,16 @@ def make_folder(image: np.ndarray | PathLike, out: PathLike, *,
                             kind=options.depth_kind,
                             fallback_model=options.depth_model or "default",
                             download_bar=download_bar)
-        photo_image = est.image if est.image is not None else read_photo(image)
+        photo_image = next((p for p in (est.image, est.photo) if p is not None), None)
+        if photo_image is None:
+            photo_image = read_photo(image)
         if on_depth is not None:
             on_depth(est, photo_image)
         config = options.config.with_(depth_kind=est.kind)
-        photo = pipeline.make(photo_image, depth=est.depth, config=config, inpainter=backend,
+        prepared = est.prepared  # decoded and prepared once, by resolve_depth
+        depth_in = est.depth if prepared is None or (
+            prepared.disparity.shape != photo_image.shape[:2]) else prepared
+        photo = pipeline.make(photo_image, depth=depth_in, config=config, inpainter=backend,
                               progress=progress)
         photo = dataclasses.replace(photo, depth_source=est.source)
         report("mesh", 0.0)

@@ -10,7 +10,7 @@ import numpy as np
 
 from photo3d.camera import DepthMapping, Intrinsics
 from photo3d.config import Config
-from photo3d.depth.normalize import prepare_depth
+from photo3d.depth.normalize import DepthInput, prepare_depth
 from photo3d.depth.sources import describe_depth, read_photo
 from photo3d.errors import InputError
 from photo3d.inpaint import get_inpainter
@@ -31,7 +31,7 @@ from photo3d.structures.patch import Patch
 def make(
     image: np.ndarray | str | Path,
     *,
-    depth: np.ndarray | str | Path,
+    depth: np.ndarray | str | Path | DepthInput,
     config: Config | None = None,
     intrinsics: Intrinsics | None = None,
     inpainter: Inpainter | None = None,
@@ -45,8 +45,10 @@ def make(
             or array (``(H, W)``, ``(H, W, 3)`` or ``(H, W, 4)``; uint8, uint16 or
             float in [0, 1]).
         depth: path or ``(H, W)`` array of disparity (default) or depth
-            (``config.depth_kind``); NaN/inf/negative values are filled.
-        config: :class:`Config` (defaults: 1024 px, diffusion inpainting). With
+            (``config.depth_kind``); NaN/inf/negative values are filled. Or a
+            :class:`~photo3d.depth.normalize.DepthInput` already prepared for that kind
+            (:attr:`~photo3d.depth.sources.DepthEstimate.prepared`).
+        config: :class:`Config` (defaults: 1024 px, structured inpainting). With
             ``config.metric`` (and ``depth_kind="depth"``) the geometry keeps the
             depth's own units instead of the authors' [1/3, 20] range.
         intrinsics: the camera of the input image (at the input's resolution; it is
@@ -80,12 +82,15 @@ def make(
         report(stage, 1.0)
 
     img = read_photo(image)
-    raw = read_depth(depth) if isinstance(depth, str | Path) else np.asarray(depth)
     if min(img.shape[:2]) < MIN_SIDE:
         raise InputError(f"image is {img.shape[1]}x{img.shape[0]} pixels; photo3d needs at "
                          f"least {MIN_SIDE}x{MIN_SIDE}")
     check_memory(img.shape[:2], config)
-    dep = prepare_depth(raw, img.shape[:2], kind=config.depth_kind)
+    if isinstance(depth, DepthInput) and depth.disparity.shape == img.shape[:2]:
+        dep = depth  # already prepared (make_folder: by resolve_depth) for this kind
+    else:
+        raw = read_depth(depth) if isinstance(depth, str | Path) else np.asarray(depth)
+        dep = prepare_depth(raw, img.shape[:2], kind=config.depth_kind)
     done("load")
 
     pre = preprocess(img, dep.disparity, config=config)

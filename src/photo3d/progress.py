@@ -20,3 +20,15 @@ CountProgress = Callable[[int, int], None]
 
 ByteProgress = Callable[[int, int | None], None]
 """``progress(done, total)``: bytes downloaded so far; ``total`` None when unknown."""
+
+STAGES = ("load", "preprocess", "ldi", "inpaint", "mesh", "save", "video")
+"""The stages ``make`` and a save report through :data:`StageProgress`, in order."""
+
+STAGE_LABELS = {"load": "load", "preprocess": "preprocess", "ldi": "LDI",
+                "inpaint": "inpaint", "mesh": "mesh", "save": "save", "video": "video"}
+"""How progress bars and timing summaries name the stages."""
+
+STAGE_WEIGHTS = {"load": 1, "preprocess": 4, "ldi": 1, "inpaint": 20, "mesh": 1,
+                 "save": 3, "video": 70}
+"""Each stage's usual share of a ``make`` run (the bundled sample at 1024 px, four
+videos), so a bar over the stages moves at a roughly even pace."""

@@ -50,8 +50,9 @@ def test_options_a_client_may_not_choose(options, message):
 
 def test_the_options_become_makes_options():
     make = JobOptions(size=0, fill="structured", videos=False, ply=True).make_options()
-    assert (make.config.size, make.config.inpainter, make.videos, make.ply, make.glb,
-            make.viewer) == (None, "structured", (), "binary", True, True)
+    save = make.save
+    assert (make.config.size, make.config.inpainter, save.videos, save.ply, save.glb,
+            save.viewer) == (None, "structured", (), "binary", True, True)
     assert make.inpainter_options == ()  # no weights path a client could name
 
 

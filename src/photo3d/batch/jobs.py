@@ -12,15 +12,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
-from photo3d.depth.sources import HEIF_SUFFIXES
 from photo3d.errors import InputError
-from photo3d.files.folders import IMAGE_SUFFIXES, depth_by_key, file_key, files_in
+from photo3d.files.folders import PHOTO_SUFFIXES, depth_by_key, file_key, files_in
 from photo3d.folder import MakeOptions
 
 __all__ = ["PHOTO_SUFFIXES", "MakeOptions", "PhotoJob", "find_photos", "output_problem"]
-
-PHOTO_SUFFIXES = IMAGE_SUFFIXES + HEIF_SUFFIXES
-"""Files a batch takes as photos."""
 
 
 @dataclass(frozen=True)

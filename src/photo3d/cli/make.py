@@ -13,9 +13,10 @@ from photo3d.cli.options import (
     make_options,
     say_depth,
 )
-from photo3d.cli.progress import STAGE_LABELS, StageBar, download_bar
+from photo3d.cli.progress import StageBar, download_bar
 from photo3d.config import Config
 from photo3d.folder import output_bytes
+from photo3d.progress import STAGE_LABELS
 
 
 def add_parser(sub) -> None:

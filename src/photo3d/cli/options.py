@@ -206,10 +206,9 @@ def videos_from(args: argparse.Namespace) -> list:
 
 def render_settings_from(args: argparse.Namespace):
     """The ``RenderSettings`` of ``--ssaa``, ``--no-crop`` and ``--backend``."""
-    from photo3d.render.renderer import AUTHORS_CROP, RenderSettings
+    from photo3d.render.renderer import video_settings
 
-    return RenderSettings(ssaa=args.ssaa, crop=(0.0,) * 4 if args.no_crop else AUTHORS_CROP,
-                          backend=args.backend)
+    return video_settings(crop=not args.no_crop, ssaa=args.ssaa, backend=args.backend)
 
 
 def inpainter_options(args: argparse.Namespace, inpainter: str) -> dict:

@@ -4,15 +4,7 @@ from __future__ import annotations
 
 import sys
 
-STAGE_LABELS = {
-    "load": "load",
-    "preprocess": "preprocess",
-    "ldi": "LDI",
-    "inpaint": "inpaint",
-    "mesh": "mesh",
-    "save": "save",
-}
-"""How the timing summary and the progress bar name the pipeline's stages."""
+from photo3d.progress import STAGE_LABELS, STAGE_WEIGHTS
 
 
 class StageBar:
@@ -33,8 +25,7 @@ class StageBar:
             self.bar = tqdm(total=100, bar_format="{desc:<12}{bar}| {percentage:3.0f}% "
                             "[{elapsed}]", file=sys.stderr, leave=False,
                             disable=None)  # no bar when stderr is not a terminal
-        self.weights = {"load": 1, "preprocess": 4, "ldi": 1, "inpaint": 20, "mesh": 1,
-                        "save": 3, "video": 70}
+        self.weights = dict(STAGE_WEIGHTS)
         self.stage = None
 
     def __call__(self, stage: str, fraction: float) -> None:

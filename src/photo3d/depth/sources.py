@@ -18,13 +18,13 @@ import numpy as np
 from PIL import Image
 
 from photo3d.depth.checks import check_depth
-from photo3d.depth.normalize import match_shape, prepare_depth
+from photo3d.depth.normalize import DepthInput, match_shape, prepare_depth
 from photo3d.errors import InputError
+from photo3d.files.folders import HEIF_SUFFIXES
 from photo3d.io.depth import read_depth
 from photo3d.io.images import read_image, to_float_image
 
 PathLike = str | os.PathLike[str]
-HEIF_SUFFIXES = (".heic", ".heif", ".hif")
 
 
 @dataclass(frozen=True, eq=False)
@@ -43,6 +43,10 @@ class DepthEstimate:
         image: ``(H, W, 3) float32`` a better photo than the file's primary image
             when the source carries one (the unblurred original of a Google
             lens-blur JPEG), else None.
+        photo: ``(H, W, 3) float32`` the photo as :func:`resolve_depth` decoded it
+            (None when built by hand), so that ``make`` decodes it once.
+        prepared: ``depth`` as the pipeline takes it (:func:`prepare_depth`, for
+            ``photo``'s size and ``kind``), so that ``make`` prepares it once.
     """
 
     depth: np.ndarray
@@ -50,6 +54,8 @@ class DepthEstimate:
     source: str
     warnings: tuple[str, ...] = ()
     image: np.ndarray | None = None
+    photo: np.ndarray | None = None
+    prepared: DepthInput | None = None
 
 
 UNKNOWN_WARNING = 0.5
@@ -178,9 +184,10 @@ def resolve_depth(
     if raw.ndim == 2:  # resample once here, so that the pipeline does not warn again
         raw, note = match_shape(raw, photo.shape[:2])
         notes += [note] if note else []
-    notes += _checks(raw, photo, kind)
+    prepared, found = _checks(raw, photo, kind)
     return DepthEstimate(depth=raw.astype(np.float32), kind=kind, source=source,
-                         warnings=tuple(notes), image=better_image)
+                         warnings=tuple(notes + found), image=better_image, photo=photo,
+                         prepared=prepared)
 
 
 def _model(photo, model, kind, download_bar):
@@ -235,8 +242,9 @@ def _embedded(image, kind, shape):
     return depth, found.kind, found.source, notes, found.image
 
 
-def _checks(raw: np.ndarray, photo: np.ndarray, kind: str) -> list[str]:
-    """Plausibility warnings, plus any warning the conversion itself raised."""
+def _checks(raw: np.ndarray, photo: np.ndarray, kind: str) -> tuple[DepthInput, list[str]]:
+    """The prepared depth, and plausibility warnings plus any warning the conversion
+    itself raised."""
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         prepared = prepare_depth(raw, photo.shape[:2], kind=kind)
@@ -245,4 +253,4 @@ def _checks(raw: np.ndarray, photo: np.ndarray, kind: str) -> list[str]:
     if unknown > UNKNOWN_WARNING:
         notes.append(f"depth is unknown at {unknown:.0%} of the pixels (NaN, inf or out of "
                      "range): they are guessed from their row neighbours")
-    return notes + check_depth(prepared.disparity, photo, kind=kind)
+    return prepared, notes + check_depth(prepared.disparity, photo, kind=kind)

@@ -4,9 +4,10 @@ Methods (all from the same left image and ground-truth depth):
 
 * ``forward-warp``: the left view splatted into the right view, holes left black;
 * ``stretch``: photo3d's mesh without cutting at discontinuities (no inpainting);
-* ``diffusion``: photo3d with the diffusion inpainter (the default);
-* ``structured``: photo3d with the structure-then-texture inpainter (continued
-  edges, piecewise diffusion, exemplar texture; :mod:`photo3d.inpaint.structured`);
+* ``diffusion``: photo3d with the diffusion inpainter;
+* ``structured``: photo3d with the structure-then-texture inpainter (the default fill:
+  continued edges, piecewise diffusion, exemplar texture;
+  :mod:`photo3d.inpaint.structured`);
 * ``learned``: photo3d with the learned inpainter (the given weights; when none
   are given the compact weights shipped with photo3d; ``weights="random"``: the
   authors' architectures with random weights, reported as such);

@@ -35,6 +35,7 @@ import numpy as np
 from photo3d.config import Config
 from photo3d.depth.normalize import prepare_depth
 from photo3d.errors import InputError
+from photo3d.files.folders import PHOTO_SUFFIXES
 from photo3d.stages.passes import pass_patches, start
 from photo3d.stages.preprocess import preprocess
 from photo3d.structures.patch import Patch
@@ -50,8 +51,6 @@ MIN_CONTEXT = 256
 """Smallest context kept, in pixels: a fill needs something to fill from."""
 SIZE = 640
 """Longer side of the photos (and of the region sources), in pixels."""
-PHOTO_SUFFIXES = (".jpg", ".jpeg", ".png", ".tif", ".tiff", ".webp", ".heic", ".heif", ".hif")
-"""The photo files of a folder (what :func:`photo3d.depth.sources.read_photo` reads)."""
 SEED = 27
 """Fixed part of every photo's placement seed (issue 27)."""
 COUNT = 4

@@ -14,6 +14,11 @@ from photo3d.errors import InputError
 
 IMAGE_SUFFIXES = (".jpg", ".jpeg", ".png", ".tif", ".tiff", ".webp")
 """Photo files (without the HEIF extensions, which need ``photo3d[heif]``)."""
+HEIF_SUFFIXES = (".heic", ".heif", ".hif")
+"""HEIF photo files (``photo3d[heif]``)."""
+PHOTO_SUFFIXES = IMAGE_SUFFIXES + HEIF_SUFFIXES
+"""Every photo file photo3d reads (:func:`photo3d.depth.sources.read_photo`): what
+``batch``, ``eval --heldout`` and the UI take as photos."""
 DEPTH_SUFFIXES = (".png", ".npy", ".pfm", ".tif", ".tiff")
 """Depth map files (:func:`photo3d.io.depth.read_depth`)."""
 

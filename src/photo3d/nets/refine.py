@@ -190,9 +190,3 @@ class RefineNet(nn.Module):
 
     def forward(self, x: Tensor) -> Tensor:
         return compose(x[:, :3], x[:, 5:6], self.residual(x))
-
-
-def refine_net(*, channels: int = 16, levels: int = 4, blocks: int = 4,
-               edges: bool = True) -> RefineNet:
-    """The refine colour net with photo3d's default size (1.5 M parameters)."""
-    return RefineNet(channels=channels, levels=levels, blocks=blocks, edges=edges)

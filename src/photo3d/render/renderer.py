@@ -29,6 +29,18 @@ AUTHORS_CROP = (0.03, 0.03, 0.05, 0.03)
 """Border crop of the authors' videos: top, left, bottom, right fractions."""
 
 
+def video_settings(*, crop: bool = True, **changes) -> RenderSettings:
+    """The settings videos are rendered with: :data:`AUTHORS_CROP` (``crop=False``: none)
+    and ``changes`` (fields of :class:`RenderSettings`). ``make``, ``render`` and the UI
+    take their videos' settings from here.
+
+    Example:
+        >>> video_settings().crop, video_settings(crop=False, ssaa=1).ssaa
+        ((0.03, 0.03, 0.05, 0.03), 1)
+    """
+    return RenderSettings(crop=AUTHORS_CROP if crop else (0.0, 0.0, 0.0, 0.0), **changes)
+
+
 @dataclass(frozen=True)
 class RenderSettings:
     """How views are rendered."""

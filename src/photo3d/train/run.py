@@ -158,12 +158,6 @@ def open_run(run_dir: str | Path, config: TrainConfig) -> Path:
     return run_dir
 
 
-def check_resumable(run_dir: Path, config: TrainConfig) -> None:
-    """Raise :class:`ConfigError` if ``run_dir`` holds a run of another architecture
-    (and :class:`OutputError` if it holds anything but a photo3d run)."""
-    check_run(run_dir, config)
-
-
 _DEFAULTS = {"center": False, "arch": "partialconv", "channels": 16, "edges": True}
 """Values of the fields a run's config.json may lack (written before they existed)."""
 

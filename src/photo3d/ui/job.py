@@ -78,7 +78,7 @@ class JobOptions:
     """
 
     size: int = 1024
-    fill: str = "structured"
+    fill: str = Config.inpainter
     source: str = "auto"
     depth_kind: str = "disparity"
     videos: bool = True
@@ -104,13 +104,13 @@ class JobOptions:
         """The :class:`~photo3d.folder.MakeOptions` of this request (GLB and viewer
         always; videos as ``photo3d make`` renders them)."""
         from photo3d.render.animate import VideoSpec
-        from photo3d.render.renderer import AUTHORS_CROP, RenderSettings
+        from photo3d.render.renderer import video_settings
 
         config = Config().with_(size=self.size or None, inpainter=self.fill)
         videos = tuple(VideoSpec(path=p) for p in self.paths) if self.videos else ()
         return MakeOptions(config=config, depth_kind=self.depth_kind, save=SaveOptions(
             ply="binary" if self.ply else None, glb=True, viewer=True, videos=videos,
-            render_settings=RenderSettings(crop=AUTHORS_CROP)))
+            render_settings=video_settings()))
 
 
 def _one_of(what: str, value: object, allowed: tuple[str, ...]) -> None:

@@ -22,6 +22,7 @@ from collections.abc import Iterator
 from typing import TYPE_CHECKING
 
 from photo3d.errors import Photo3DError, require
+from photo3d.files.folders import DEPTH_SUFFIXES, PHOTO_SUFFIXES
 from photo3d.ui.job import CAMERA_PATHS, FILLS, SOURCES, JobOptions, JobResult
 from photo3d.ui.runner import RequestError, Runner
 from photo3d.ui.warmup import Warmup
@@ -29,10 +30,10 @@ from photo3d.ui.warmup import Warmup
 if TYPE_CHECKING:
     import gradio
 
-PHOTO_TYPES = [".jpg", ".jpeg", ".png", ".tif", ".tiff", ".webp", ".heic", ".heif", ".hif"]
+PHOTO_TYPES = list(PHOTO_SUFFIXES)
 """Photo files the page offers (everything ``photo3d make`` reads)."""
 
-DEPTH_TYPES = [".png", ".npy", ".pfm", ".tif", ".tiff"]
+DEPTH_TYPES = list(DEPTH_SUFFIXES)
 """Depth map files (docs/guarantees.md: 8/16-bit grey PNG, ``.npy``, ``.pfm``, float TIFF)."""
 
 CSS = """

@@ -15,18 +15,20 @@ Example:
 
 from __future__ import annotations
 
-STAGES = ("depth", "load", "preprocess", "ldi", "inpaint", "mesh", "save", "zip", "video",
-          "rezip")
-"""The stages of a request, in order (``depth``, ``zip`` and ``rezip``, the zip again
-with the videos, are the UI's own)."""
+from photo3d.progress import STAGE_LABELS
+from photo3d.progress import STAGES as MAKE_STAGES
 
-LABELS = {"depth": "depth", "load": "load", "preprocess": "preprocess", "ldi": "LDI",
-          "inpaint": "inpaint", "mesh": "mesh", "save": "save", "video": "video",
-          "zip": "zip", "rezip": "zip"}
+STAGES = ("depth", *MAKE_STAGES[:-1], "zip", MAKE_STAGES[-1], "rezip")
+"""The stages of a request, in order: ``make``'s (:data:`photo3d.progress.STAGES`) and
+the UI's own ``depth``, ``zip`` and ``rezip`` (the zip again with the videos)."""
+
+LABELS = {**STAGE_LABELS, "depth": "depth", "zip": "zip", "rezip": "zip"}
 """How the page names the stages."""
 
 _WEIGHTS = {"depth": 2, "load": 1, "preprocess": 4, "ldi": 1, "inpaint": 20, "mesh": 4,
             "save": 10, "zip": 8, "video": 70, "rezip": 8}
+"""A request's shares: the zips and the save of the folder weigh more than in
+:data:`photo3d.progress.STAGE_WEIGHTS` (measured on the page)."""
 
 
 class StageMeter:

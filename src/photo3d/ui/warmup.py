@@ -128,7 +128,7 @@ def _tiny_video(photo, out: Path) -> None:
     """Two frames of the circle path, rendered as a request's videos are."""
     from photo3d.output import write_videos
     from photo3d.render.animate import VideoSpec
-    from photo3d.render.renderer import AUTHORS_CROP, RenderSettings
+    from photo3d.render.renderer import video_settings
 
     write_videos(photo, None, out, [VideoSpec(path="circle", size=(64, 48), frames=2)],
-                 settings=RenderSettings(crop=AUTHORS_CROP))
+                 settings=video_settings())
