@@ -24,7 +24,7 @@ demo: $(STAMP)
 test: $(STAMP)
 	-if command -v npm >/dev/null && ! test -d $(VALIDATOR); then \
 		npm install --prefix $(NODE_DIR) --no-audit --no-fund --silent gltf-validator@2.0.0-dev.3.10; fi
-	$(BIN)/ruff check src tests benchmarks
+	$(BIN)/ruff check src tests benchmarks scripts
 	PHOTO3D_NODE_MODULES=$(CURDIR)/$(NODE_DIR) $(BIN)/python -m pytest -q
 
 bench: $(STAMP)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import os
 import platform
 from importlib import metadata
+from pathlib import Path
 
 
 def machine_info() -> dict:
@@ -47,13 +48,30 @@ def run_child(code: str, *args) -> dict:
     prints last. Unless the child reports its own ``peak_rss_mb``, that is the peak
     resident set size of the children so far (``RUSAGE_CHILDREN``: the largest of the
     runs, which is what the benchmarks report)."""
+    return _run_json(["-c", code, *map(str, args)])
+
+
+MAKE_CHILD = Path(__file__).with_name("_make_child.py")
+"""The child program of every ``make`` timer (one timed ``photo3d.make`` of the
+motorcycle sample, JSON on stdout; its docstring lists the fields)."""
+
+
+def run_make(size: int, *options: str) -> dict:
+    """Run :data:`MAKE_CHILD` at working size ``size`` with ``options`` (its flags:
+    ``--inpainter NAME``, ``--weights DIR`` or ``--random-nets``, ``--mesh``) in a
+    fresh process and return its JSON object (times, stages, stats, its own peak
+    resident set size)."""
+    return _run_json([str(MAKE_CHILD), str(size), *options])
+
+
+def _run_json(argv: list[str]) -> dict:
+    """``python argv`` in a fresh process; the JSON object it prints last."""
     import json
     import resource
     import subprocess
     import sys
 
-    out = subprocess.run([sys.executable, "-c", code, *map(str, args)],
-                         capture_output=True, text=True, check=True)
+    out = subprocess.run([sys.executable, *argv], capture_output=True, text=True, check=True)
     result = json.loads(out.stdout.strip().splitlines()[-1])
     result.setdefault("peak_rss_mb",
                       resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024)
@@ -66,7 +84,6 @@ def save_record(record: dict, out, benchmark: str, script: str) -> dict:
     to ``out`` (folders made as needed) and return it."""
     import json
     import sys
-    from pathlib import Path
 
     record.update(benchmark=benchmark, machine=machine_info(),
                   command=" ".join(["python", f"benchmarks/{script}", *sys.argv[1:]]))

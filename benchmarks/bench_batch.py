@@ -1,14 +1,15 @@
 """Throughput of ``photo3d batch`` against a shell loop running ``photo3d make`` per photo.
 
 The photos are 20 synthetic layered scenes at 320x240 (``photo3d.eval.synthetic``,
-with their exact disparity as ``.npy`` depth maps), the default (diffusion)
-inpainter. Per configuration and round: first the shell loop (``bash``: ``for f in
-photos/*.png; do python -m photo3d make $f --depth ... -o ...; done``), then
-``python -m photo3d batch photos -o ... --depth depth --workers 2`` with the same
-options, so the two are interleaved under the same machine load. Both are timed
-as whole commands (process start-up included: that is what the user waits for).
-numba's on-disk cache is warmed by a first ``make`` before any timing. Writes
-``benchmarks/results/batch.json``.
+with their exact disparity as ``.npy`` depth maps), the default fill (no
+``--inpainter``: ``photo3d.Config().inpainter``; the fill that ran is read back from
+the outputs' ``config.json`` and recorded). Per configuration and round: first the
+shell loop (``bash``: ``for f in photos/*.png; do python -m photo3d make $f --depth
+... -o ...; done``), then ``python -m photo3d batch photos -o ... --depth depth
+--workers 2`` with the same options, so the two are interleaved under the same
+machine load. Both are timed as whole commands (process start-up included: that is
+what the user waits for). numba's on-disk cache is warmed by a first ``make`` before
+any timing. Writes ``benchmarks/results/batch.json``.
 
 Usage: python benchmarks/bench_batch.py [--photos 20] [--rounds 1] [--workers 2]
 """
@@ -16,6 +17,7 @@ Usage: python benchmarks/bench_batch.py [--photos 20] [--rounds 1] [--workers 2]
 from __future__ import annotations
 
 import argparse
+import json
 import shlex
 import shutil
 import statistics
@@ -48,6 +50,16 @@ def make_photos(folder: Path, count: int) -> None:
         np.save(folder / "depth" / f"scene{i:02d}.npy", pair.disparity.astype(np.float32))
 
 
+def fill_used(folder: Path) -> str:
+    """The inpainter named in the ``config.json`` of every 3D photo under ``folder``
+    (one name, or a ``SystemExit``)."""
+    names = {json.loads(f.read_text())["config"]["inpainter"]
+             for f in folder.glob("*/config.json")}
+    if len(names) != 1:
+        raise SystemExit(f"{folder}: expected one inpainter, got {sorted(names)}")
+    return names.pop()
+
+
 def timed(cmd: list[str] | str, *, shell: bool = False) -> float:
     t = time.perf_counter()
     subprocess.run(cmd, shell=shell, check=False, capture_output=True,
@@ -71,7 +83,7 @@ def main() -> None:
         timed([sys.executable, "-m", "photo3d", "make", str(first), "--depth",
                str(work / "depth" / "scene00.npy"), "-o", str(work / "warm"), "-q",
                "--frames", "4"])  # warm-up: numba's cache, page cache
-        results = []
+        results, fills = [], set()
         for label, options in CONFIGS.items():
             opts = " ".join(shlex.quote(o) for o in options)
             loop_s, batch_s = [], []
@@ -89,6 +101,7 @@ def main() -> None:
                 made = [len(list(d.glob("*/photo3d.npz"))) for d in (loop_dir, batch_dir)]
                 if made != [args.photos, args.photos]:
                     raise SystemExit(f"{label}: expected {args.photos} photos, got {made}")
+                fills.update(fill_used(d) for d in (loop_dir, batch_dir))
                 shutil.rmtree(loop_dir)
                 shutil.rmtree(batch_dir)
                 print(f"{label}, round {r + 1}: loop {loop_s[-1]:.1f} s, batch "
@@ -106,12 +119,13 @@ def main() -> None:
         rows.append(f"| {res['config']}: `{' '.join(res['options'])}` | {loop:.1f} s "
                     f"({args.photos / loop:.2f} photos/s) | {batch:.1f} s "
                     f"({args.photos / batch:.2f} photos/s) | {res['speedup']:.2f}x |")
-    note = (f"\n{args.photos} synthetic 320x240 photos with exact depth, diffusion "
-            f"inpainter, {args.rounds} round(s), loop and batch interleaved; wall time of "
+    fill = ", ".join(sorted(fills))
+    note = (f"\n{args.photos} synthetic 320x240 photos with exact depth, the default fill "
+            f"(`{fill}`), {args.rounds} round(s), loop and batch interleaved; wall time of "
             "the whole command. The machine (2 cores) was shared with other jobs while "
             "this ran: compare the ratio, not the seconds.")
     record = {"photos": args.photos, "rounds": args.rounds, "workers": args.workers,
-              "results": results, "markdown": "\n".join(rows) + "\n" + note}
+              "inpainter": fill, "results": results, "markdown": "\n".join(rows) + "\n" + note}
     save_record(record, args.out, "batch", "bench_batch.py")
     print("\n".join(rows))
 

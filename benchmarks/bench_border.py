@@ -5,7 +5,7 @@ Issue 27's check: each photo (longer side 640 px) loses its outer 24 px,
 ``Config.regions.border_fill``), it is rendered from its own camera over the full
 frame and the hidden ring is scored against the true pixels
 (:func:`photo3d.eval.heldout.make_border`). Default folder: the held-out split of
-``benchmarks/fetch_photos.py`` (never used for training or for choosing a parameter).
+``scripts/data/fetch_photos.py`` (never used for training or for choosing a parameter).
 
 Writes ``results/border.json`` (per photo and mean, per fill) and prints the means.
 Usage: python benchmarks/bench_border.py [--folder data/photos/heldout]

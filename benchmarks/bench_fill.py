@@ -2,10 +2,10 @@
 
 The machine is shared and its speed drifts, so the inpainters alternate run by run
 (A B A B ...) and the result is each one's median and the ratio of the medians. Each
-run is a fresh process (numba's cache warmed first); the time is measured around
-``photo3d.make`` on the Middlebury motorcycle at ``--size``; memory is each child's
-own peak resident set size; the CPU time (user + system, all threads) is recorded
-too, as it is less sensitive to other jobs on a shared machine. Writes
+run is a fresh process (``_make_child.py``; numba's cache warmed first); the time is
+measured around ``photo3d.make`` on the Middlebury motorcycle at ``--size``; memory is
+each child's own peak resident set size; the CPU time (user + system, all threads) is
+recorded too, as it is less sensitive to other jobs on a shared machine. Writes
 ``benchmarks/results/fill_speed.json``.
 
 Usage: python benchmarks/bench_fill.py [--runs 5] [--size 1024]
@@ -20,23 +20,7 @@ import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).parent))
-from _machine import run_child, save_record  # noqa: E402
-
-CHILD = r"""
-import json, resource, sys, time
-import numpy as np
-import photo3d
-from photo3d.sample import motorcycle
-s = motorcycle()
-cfg = photo3d.Config(size=int(sys.argv[1]), inpainter=sys.argv[2])
-t, c = time.perf_counter(), time.process_time()
-photo = photo3d.make(s.left, depth=np.asarray(s.disparity), config=cfg)
-wall, cpu = time.perf_counter() - t, time.process_time() - c
-use = resource.getrusage(resource.RUSAGE_SELF)
-print(json.dumps({"make_s": wall, "cpu_s": cpu, "stages": photo.timings,
-                  "peak_rss_mb": use.ru_maxrss / 1024,
-                  "ldi_pixels": photo.ldi.size, "edges": photo.stats["edges"]}))
-"""
+from _machine import run_make, save_record  # noqa: E402
 
 
 def main() -> None:
@@ -49,11 +33,11 @@ def main() -> None:
     args = parser.parse_args()
     names = args.inpainters.split(",")
     for name in names:  # warm-up: numba's cache, page cache
-        run_child(CHILD, args.size, name)
+        run_make(args.size, "--inpainter", name)
     runs: dict[str, list[dict]] = {n: [] for n in names}
     for _ in range(args.runs):
         for name in names:
-            runs[name].append(run_child(CHILD, args.size, name))
+            runs[name].append(run_make(args.size, "--inpainter", name))
     median = {n: {"make_s": statistics.median(r["make_s"] for r in rs),
                   "cpu_s": statistics.median(r["cpu_s"] for r in rs),
                   "inpaint_s": statistics.median(r["stages"]["inpaint"] for r in rs),

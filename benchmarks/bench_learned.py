@@ -5,7 +5,9 @@ does not depend on the values; note that random edge nets predict edges almost
 everywhere, so every patch takes the edge net's two repeats, a worst case). Each run
 is a fresh process; building the nets is not timed, the time is measured around
 ``photo3d.make`` only, and the backend reports the seconds spent inside each net.
-Prints a table and writes ``benchmarks/results/learned.json``.
+Each run alternates with a ``make`` with the diffusion fill (``_make_child.py``), the
+reference of the ratio printed. Prints a table and writes
+``benchmarks/results/learned.json``.
 
 ``--nets`` instead times each net alone on 256x256 and 512x512 inputs (batch 1, best
 of ``--repeats`` after one warm-up), in torch and, when ``onnxruntime`` is importable
@@ -30,7 +32,7 @@ import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).parent))
-from _machine import machine_info, run_child  # noqa: E402
+from _machine import machine_info, run_child, run_make  # noqa: E402
 
 CHILD = r"""
 import json, os, resource, sys, time
@@ -155,20 +157,6 @@ def nets_only(repeats: int, onnx_path: str, out_path: Path) -> None:
         print(f"{key:12} {best['torch']:8.3f} {onnx or float('nan'):8.3f} {gain}")
 
 
-DIFFUSION = r"""
-import json, resource, sys, time
-import numpy as np
-import photo3d
-from photo3d.sample import motorcycle
-s = motorcycle()
-t = time.perf_counter()
-photo = photo3d.make(s.left, depth=np.asarray(s.disparity),
-                     config=photo3d.Config(size=int(sys.argv[1])))
-print(json.dumps({"make_s": time.perf_counter() - t, "stats": photo.stats,
-                  "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}))
-"""
-
-
 def run_once(size: int, edge_unit: int, precision: str, mode: str) -> dict:
     return run_child(CHILD, size, edge_unit, precision, mode)
 
@@ -203,7 +191,7 @@ def main() -> None:
                    check=True, capture_output=True)
     runs, diffusion = [], []
     for _ in range(args.runs):  # interleaved: both see the same machine load
-        diffusion.append(run_child(DIFFUSION, args.size))
+        diffusion.append(run_make(args.size, "--inpainter", "diffusion"))
         runs.append(run_once(args.size, args.edge_unit, args.precision, mode))
     med = {
         "diffusion_make_s": statistics.median(r["make_s"] for r in diffusion),

@@ -1,11 +1,11 @@
 """Benchmark ``photo3d.make`` on the Middlebury motorcycle pair (diffusion backend).
 
-Each run is a fresh process (numba's on-disk cache is warmed first, so no run pays
-for compilation); the time is measured around ``photo3d.make`` only, the peak
-memory is the child's peak resident set size. Prints a table and writes
-``benchmarks/results/make.json``.
+Each run is a fresh process (``_make_child.py``; numba's on-disk cache is warmed
+first, so no run pays for compilation); the time is measured around ``photo3d.make``
+only, then ``Photo3D.mesh()`` is timed; the peak memory is the child's peak resident
+set size. Prints a table and writes ``benchmarks/results/make.json``.
 
-Usage: python benchmarks/bench_make.py [--runs 5] [--size 1024]
+Usage: python benchmarks/bench_make.py [--runs 5] [--size 1024] [--inpainter diffusion]
 """
 
 from __future__ import annotations
@@ -17,29 +17,11 @@ import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).parent))
-from _machine import machine_info, run_child  # noqa: E402
-
-CHILD = r"""
-import json, resource, sys, time
-import numpy as np
-import photo3d
-from photo3d.sample import motorcycle
-s = motorcycle()
-cfg = photo3d.Config(size=int(sys.argv[1]), inpainter=sys.argv[2])
-t = time.perf_counter()
-photo = photo3d.make(s.left, depth=np.asarray(s.disparity), config=cfg)
-wall = time.perf_counter() - t
-t = time.perf_counter()
-mesh = photo.mesh()
-mesh_time = time.perf_counter() - t
-print(json.dumps({"make_s": wall, "mesh_s": mesh_time, "stages": photo.timings,
-                  "ldi_pixels": photo.ldi.size, "faces": int(mesh.faces.shape[0]),
-                  "stats": photo.stats}))
-"""
+from _machine import machine_info, run_make  # noqa: E402
 
 
 def run_once(size: int, inpainter: str) -> dict:
-    return run_child(CHILD, size, inpainter)
+    return run_make(size, "--inpainter", inpainter, "--mesh")
 
 
 def main() -> None:

@@ -1,14 +1,14 @@
 """Per-stage time and peak memory of ``photo3d.make`` at 512, 1024 and 2048 px.
 
 Input: the motorcycle sample (741x500, resized by the pipeline to each working
-size). Each run is a fresh process (numba cache warm); median of N runs per size and
-backend; peak memory is the child's peak RSS. Writes ``results/speed.json`` and a
-plot of total time vs pixels, ``results/speed.png``.
+size). Each run is a fresh process (``_make_child.py``, numba cache warm); median
+of N runs per size and backend; peak memory is the child's peak RSS. Writes
+``results/speed.json`` and a plot of total time vs pixels, ``results/speed.png``.
 
-Backends: ``diffusion``; ``learned`` = the authors' architectures with random
-weights (inference time does not depend on the values); ``learned-compact`` = the
-learned backend with the weights in ``--weights DIR`` (e.g. the compact nets shipped
-with photo3d).
+Backends: ``diffusion`` (or another ``Config.inpainter`` name); ``learned`` = the
+authors' architectures with random weights (inference time does not depend on the
+values); ``learned-compact`` = the learned backend with the weights in ``--weights
+DIR`` (e.g. the compact nets shipped with photo3d).
 
 Usage: python benchmarks/bench_speed.py [--runs 3] [--sizes 512,1024,2048]
                                         [--backends diffusion,learned,learned-compact]
@@ -24,39 +24,21 @@ import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).parent))
-from _machine import machine_info, run_child  # noqa: E402
+from _machine import machine_info, run_make  # noqa: E402
 from _plot import line_plot  # noqa: E402
-
-CHILD = r"""
-import json, resource, sys, time
-import numpy as np
-import photo3d
-from photo3d.sample import motorcycle
-size, backend, weights = int(sys.argv[1]), sys.argv[2], sys.argv[3]
-s = motorcycle()
-inpainter = None
-if backend.startswith("learned"):
-    from photo3d.inpaint.learned import LearnedInpainter
-    from photo3d.eval.evaluate import random_nets
-    inpainter = (LearnedInpainter(weights=weights) if backend == "learned-compact"
-                 else LearnedInpainter(nets=random_nets(seed=0)))
-cfg = photo3d.Config(size=size, inpainter=backend.split("-")[0])
-t = time.perf_counter()
-photo = photo3d.make(s.left, depth=np.asarray(s.disparity), config=cfg, inpainter=inpainter)
-total = time.perf_counter() - t
-t = time.perf_counter()
-mesh = photo.mesh()
-photo.timings["mesh"] = time.perf_counter() - t
-peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
-print(json.dumps({"make_s": total, "stages": photo.timings, "peak_rss_mb": peak,
-                  "pixels": int(photo.stats["working_size"][0] * photo.stats["working_size"][1]),
-                  "ldi_pixels": photo.ldi.size, "faces": int(mesh.faces.shape[0]),
-                  "edges": photo.stats["edges"]}))
-"""
 
 
 def run_once(size: int, backend: str, weights: str = "") -> dict:
-    return run_child(CHILD, size, backend, weights)
+    """One ``make`` (then ``mesh``, reported as the stage ``mesh``) in a fresh process."""
+    if backend == "learned":
+        options = ["--random-nets"]
+    elif backend == "learned-compact":
+        options = ["--weights", weights]
+    else:
+        options = ["--inpainter", backend]
+    run = run_make(size, *options, "--mesh")
+    run["stages"]["mesh"] = run["mesh_s"]
+    return run
 
 
 def main() -> None:

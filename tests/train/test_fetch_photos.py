@@ -1,4 +1,4 @@
-"""benchmarks/fetch_photos.py: split rule, licences, Qt resources, preparing a fake package."""
+"""scripts/data/fetch_photos.py: split rule, licences, Qt resources, preparing a fake package."""
 
 from __future__ import annotations
 
@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
-SCRIPT = Path(__file__).resolve().parents[2] / "benchmarks" / "fetch_photos.py"
+SCRIPT = Path(__file__).resolve().parents[2] / "scripts" / "data" / "fetch_photos.py"
 
 
 def _load():

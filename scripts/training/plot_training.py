@@ -11,7 +11,7 @@ more runs and draws into one PNG (Pillow only, no matplotlib):
    dashed line, the issue's target (25 % below diffusion) and any ``--reference``;
 3. the held-out PSNR, likewise (the target: no more than 0.5 dB below diffusion).
 
-Usage: python benchmarks/plot_training.py RUN_DIR [RUN_DIR ...]
+Usage: python scripts/training/plot_training.py RUN_DIR [RUN_DIR ...]
            [--out docs/img/training_refine.png] [--smooth 100]
            [--reference structured=0.2164,22.66]
 """
@@ -179,7 +179,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("runs", type=Path, nargs="+",
                         help="run folders (photo3d train --out)")
-    parser.add_argument("--out", type=Path, default=Path(__file__).parents[1] / "docs" / "img"
+    parser.add_argument("--out", type=Path, default=Path(__file__).parents[2] / "docs" / "img"
                         / "training_refine.png")
     parser.add_argument("--smooth", type=int, default=100)
     parser.add_argument("--reference", action="append", default=[], metavar="NAME=LPIPS,PSNR",

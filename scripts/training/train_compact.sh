@@ -3,7 +3,7 @@
 # Width 0.25, 5 U-Net levels / 4 edge blocks, crop 128, batch 8, built-in offline data,
 # lr 3e-4 (the paper's 1e-4 is for days on a GPU; this is a short CPU budget).
 # Each net trains alone on one core (--threads 1); run two at once on a 2-core CPU:
-#   benchmarks/train_compact.sh RUNS color &  benchmarks/train_compact.sh RUNS depth-edge
+#   scripts/training/train_compact.sh RUNS color &  scripts/training/train_compact.sh RUNS depth-edge
 # Rerunning resumes; raise the step counts (2nd/3rd argument) to train longer.
 # Then: cp RUNS/{edge,depth,color}/*.safetensors src/photo3d/nets/compact/
 set -euo pipefail

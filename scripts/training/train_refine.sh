@@ -11,7 +11,7 @@
 # 0.05 VGG-16 perceptual + 120 style + 0.01 TV). Crop 128, batch 4, Adam lr 3e-4.
 # Every 250 steps the net is scored on 24 held-out photos (data/photos/heldout; the
 # protocol of `photo3d eval --heldout`) into RUN/heldout.csv; plot it with
-#   python benchmarks/plot_training.py RUN --out docs/img/training_refine.png
+#   python scripts/training/plot_training.py RUN --out docs/img/training_refine.png
 #
 # On one CPU core (--threads 1) a step takes about 1.5 s when the core is free. Running
 # the same command again resumes from the last checkpoint (RUN/checkpoints/, the last
@@ -20,7 +20,7 @@
 # --size or --batch changes the data, not the net, so a run may continue with them.
 # To add the adversarial term later (PatchGAN, hinge), resume with --adversarial 0.1.
 #
-# Usage: benchmarks/train_refine.sh [RUN_DIR] [STEPS]   (from the repository root)
+# Usage: scripts/training/train_refine.sh [RUN_DIR] [STEPS]   (from the repository root)
 # Then:  cp RUN_DIR/color.safetensors WEIGHTS_DIR/  (with an edge and a depth net)
 set -euo pipefail
 RUN=${1:-/work/runs/refine}

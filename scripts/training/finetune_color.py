@@ -7,7 +7,7 @@ in a random order (``photo3d.train.samples``), starting from the shipped weights
 (same architecture and keys, fresh Adam state), on the same built-in data and
 settings as ``train_compact.sh``.
 
-Usage: nice python benchmarks/finetune_color.py RUN_DIR [--steps 400] [--threads 1]
+Usage: nice python scripts/training/finetune_color.py RUN_DIR [--steps 400] [--threads 1]
 Then: cp RUN_DIR/color.safetensors src/photo3d/nets/compact/
 """
 

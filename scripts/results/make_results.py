@@ -1,8 +1,8 @@
 """Regenerate ``benchmarks/RESULTS.md`` from the JSON results in ``benchmarks/results/``.
 
-Usage:
-    python benchmarks/make_results.py          # rewrite RESULTS.md from the JSON files
-    python benchmarks/make_results.py --run    # first run every benchmark (~30 min)
+Usage (from anywhere; paths are the repository's):
+    python scripts/results/make_results.py          # rewrite RESULTS.md from the JSON files
+    python scripts/results/make_results.py --run    # first run every benchmark (~30 min)
 
 Each section names the command that produced its numbers; a section whose JSON file
 is missing says so instead of showing numbers.
@@ -22,7 +22,12 @@ HERE = Path(__file__).parent
 sys.path.insert(0, str(HERE))
 from results_light import section_light  # noqa: E402
 
-RESULTS = HERE / "results"
+REPO = HERE.parents[1]
+BENCHMARKS_DIR = REPO / "benchmarks"
+"""The benchmark scripts, ``RESULTS.md`` and ``history.md``."""
+RESULTS = BENCHMARKS_DIR / "results"
+TRAINING = REPO / "scripts" / "training" / "runs"
+"""The training runs' logs (``RUN/heldout.csv``)."""
 BENCHMARKS = [
     ["bench_make.py", "--runs", "5"],
     ["bench_light.py", "--runs", "3", "--rounds", "2", "--frames", "12"],
@@ -552,8 +557,8 @@ def _learned_shared_targets(rec: dict) -> str:
             "(CPU time / wall time)" if used is not None else "load not recorded")
     ok = lambda c: "**met**" if c else "**not met**"  # noqa: E731
     return (f"Time: `make` {med['make_s']:.0f} s (target <= 199 s, a third of the authors' "
-            f"596 s: {ok(med['make_s'] <= 199)}), {ratio:.1f}x the diffusion default measured "
-            f"in the same run ({med['diffusion_make_s']:.1f} s; target <= 21x: "
+            f"596 s: {ok(med['make_s'] <= 199)}), {ratio:.1f}x diffusion (the default "
+            f"then) measured in the same run ({med['diffusion_make_s']:.1f} s; target <= 21x: "
             f"{ok(ratio <= 21)}); nets: " + ", ".join(
                 f"{k} {v:.0f} s ({v / max(run['net_mpx'][k], 1e-9):.1f} s/Mpx)"
                 for k, v in med["net_s"].items()) +
@@ -659,7 +664,7 @@ def section_later_passes() -> str:
     rec = load("later_passes.json")
     if rec is None:
         return "\n".join(out) + "\n" + missing("python benchmarks/bench_later_passes.py")
-    names = {"diffusion": "diffusion (default)", "structured": "structured",
+    names = {"diffusion": "diffusion (the default then)", "structured": "structured",
              "compact": "learned, shipped compact nets",
              "authors-random": "learned, authors' architectures, random weights",
              "compact-random": "learned, compact architectures, random weights"}
@@ -771,12 +776,13 @@ def section_training() -> str:
     import csv
 
     out = ["## Colour nets trained on real photos, held-out score per checkpoint (issue 28)",
-           "", "Logs in `benchmarks/training/RUN/` (`heldout.csv`: the net scored every 250 "
+           "", "Logs in `scripts/training/runs/RUN/` (`heldout.csv`: the net scored every 250 "
            "steps on 24 photos of `data/photos/heldout`, the protocol of `photo3d eval "
-           "--heldout`); commands `benchmarks/train_refine.sh` and "
-           "`benchmarks/train_pconv.sh` (2-core AMD EPYC, one `nice`d core each); plot and "
-           "extrapolation: `python benchmarks/plot_training.py benchmarks/training/refine "
-           "benchmarks/training/pconv --reference structured=0.2164,22.66` "
+           "--heldout`); commands `scripts/training/train_refine.sh` and "
+           "`scripts/training/train_pconv.sh` (2-core AMD EPYC, one `nice`d core each); plot "
+           "and extrapolation: `python scripts/training/plot_training.py "
+           "scripts/training/runs/refine scripts/training/runs/pconv --reference "
+           "structured=0.2164,22.66` "
            "([learned](../docs/learned.md#the-refine-colour-net-issue-28)). The structured "
            "fill on the same 24 photos scores LPIPS 0.2164, PSNR 22.66 dB (`python -c \"from "
            "photo3d.train.heldout import HeldoutSet; from photo3d.inpaint import "
@@ -785,7 +791,7 @@ def section_training() -> str:
            "| run | step | LPIPS | PSNR | SSIM |", "| --- | --- | --- | --- | --- |"]
     rows = 0
     for run in ("refine", "pconv"):
-        path = HERE / "training" / run / "heldout.csv"
+        path = TRAINING / run / "heldout.csv"
         if not path.is_file():
             continue
         with open(path, newline="") as f:
@@ -800,7 +806,7 @@ def section_training() -> str:
                            f"{float(r['psnr']):.2f} | {float(r['ssim']):.3f} |")
                 rows += 1
     if not rows:
-        return "\n".join(out[:2]) + "\n" + missing("benchmarks/train_refine.sh") + "\n"
+        return "\n".join(out[:2]) + "\n" + missing("scripts/training/train_refine.sh") + "\n"
     return "\n".join(out + [""])
 
 
@@ -816,18 +822,33 @@ def section_json(name: str, title: str, cmd: str) -> str:
                             f"{machine_line(rec)}.", "", summary, ""])
 
 
+def section_batch() -> str:
+    """``batch.json``'s section, with the fill that ran against today's default."""
+    from photo3d.config import Config
+
+    text = section_json("batch.json", "Many photos: `photo3d batch` against a shell loop of "
+                        "`make`", "python benchmarks/bench_batch.py")
+    rec, default = load("batch.json"), Config().inpainter
+    ran = rec and rec.get("inpainter", "diffusion")  # runs before the field: diffusion
+    if ran and ran != default:
+        text += (f"\nThis run used `{ran}`, the default fill when it ran; the default is "
+                 f"now `{default}` (`photo3d.Config().inpainter`), which a new run of "
+                 "`bench_batch.py` measures.\n")
+    return text
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--run", action="store_true", help="run every benchmark first")
     args = parser.parse_args()
     if args.run:
         for cmd in BENCHMARKS:
-            script = HERE / cmd[0]
-            if script.is_file():
-                subprocess.run([sys.executable, str(script), *cmd[1:]], check=True)
+            script = BENCHMARKS_DIR / cmd[0]
+            if script.is_file():  # from the repository root: the --out paths are relative
+                subprocess.run([sys.executable, str(script), *cmd[1:]], check=True, cwd=REPO)
     parts = [
         "# Results", "",
-        "Generated by `python benchmarks/make_results.py` from the JSON files in "
+        "Generated by `python scripts/results/make_results.py` from the JSON files in "
         "`benchmarks/results/` (method: [README.md](README.md); `--run` re-runs every "
         "benchmark first). Every number below comes from the command named in its section.",
         "",
@@ -839,8 +860,7 @@ def main() -> None:
         section_stereo(), section_viewer(),
         section_json("memory.json", "Peak memory of make (what --size can fit)",
                      "python benchmarks/bench_memory.py"),
-        section_json("batch.json", "Many photos: `photo3d batch` against a shell loop of `make`",
-                     "python benchmarks/bench_batch.py"),
+        section_batch(),
         section_json("heldout.json", "Held-out fills: first-pass regions and the border on "
                      "photos (issue 27)", "python benchmarks/bench_heldout.py"),
         section_json("heldout_debian.json", "Held-out fills on the held-out split of the "
@@ -854,10 +874,10 @@ def main() -> None:
                      "(issue 27, item 4)", "python benchmarks/bench_contexts.py"),
         section_training(),
         section_light(load, machine_line, missing),
-        (HERE / "history.md").read_text(),  # measurement history, written by hand
+        (BENCHMARKS_DIR / "history.md").read_text(),  # measurement history, written by hand
     ]
-    (HERE / "RESULTS.md").write_text("\n".join(parts).rstrip() + "\n")
-    print(f"wrote {HERE / 'RESULTS.md'}")
+    (BENCHMARKS_DIR / "RESULTS.md").write_text("\n".join(parts).rstrip() + "\n")
+    print(f"wrote {BENCHMARKS_DIR / 'RESULTS.md'}")
 
 
 if __name__ == "__main__":

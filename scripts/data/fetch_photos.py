@@ -22,7 +22,7 @@ Near-duplicates (the same photo at several sizes, or in two packages) are kept o
 the largest: a 64-bit difference hash of the prepared photo, confirmed by its 16x16
 thumbnail.
 
-Usage: nice .venv/bin/python benchmarks/fetch_photos.py [--out DIR] [--update] [--list]
+Usage: nice .venv/bin/python scripts/data/fetch_photos.py [--out DIR] [--update] [--list]
 """
 
 from __future__ import annotations
@@ -62,7 +62,7 @@ from _photo_sources import (  # noqa: E402  (the reviewed lists: _photo_sources.
     Source,
 )
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 MAX_SHORT_SIDE = 768
 """Prepared photos have their shorter side at most this many pixels."""
 MIN_SHORT_SIDE = 300
@@ -584,7 +584,7 @@ def write_tables(folder: Path, rows: list[Row], dropped: list[tuple[str, str, st
     (folder / "SOURCES.tsv").write_text(head + "".join(lines))
     (folder / "DROPPED.tsv").write_text("package\toriginal_path\treason\n" + "".join(
         f"{p}\t{o}\t{why}\n" for p, o, why in sorted(dropped)))
-    (folder / MARKER).write_text(json.dumps({"made_by": "benchmarks/fetch_photos.py",
+    (folder / MARKER).write_text(json.dumps({"made_by": "scripts/data/fetch_photos.py",
                                              "format": 1}) + "\n")
 
 

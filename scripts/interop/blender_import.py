@@ -4,7 +4,7 @@ Runs with Blender's Python module (``bpy``, not a photo3d dependency), in its ow
 environment, e.g.::
 
     python3.11 -m venv /tmp/bpyvenv && /tmp/bpyvenv/bin/pip install bpy==4.2.0
-    /tmp/bpyvenv/bin/python benchmarks/blender_import.py out/demo/mesh.glb shot.png
+    /tmp/bpyvenv/bin/python scripts/interop/blender_import.py out/demo/mesh.glb shot.png
 
 What it does, as the README says a user would: import the GLB with Blender's glTF
 importer; find the camera object ``input view`` and make it the scene camera; set

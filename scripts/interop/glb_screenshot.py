@@ -6,7 +6,7 @@ a local HTTP server, opens it in Debian's ``chromium`` through Playwright (the
 ``GLTFLoader``, looks through the file's first camera moved by ``--shift`` (depth
 units, input camera axes: x right, y down, z forward) and saves a PNG.
 
-Usage: python benchmarks/glb_screenshot.py out/demo/mesh.glb shot.png \
+Usage: python scripts/interop/glb_screenshot.py out/demo/mesh.glb shot.png \
            --node-dir DIR [--shift 0.015,0,0] [--size 1024x691]
 """
 
