@@ -210,7 +210,7 @@ def run_job(photo: Path, folder: Path, *, options: JobOptions, depth: Path | Non
 
         depth_model = default_depth_model()
     out = folder / "out"
-    still = dataclasses.replace(make, videos=())
+    still = dataclasses.replace(make, save=dataclasses.replace(make.save, videos=()))
     photo3d = make_folder(photo, out, options=still, depth=depth, right=right,
                           depth_model=depth_model, inpainter=inpainter, progress=report,
                           on_depth=on_depth,
