@@ -81,6 +81,7 @@ def test_motorcycle_bad2_against_ground_truth():
     assert bad2(res.disparity, s.disparity, known) < 0.12  # measured 0.103
     assert res.check.reliable and res.check.same_row > 0.8 and res.warnings == ()
     assert 60 <= res.max_disparity <= 96  # from the matches: ground truth goes to 60
+    assert res.valid.mean() > 3 * stereo.MIN_MATCHED  # a real pair: far above the refusal
 
 
 def test_swapped_pair_is_refused():
@@ -127,3 +128,33 @@ def test_featureless_pair_warns_instead_of_refusing():
     assert res.check.matches < 20
     assert "could not verify" in res.warnings[0]
     assert np.isfinite(res.disparity).all() and (res.disparity >= 0).all()
+
+
+def test_a_right_view_that_matches_almost_nothing_is_refused():
+    s = motorcycle()
+    disparity = np.nan_to_num(np.asarray(s.disparity), posinf=0.0)
+    as_image = np.repeat((disparity / disparity.max())[..., None], 3, axis=2)
+    with pytest.raises(InputError) as err:
+        stereo_disparity(s.left, as_image.astype(np.float32))  # a depth map as the right view
+    message = str(err.value)
+    assert message.startswith("the right view matches only ") and "\n" not in message
+    assert message.endswith("(a depth map goes with --depth, not --right)")
+
+
+def test_make_with_a_depth_map_as_the_right_view_is_one_line(tmp_path, capsys):
+    from PIL import Image
+
+    from photo3d.cli import main
+    from photo3d.io.images import write_image
+
+    s = motorcycle()
+    disparity = np.nan_to_num(np.asarray(s.disparity), posinf=0.0)
+    write_image(tmp_path / "photo.png", s.left)
+    Image.fromarray((disparity / disparity.max() * 65535).astype(np.uint16)).save(
+        tmp_path / "depth.png")
+    code = main(["make", str(tmp_path / "photo.png"), "--right", str(tmp_path / "depth.png"),
+                 "-o", str(tmp_path / "out"), "--no-video", "-q"])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1, err
+    assert err.startswith("photo3d: error: the right view matches only ")
+    assert not (tmp_path / "out").exists()

@@ -1,4 +1,6 @@
-"""The learned backend: wiring of the three nets around each patch.
+"""The learned backend: wiring of the three nets around each patch, and which nets
+``learned`` runs (the paper's by default, downloaded once; ``--weights compact`` the
+shipped ones).
 
 Random compact nets check shapes and that nothing outside the context is read; stub
 nets with known outputs check thresholds, depth conversion, rescaling and batching.
@@ -19,7 +21,7 @@ torch = pytest.importorskip("torch")
 import photo3d  # noqa: E402
 import photo3d.inpaint.learned  # noqa: E402,F401  (registers "learned")
 from photo3d.camera import DepthMapping  # noqa: E402
-from photo3d.errors import ConfigError  # noqa: E402
+from photo3d.errors import ConfigError, InputError  # noqa: E402
 from photo3d.inpaint import get_inpainter  # noqa: E402
 from photo3d.inpaint.learned import LearnedInpainter, close_gaps  # noqa: E402
 from photo3d.nets import InpaintingNets, build_net, save_safetensors  # noqa: E402
@@ -68,10 +70,106 @@ def make_patch(h=40, w=56, seed=0, split=24, edge_col=True) -> Patch:
     return Patch(color, disp, edges, ctx, syn, (0, 0))
 
 
-def test_needs_weights_when_none_are_bundled(monkeypatch, tmp_path):
-    monkeypatch.setattr(photo3d.inpaint.learned, "bundled_weights", lambda: tmp_path / "none")
-    with pytest.raises(ConfigError, match="--weights DIR"):
-        get_inpainter("learned")
+FAKE = {kind: f"not the authors' {kind} net ".encode() * 1000 for kind in SMALL}
+AUTHORS_FILES = ["edge-model.pth", "depth-model.pth", "color-model.pth"]
+
+
+@pytest.fixture
+def cache(tmp_path, monkeypatch):
+    """An empty cache, and the fake files' sums as the authors'; returns the folder
+    the authors' weights go to."""
+    import hashlib
+
+    from photo3d.nets import weights
+
+    monkeypatch.setenv("PHOTO3D_CACHE", str(tmp_path / "cache"))
+    for kind, data in FAKE.items():
+        monkeypatch.setitem(weights.OFFICIAL_SHA256, kind, hashlib.sha256(data).hexdigest())
+    return tmp_path / "cache" / "authors"
+
+
+@pytest.fixture
+def offline(cache, monkeypatch):
+    """The authors' URL at a port nothing listens on."""
+    import socket
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    monkeypatch.setenv("PHOTO3D_AUTHORS_URL", f"http://127.0.0.1:{port}/model/")
+    return cache
+
+
+@pytest.fixture
+def mirror(cache, tmp_path, monkeypatch):
+    """A local mirror (``file://``) of the (fake) authors' files."""
+    served = tmp_path / "mirror"
+    served.mkdir()
+    for kind, data in FAKE.items():
+        (served / f"{kind}-model.pth").write_bytes(data)
+    monkeypatch.setenv("PHOTO3D_AUTHORS_URL", served.as_uri())
+    return cache
+
+
+def test_learned_without_weights_is_the_papers_nets_and_offline_says_what_to_do(offline):
+    with pytest.raises(InputError) as err:
+        get_inpainter("learned")  # not the shipped compact nets, silently
+    message = str(err.value)
+    assert message.startswith("cannot download http://127.0.0.1:") and "\n" not in message
+    assert f"into {offline}" in message
+    assert message.endswith("or run the small nets shipped with photo3d: --weights compact")
+
+
+def test_learned_without_weights_downloads_the_authors_files_once(mirror):
+    with pytest.raises(InputError, match="cannot read edge-model.pth: not a PyTorch state"):
+        get_inpainter("learned")  # downloaded, then the loader sees they are fakes
+    assert sorted(p.name for p in mirror.iterdir()) == sorted(AUTHORS_FILES)
+    assert photo3d.inpaint.learned.default_weights() == mirror
+
+
+@pytest.fixture
+def files(tmp_path):
+    from photo3d.io.images import write_image
+
+    img, disp = two_planes(64, 96)
+    write_image(tmp_path / "photo.png", img)
+    np.save(tmp_path / "depth.npy", disp)
+    return tmp_path
+
+
+def make_learned(files, *extra: str) -> int:
+    from photo3d.cli import main
+
+    return main(["make", str(files / "photo.png"), "--depth", str(files / "depth.npy"),
+                 "-o", str(files / "out"), "--size", "96", "--no-video", "--no-viewer",
+                 "--inpainter", "learned", *extra])
+
+
+def test_make_learned_offline_is_one_line_naming_the_shipped_nets(files, offline, capsys):
+    assert make_learned(files, "-q") == 2
+    err = capsys.readouterr().err
+    assert err.startswith("photo3d: error: cannot download ") and err.count("\n") == 1
+    assert f"into {offline}, or run the small nets shipped with photo3d: --weights " \
+           "compact" in err
+    assert not (files / "out").exists()
+
+
+def test_make_learned_downloads_the_authors_weights_with_progress(files, mirror, capsys):
+    from photo3d.nets.authors import authors_url
+
+    assert make_learned(files) == 2  # the fake files are no state dicts: the loader says so
+    err = capsys.readouterr().err.splitlines()
+    assert err[0] == f"downloading the authors' weights from {authors_url()} into {mirror}"
+    assert err[-1].startswith("photo3d: error: cannot read edge-model.pth")
+    assert sorted(p.name for p in mirror.iterdir()) == sorted(AUTHORS_FILES)
+
+
+def test_weights_compact_runs_the_shipped_nets(files, offline):
+    import json
+
+    assert make_learned(files, "--weights", "compact", "-q") == 0
+    meta = json.loads((files / "out" / "config.json").read_text())
+    assert meta["inpainter"]["weights"] == "bundled compact"
 
 
 def test_bundled_compact_weights_load_and_fit_the_size_limit():
@@ -80,7 +178,7 @@ def test_bundled_compact_weights_load_and_fit_the_size_limit():
     assert [f.name for f in files] == ["color.safetensors", "depth.safetensors",
                                        "edge.safetensors"]
     assert sum(f.stat().st_size for f in files) <= 20 * 2**20
-    inp = get_inpainter("learned", device="cpu")
+    inp = get_inpainter("learned", weights=folder, device="cpu")
     assert inp.nets.sources == {k: "safetensors" for k in SMALL}
     assert inp.nets.edge.config["width"] < 1 and inp.nets.color.config["width"] < 1
     r = inp.inpaint([make_patch()])[0]
@@ -358,7 +456,7 @@ def test_the_shipped_colour_net_fills_with_the_colour_of_the_context(colour):
     patch = Patch((color * ctx[..., None]).astype(np.float32),
                   np.full((h, w), 0.3, np.float32) * ctx, np.zeros((h, w), np.float32),
                   ctx, syn, (0, 0))
-    inp = LearnedInpainter(device="cpu")
+    inp = LearnedInpainter(weights=photo3d.inpaint.learned.bundled_weights(), device="cpu")
     fill = inp.inpaint([patch])[0].color[syn].mean(0)
     np.testing.assert_allclose(fill, colour, atol=0.08)
 

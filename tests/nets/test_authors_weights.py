@@ -153,7 +153,8 @@ def test_offline_is_one_line_naming_the_files_the_url_and_the_folder(offline, ca
     message = str(err.value)
     assert message.startswith(f"cannot download {offline}edge-model.pth: ")
     assert message.endswith(f"(offline?); put the authors' edge-model.pth, depth-model.pth "
-                            f"and color-model.pth (from {offline}) into {cache}")
+                            f"and color-model.pth (from {offline}) into {cache}, or run the "
+                            "small nets shipped with photo3d: --weights compact")
     assert "\n" not in message and not cache.exists()
 
 

@@ -18,6 +18,7 @@ from urllib.parse import urlsplit
 
 import numpy as np
 import pytest
+from PIL import Image
 from uikit import GRADIO_WARNINGS, check_glb, check_zip, png_bomb, running, write_sample
 
 CHROMIUM = os.environ.get("PHOTO3D_CHROMIUM", "/usr/bin/chromium")
@@ -75,7 +76,7 @@ def wait_until(check, timeout: float, what: str):
 
 
 def status(page) -> str:
-    return page.locator("#photo3d-status input").input_value()
+    return page.locator("#photo3d-status textarea").input_value()
 
 
 def prepare(page, photo: Path, depth: Path | None, *, size: int, videos: bool) -> None:
@@ -151,7 +152,10 @@ def test_a_hostile_upload_is_one_line_and_the_next_upload_works(page, sample, tm
     assert body[4:8] == b"ftyp" and len(body) > 10_000
 
 
-def test_two_pages_at_once_queue_and_each_get_their_own_result(browser, server, sample):
+def test_two_pages_at_once_queue_and_each_get_their_own_result(browser, server, sample,
+                                                               tmp_path):
+    flat = tmp_path / "flat.png"  # the second page's depth: make warns it has no range
+    Image.new("I;16", (741, 500), 1000).save(flat)
     pages = []
     for _ in range(2):
         page = browser.new_page(viewport={"width": 1280, "height": 900})
@@ -159,8 +163,8 @@ def test_two_pages_at_once_queue_and_each_get_their_own_result(browser, server, 
         page.wait_for_selector("#photo3d-make")
         pages.append(page)
     try:
-        for page in pages:
-            prepare(page, *sample, size=256, videos=False)
+        for page, depth in zip(pages, (sample[1], flat), strict=True):
+            prepare(page, sample[0], depth, size=256, videos=False)
         for page in pages:
             page.click("#photo3d-make")
         queued = wait_until(lambda: "queue: 1/1" in pages[1].inner_text("#photo3d-viewer"),
@@ -172,4 +176,6 @@ def test_two_pages_at_once_queue_and_each_get_their_own_result(browser, server, 
         for page in pages:
             page.close()
     assert queued and all("256x173" in line for line in lines)
+    assert "warning" not in lines[0]
+    assert "\nwarning: depth has almost no range: the 3D photo will look flat" in lines[1]
     assert len(zips) == 2  # each its own folder

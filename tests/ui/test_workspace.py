@@ -1,15 +1,18 @@
 """Each request's folder is removed once its time-to-live has passed (never while it
-runs), everything at close; only files the server received as uploads are read."""
+runs), or at once when it is cancelled, everything at close, and the upload folder's
+leftovers after the time-to-live; only files the server received as uploads are read;
+a request's files are found only by the tokens they were published under."""
 
 from __future__ import annotations
 
 import os
+import time
 
 import pytest
 from conftest import wait_for
 
 from photo3d.errors import InputError
-from photo3d.ui.workspace import Workspace, check_upload
+from photo3d.ui.workspace import TOKEN, Workspace, check_upload
 
 
 class Clock:
@@ -127,7 +130,6 @@ def _big(path):
     return path
 
 
-
 def test_a_killed_servers_root_is_removed_by_the_next_and_a_live_one_is_kept(tmp_path):
     import signal
     import subprocess
@@ -153,3 +155,63 @@ def test_a_killed_servers_root_is_removed_by_the_next_and_a_live_one_is_kept(tmp
         child.kill()
         child.wait()
         child.stdout.close()
+
+
+def test_uploads_live_in_the_workspace_and_requests_results_are_not_uploads(tmp_path):
+    ws = Workspace(tmp_path / "ws", ttl=60)
+    assert ws.uploads == ws.root / "uploads" and ws.uploads.is_dir()
+    (ws.uploads / "ab12").mkdir()
+    (ws.uploads / "ab12" / "photo.png").write_bytes(b"x")
+    assert check_upload(ws.uploads / "ab12" / "photo.png", upload_root=ws.uploads,
+                        workspace=ws, max_bytes=10).name == "photo.png"
+    with ws.request() as folder:
+        assert len(folder.name) == len("request-") + 32  # 128 random bits
+        (folder / "mesh.glb").write_bytes(b"glTF")
+        for path in (folder / "mesh.glb", ws.root / ".photo3d-ui.lock"):
+            with pytest.raises(InputError, match="not uploaded to this server"):
+                check_upload(path, upload_root=ws.root, workspace=ws, max_bytes=100)
+    ws.close()
+
+
+def test_only_published_files_are_found_by_their_token_until_their_folder_goes(tmp_path):
+    clock = Clock()
+    ws = Workspace(tmp_path / "ws", ttl=10, clock=clock)
+    with ws.request() as folder:
+        (folder / "out").mkdir()
+        (folder / "out" / "mesh.glb").write_bytes(b"glTF")
+        (folder / "out" / "photo3d.npz").write_bytes(b"PK")
+        token = ws.publish(folder / "out" / "mesh.glb")
+    assert TOKEN.fullmatch(token) and ws.published(token) == folder / "out" / "mesh.glb"
+    assert ws.publish(folder / "out" / "mesh.glb") != token  # a new token each time
+    with pytest.raises(ValueError):
+        ws.publish(ws.root / ".photo3d-ui.lock")  # only a request's files
+    clock.now += 11
+    assert ws.sweep() == 1 and ws.published(token) is None
+
+
+def test_a_discarded_request_is_removed_at_once_with_what_it_published(tmp_path):
+    ws = Workspace(tmp_path / "ws", ttl=3600)
+    with ws.request() as folder:
+        (folder / "a.zip").write_bytes(b"PK")
+        token = ws.publish(folder / "a.zip")
+        ws.discard(folder)
+        assert not folder.exists() and ws.published(token) is None
+    assert ws.sweep(now=ws.clock() + 7200) == 0  # not scheduled again
+    ws.close()
+
+
+def test_the_upload_folders_leftovers_go_after_the_ttl(tmp_path):
+    ws = Workspace(tmp_path / "ws", ttl=5)
+    old = time.time() - 60
+    empty, kept, fresh = (ws.uploads / name for name in ("a" * 64, "b" * 64, "c" * 64))
+    for folder in (empty, kept, fresh):
+        folder.mkdir()
+    (kept / "photo.png").write_bytes(b"x")  # an upload the framework still holds
+    partial = ws.uploads / "tmpab12cd34"  # an aborted upload's partial file
+    partial.write_bytes(b"")
+    for path in (empty, kept, partial):
+        os.utime(path, (old, old))
+    ws.sweep()
+    assert sorted(p.name for p in ws.uploads.iterdir()) == ["b" * 64, "c" * 64]
+    ws.close()
+    assert not tmp_path.joinpath("ws").exists()

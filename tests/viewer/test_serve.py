@@ -209,3 +209,33 @@ def test_a_linked_viewer_page_is_refused_before_any_work(tmp_path, capsys, monke
     assert tree(tmp_path) == before
     with pytest.raises(InputError, match="is a symbolic link"):
         ViewerServer(photo)
+
+
+def test_a_download_the_browser_aborts_ends_quietly(folder, capfd):
+    import struct
+    import time
+
+    (folder / "big.mp4").write_bytes(b"\0" * (32 * 2**20))  # more than the socket buffers
+    with ViewerServer(folder) as server:
+        thread = threading.Thread(target=server.serve_forever)
+        thread.start()
+        try:
+            port = int(server.url.split(":")[2].split("/")[0])
+            for _ in range(3):
+                with socket.create_connection(("127.0.0.1", port), timeout=10) as conn:
+                    conn.sendall(f"GET /big.mp4 HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\n\r\n"
+                                 .encode())
+                    assert conn.recv(4096).startswith(b"HTTP/1.0 200")
+                    # hang up at once, with a reset, as a browser closing its tab does
+                    conn.setsockopt(socket.SOL_SOCKET, socket.SO_LINGER, struct.pack("ii", 1, 0))
+            # the server notices when it writes next: wait until its threads are done
+            deadline = time.monotonic() + 30
+            while (any(t.name.endswith("(process_request_thread)") for t in threading.enumerate())
+                   and time.monotonic() < deadline):
+                time.sleep(0.05)
+            assert fetch(server.url)[0] == 200  # still serving
+        finally:
+            server.shutdown()
+            thread.join()
+    err = capfd.readouterr().err
+    assert "Traceback" not in err and "BrokenPipe" not in err and "ConnectionReset" not in err

@@ -37,23 +37,27 @@ def add_depth_sources(p: argparse.ArgumentParser) -> None:
 
 AUTHORS = "authors"
 """The ``--weights`` value that means the authors' published weights."""
+COMPACT = "compact"
+"""The ``--weights`` value that means the small nets shipped with photo3d."""
 
 
 def weights_arg(text: str) -> Path | str:
     """Parse ``--weights``: the literal ``authors`` (:data:`AUTHORS`, the authors'
-    weights), else a folder (``./authors`` is a folder named authors).
+    weights) or ``compact`` (:data:`COMPACT`), else a folder (``./authors`` is a
+    folder named authors).
 
     >>> weights_arg("authors"), isinstance(weights_arg("./authors"), Path)
     ('authors', True)
     """
-    return AUTHORS if text == AUTHORS else Path(text)
+    return text if text in (AUTHORS, COMPACT) else Path(text)
 
 
 def weights_folder(weights: Path | str | None, *, quiet: bool) -> Path | None:
     """``--weights`` (as :func:`weights_arg` parses it) as a folder: :data:`AUTHORS`
     becomes the authors' weights' folder in the cache, where they are downloaded
     first if needed, with a progress bar on stderr unless ``quiet``
-    (:func:`photo3d.nets.authors.authors_weights`); a folder is returned as it is.
+    (:func:`photo3d.nets.authors.authors_weights`); :data:`COMPACT` the shipped
+    compact nets' folder; a folder is returned as it is.
 
     Raises:
         InputError: the authors' weights are not in the cache and cannot be
@@ -62,6 +66,10 @@ def weights_folder(weights: Path | str | None, *, quiet: bool) -> Path | None:
     >>> weights_folder(Path("w"), quiet=True).name
     'w'
     """
+    if isinstance(weights, str) and weights == COMPACT:
+        from photo3d.inpaint.learned import bundled_weights
+
+        return bundled_weights()
     if not (isinstance(weights, str) and weights == AUTHORS):
         return weights
     from photo3d.nets.authors import authors_weights
@@ -116,12 +124,13 @@ def add_make_options(p: argparse.ArgumentParser, *, out_required: bool,
                    "(default 1024; 0 keeps the input size)")
     p.add_argument("--inpainter", help="inpainting backend: structured (default), diffusion "
                    "or learned")
-    p.add_argument("--weights", type=weights_arg, metavar="DIR|authors",
+    p.add_argument("--weights", type=weights_arg, metavar="DIR|authors|compact",
                    help="weights of the learned inpainter: a folder with the authors' "
                         "edge-model.pth, depth-model.pth, color-model.pth or photo3d "
-                        "*.safetensors; 'authors': the authors' published files, "
-                        "downloaded once into the cache (a folder named authors: "
-                        "./authors); default: the compact nets shipped with photo3d")
+                        "*.safetensors; 'authors' (the default): the paper's nets, the "
+                        "authors' published files, downloaded once into the cache; "
+                        "'compact': the small nets shipped with photo3d (a folder named "
+                        "authors or compact: ./authors)")
     p.add_argument("--fast-nets", action="store_true",
                    help="learned inpainter: pad the edge net's input to multiples of 8 "
                         "(not 128) and run the nets in bfloat16; about 3x faster on CPU, "
@@ -223,6 +232,8 @@ def inpainter_options(args: argparse.Namespace, inpainter: str) -> dict:
     if flags and inpainter != "learned":
         raise ConfigError(f"{' and '.join(flags)} only apply to --inpainter learned (this "
                           f"run uses {inpainter})")
+    if inpainter == "learned" and weights is None:
+        weights = AUTHORS  # the paper's nets, downloaded once (with a bar, unless -q)
     weights = weights_folder(weights, quiet=getattr(args, "quiet", False))
     options = {} if weights is None else {"weights": weights}
     return {**options, **(dict(edge_unit=8, precision="bf16") if fast else {})}

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import sys
 
@@ -17,6 +18,10 @@ def add_parser(sub) -> None:
     ui.add_argument("--host", default="127.0.0.1",
                     help="address to listen on (default %(default)s: this machine only; "
                          "any other needs --auth)")
+    ui.add_argument("--allow-host", metavar="NAME", action="append", default=[],
+                    help="also answer requests addressed to this host name (repeatable; "
+                         "e.g. the machine's name, or a reverse proxy's); this machine's "
+                         "names always work")
     ui.add_argument("--auth", metavar="USER:PASS", default=os.environ.get("PHOTO3D_UI_AUTH"),
                     help="require this login for the page and the API (default: "
                          "$PHOTO3D_UI_AUTH, which other users cannot see in the process list)")
@@ -33,13 +38,17 @@ def add_parser(sub) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run ``photo3d ui`` until Ctrl-C; returns the exit status."""
+    from photo3d.errors import ConfigError
     from photo3d.ui import UiOptions, parse_auth, start
 
+    upload = args.max_upload_mb * 2**20
+    if not (math.isfinite(upload) and upload >= 1):
+        raise ConfigError(f"--max-upload-mb must be a positive number of megabytes, got "
+                          f"{args.max_upload_mb:g}")
     options = UiOptions(host=args.host, port=args.port,
                         auth=parse_auth(args.auth) if args.auth else None,
-                        workers=args.workers, ttl=args.ttl,
-                        max_upload_bytes=max(1, int(args.max_upload_mb * 2**20)),
-                        warmup=not args.no_warmup)
+                        workers=args.workers, ttl=args.ttl, max_upload_bytes=int(upload),
+                        warmup=not args.no_warmup, allowed_hosts=tuple(args.allow_host))
     server = start(options)
     try:
         login = "" if options.auth is None else f", login {options.auth[0]}"

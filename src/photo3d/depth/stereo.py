@@ -17,7 +17,9 @@ Steps of :func:`stereo_disparity`:
    computed by flipping both images horizontally and swapping them.
 3. Left-right consistency: a left disparity is valid only if the right view's
    disparity at ``x - d`` agrees within 1 px (removes occlusions and mismatches)
-   and it is not at an end of the search range.
+   and it is not at an end of the search range. A pair of which fewer than
+   :data:`MIN_MATCHED` of the pixels pass is refused: it is not a stereo pair of one
+   scene (a depth map given as the right view, another photo).
 4. Invalid pixels are filled with the farther of their row neighbours
    (:func:`photo3d.depth.normalize.fill_unknown`), then a joint weighted median
    filter guided by the left image (``cv2.ximgproc.weightedMedianFilter``) aligns
@@ -48,6 +50,11 @@ MIN_SIDE = 32
 """Shortest side, in pixels, of a pair that can be matched, also once reduced for
 feature matching (long side 1024 px) and for SGBM (long side :data:`WORK_SIZE`):
 SGBM needs more columns than its 16 disparities plus its block."""
+
+MIN_MATCHED = 0.1
+"""Smallest fraction of the left view's pixels that must pass the left-right check
+(the Middlebury motorcycle: 74 %; the photo with its own depth map as the right view:
+2 %)."""
 
 _REFERENCE_SIDE = 741  # parameters below were tuned on the 741 px Middlebury pair
 
@@ -247,15 +254,16 @@ def stereo_disparity(
             1st percentile - 8 px to 1.1 x their 99th percentile + 8 px), or
             ``0 .. W / 8`` when there are too few. Rounded up to a multiple of 16 at the
             working size (pairs larger than :data:`WORK_SIZE` are matched reduced).
-        check: refuse pairs that feature matches show to be unrectified or swapped.
+        check: refuse pairs that feature matches show to be unrectified or swapped,
+            and pairs that match almost nowhere (:data:`MIN_MATCHED`).
 
     Returns:
         :class:`StereoResult` at the input size.
 
     Raises:
         InputError: shapes differ, the pair is too small or too elongated
-            (:data:`MIN_SIDE`), unrectified or swapped, nothing could be matched, or
-            OpenCV (contrib) is not installed.
+            (:data:`MIN_SIDE`), unrectified or swapped, (almost) nothing could be
+            matched, or OpenCV (contrib) is not installed.
 
     Example:
         >>> rng = np.random.default_rng(0)
@@ -296,6 +304,11 @@ def stereo_disparity(
     if not valid.any():
         raise InputError("stereo matching found no reliable disparity: are the images a "
                          "rectified stereo pair of the same scene?")
+    if check and valid.mean() < MIN_MATCHED:
+        raise InputError(f"the right view matches only {valid.mean():.1%} of the photo's "
+                         f"pixels (at least {MIN_MATCHED:.0%} are needed): it is not the "
+                         "right view of a rectified stereo pair of the same scene (a depth "
+                         "map goes with --depth, not --right)")
     filled = fill_unknown(np.where(valid, disp_l, 0.0).astype(np.float32), ~valid)
     radius = max(2, round(7 * max(a.shape[:2]) / _REFERENCE_SIDE))
     smooth = cv2.ximgproc.weightedMedianFilter(a, filled, radius, sigma=25.5)

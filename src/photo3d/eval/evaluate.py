@@ -110,7 +110,8 @@ def render_method(name: str, pair: StereoPair, *, config: Config | None = None,
         from photo3d.inpaint.learned import LearnedInpainter, bundled_weights
 
         if weights is None and bundled_weights().is_dir():
-            backend, note = LearnedInpainter(), "compact weights shipped with photo3d"
+            backend = LearnedInpainter(weights=bundled_weights())
+            note = "compact weights shipped with photo3d"
         elif weights is None or str(weights) == "random":
             backend, note = LearnedInpainter(nets=random_nets(seed=0)), "random weights"
         else:

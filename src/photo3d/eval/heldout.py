@@ -111,7 +111,11 @@ def backend(name: str, *, weights: str | Path | None = None) -> Inpainter:
 
         return get_inpainter(name, nets=random_nets(seed=0))
 
-    options = {"weights": weights} if name == "learned" and weights is not None else {}
+    if name == "learned" and weights is None:  # eval's default: the shipped compact nets
+        from photo3d.inpaint.learned import bundled_weights
+
+        weights = bundled_weights()
+    options = {"weights": weights} if name == "learned" else {}
     return get_inpainter(name, **options)
 
 

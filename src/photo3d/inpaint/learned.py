@@ -107,15 +107,38 @@ def is_refine(net) -> bool:
 
 
 def bundled_weights() -> Path:
-    """The folder of the compact nets trained for and shipped with photo3d (used when
-    no ``weights`` are given; see the README's training section for how they were
-    trained and how they score).
+    """The folder of the compact nets trained for and shipped with photo3d (small and
+    offline, far below the paper's nets in quality; ``--weights compact``; see
+    docs/learned.md for how they were trained and how they score).
 
     Example:
         >>> sorted(p.name for p in bundled_weights().glob("*.safetensors"))
         ['color.safetensors', 'depth.safetensors', 'edge.safetensors']
     """
     return Path(__file__).resolve().parents[1] / "nets" / "compact"
+
+
+def default_weights(*, progress=None) -> Path:
+    """The weights ``learned`` runs when none are given: the paper's nets, i.e. the
+    authors' published files (:func:`photo3d.nets.authors.authors_weights`: downloaded
+    once into ``~/.cache/photo3d/authors``, checked by SHA-256; no network once there).
+
+    Args:
+        progress: ``progress(file name, bytes done, total or None)`` while
+            downloading (the command line shows a bar).
+
+    Raises:
+        MissingExtra: PyTorch is not installed (checked before any download).
+        InputError: not in the cache and not downloadable (one line saying where to
+            put the files and that ``--weights compact`` runs the shipped nets).
+
+    Example:
+        >>> default_weights().name  # doctest: +SKIP
+        'authors'
+    """
+    from photo3d.nets.authors import authors_weights  # needs PyTorch: checked first
+
+    return authors_weights(progress=progress)
 
 
 @dataclass(frozen=True)
@@ -187,8 +210,9 @@ class LearnedInpainter:
 
     Args:
         weights: folder with the authors' ``*-model.pth`` or our ``*.safetensors``
-            (see :func:`photo3d.nets.load_inpainting_nets`); default: the compact nets
-            shipped with photo3d (:func:`bundled_weights`).
+            (see :func:`photo3d.nets.load_inpainting_nets`); default: the paper's nets
+            (:func:`default_weights`, downloaded once); the compact nets shipped with
+            photo3d are :func:`bundled_weights`.
         device: torch device (default CUDA when available, else CPU).
         nets: :class:`photo3d.nets.InpaintingNets` already in memory (instead of
             ``weights``).
@@ -232,11 +256,7 @@ class LearnedInpainter:
                  nets: InpaintingNets | None = None, **changes) -> None:
         options = replace(options or LearnedOptions(), **changes)
         if nets is None:
-            if weights is None and not bundled_weights().is_dir():
-                raise ConfigError("the learned inpainter needs its network weights: pass "
-                                  "--weights DIR (a folder with edge-model.pth, "
-                                  "depth-model.pth, color-model.pth)")
-            weights = bundled_weights() if weights is None else weights
+            weights = default_weights() if weights is None else weights
             from photo3d.nets.weights import load_inpainting_nets
 
             nets = load_inpainting_nets(weights, device=device)
@@ -264,7 +284,7 @@ class LearnedInpainter:
         :data:`photo3d.nets.weights.OFFICIAL_SHA256`), computed once.
 
         Example:
-            >>> s = LearnedInpainter(precision="bf16").settings()
+            >>> s = LearnedInpainter(weights=bundled_weights(), precision="bf16").settings()
             >>> s["weights"], s["precision"], sorted(s["sha256"])[0]
             ('bundled compact', 'bf16', 'color.safetensors')
         """

@@ -99,7 +99,8 @@ def authors_weights(*, progress: FileProgress | None = None) -> Path:
         InputError: one line: a file in the folder is not the authors' (it is left
             alone; the message says what to do), a download was refused (another
             SHA-256: nothing is saved), or a download failed (offline: the message
-            names the files, the URL and the folder to put them in).
+            names the files, the URL and the folder to put them in, and that
+            ``--weights compact`` runs the nets shipped with photo3d).
 
     Example:
         >>> authors_weights().name  # doctest: +SKIP
@@ -152,4 +153,5 @@ def _failure(err: InputError, name: str, base: str, folder: Path) -> str:
         return f"{err} (not the authors' {name}: nothing was saved{where})"
     names = list(FILES.values())
     return (f"{err}; put the authors' {', '.join(names[:-1])} and {names[-1]} "
-            f"(from {base}) into {folder}")
+            f"(from {base}) into {folder}, or run the small nets shipped with photo3d: "
+            "--weights compact")

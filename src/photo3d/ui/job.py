@@ -1,11 +1,13 @@
 """One request of ``photo3d ui``: uploaded files in, a 3D photo folder and a zip out.
 
 :class:`JobOptions` holds what the page and the API let a client choose (every
-field has a default, and nothing in it can name a file on the server: camera paths
-are presets only, the inpainter gets no options); :func:`run_job` makes the photo
-with :func:`photo3d.folder.make_folder` (the path ``photo3d make`` takes) into a
-request's folder, writes the depth it used (:func:`photo3d.depth.export.export_depth`)
-and zips the result (:mod:`photo3d.ui.bundle`). Nothing here imports Gradio.
+field has a default, every value is checked strictly, and nothing in it can name a
+file on the server: camera paths are presets only, the inpainter gets no options);
+:func:`run_job` makes the photo with :func:`photo3d.folder.make_folder` (the path
+``photo3d make`` takes) into a request's folder, writes the depth it used
+(:func:`photo3d.depth.export.export_depth`) and zips the result
+(:mod:`photo3d.ui.bundle`). Its result carries every warning ``photo3d make`` would
+print (:mod:`photo3d.ui.notes`). Nothing here imports Gradio.
 
 A request's folder after :func:`run_job` (which yields the 3D photo first and,
 when videos are asked for, again once they are rendered)::
@@ -44,12 +46,17 @@ CAMERA_PATHS = ("dolly-zoom-in", "zoom-in", "circle", "swing")
 """The camera path presets (:data:`photo3d.render.paths.STANDARD_PATHS`); a client
 cannot name a keyframe file."""
 
-MAX_SIZE = 4096
-"""Largest working size a client may ask for (the memory check may refuse less)."""
+MAX_SIZE = 2048
+"""Largest working size a client may ask for (the page's slider ends there; the
+memory check may refuse less)."""
+
+MAX_PATHS = 16
+"""Longest list of camera paths a client may send (repeats are made once)."""
 
 
 class JobCancelled(Exception):
-    """The server is stopping; the request's partial output was removed."""
+    """The request was cancelled (or the server is stopping); its partial output
+    was removed."""
 
 
 @dataclass(frozen=True)
@@ -63,18 +70,24 @@ class JobOptions:
         source: the depth source, one of :data:`SOURCES`.
         depth_kind: what an uploaded depth map holds: ``"disparity"`` (near =
             bright) or ``"depth"``.
-        videos: render videos along ``paths``.
-        paths: camera path presets (:data:`CAMERA_PATHS`).
-        ply: also write ``mesh.ply`` (the full mesh, large).
+        videos: render videos along ``paths`` (True or False).
+        paths: camera path presets (:data:`CAMERA_PATHS`), each made once, in the
+            order first given (at most :data:`MAX_PATHS` entries).
+        ply: also write ``mesh.ply`` (the full mesh, large; True or False).
 
     Example:
         >>> options = JobOptions(size=512, paths=["swing"])
         >>> make = options.make_options()
         >>> make.config.size, [v.path for v in make.save.videos], make.save.ply
         (512, ['swing'], None)
+        >>> JobOptions(paths=["swing", "circle", "swing"]).paths
+        ('swing', 'circle')
         >>> JobOptions(paths=["/etc/passwd"])  # doctest: +ELLIPSIS
         Traceback (most recent call last):
         photo3d.errors.ConfigError: unknown camera path '/etc/passwd': choose from ...
+        >>> JobOptions(videos="no")
+        Traceback (most recent call last):
+        photo3d.errors.ConfigError: videos must be true or false, got 'no'
     """
 
     size: int = 1024
@@ -86,35 +99,46 @@ class JobOptions:
     ply: bool = False
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "paths", tuple(self.paths or ()))
+        paths = () if self.paths is None else self.paths
+        if not isinstance(paths, list | tuple) or len(paths) > MAX_PATHS:
+            raise ConfigError(f"paths must be a list of at most {MAX_PATHS} camera paths "
+                              f"({', '.join(CAMERA_PATHS)})")
+        for path in paths:
+            _one_of("camera path", path, CAMERA_PATHS)
+        object.__setattr__(self, "paths", tuple(dict.fromkeys(paths)))
         size = self.size
         if isinstance(size, float) and size.is_integer():
             object.__setattr__(self, "size", int(size))
-        if not isinstance(self.size, int) or not (self.size == 0 or 64 <= self.size <= MAX_SIZE):
+        if (isinstance(self.size, bool) or not isinstance(self.size, int)
+                or not (self.size == 0 or 64 <= self.size <= MAX_SIZE)):
             raise ConfigError(f"size must be 0 (the photo's size) or 64..{MAX_SIZE}, got {size!r}")
         _one_of("fill", self.fill, FILLS)
         _one_of("depth source", self.source, SOURCES)
         _one_of("depth kind", self.depth_kind, ("disparity", "depth"))
-        for path in self.paths:
-            _one_of("camera path", path, CAMERA_PATHS)
+        for name in ("videos", "ply"):
+            if not isinstance(getattr(self, name), bool):
+                raise ConfigError(f"{name} must be true or false, got {getattr(self, name)!r}")
         if self.videos and not self.paths:
             raise ConfigError("videos are on but no camera path is chosen")
 
-    def make_options(self) -> MakeOptions:
+    def make_options(self, weights: Path | None = None) -> MakeOptions:
         """The :class:`~photo3d.folder.MakeOptions` of this request (GLB and viewer
-        always; videos as ``photo3d make`` renders them)."""
+        always; videos as ``photo3d make`` renders them; ``weights``: the learned
+        fill's weights folder)."""
         from photo3d.render.animate import VideoSpec
         from photo3d.render.renderer import video_settings
 
         config = Config().with_(size=self.size or None, inpainter=self.fill)
         videos = tuple(VideoSpec(path=p) for p in self.paths) if self.videos else ()
-        return MakeOptions(config=config, depth_kind=self.depth_kind, save=SaveOptions(
-            ply="binary" if self.ply else None, glb=True, viewer=True, videos=videos,
-            render_settings=video_settings()))
+        chosen = (("weights", weights),) if weights is not None and self.fill == "learned" else ()
+        return MakeOptions(config=config, depth_kind=self.depth_kind, inpainter_options=chosen,
+                           save=SaveOptions(ply="binary" if self.ply else None, glb=True,
+                                            viewer=True, videos=videos,
+                                            render_settings=video_settings()))
 
 
 def _one_of(what: str, value: object, allowed: tuple[str, ...]) -> None:
-    if value not in allowed:
+    if not isinstance(value, str) or value not in allowed:
         raise ConfigError(f"unknown {what} {value!r}: choose from {', '.join(allowed)}")
 
 
@@ -132,7 +156,9 @@ class JobResult:
         size: ``(width, height)`` of the working image.
         seconds: wall time of the request.
         summary: one line for people (size, passes, depth source, time).
-        warnings: one-line warnings about the depth (flat, inverted, ...).
+        warnings: every warning ``photo3d make`` would print, one line each (the
+            depth's: flat, inverted, ...; the photo's: decoded at 8 bits, ...).
+        notes: its notes (a small photo is upscaled to the working size).
     """
 
     out: Path
@@ -145,6 +171,13 @@ class JobResult:
     seconds: float
     summary: str
     warnings: tuple[str, ...] = field(default=())
+    notes: tuple[str, ...] = field(default=())
+
+    def status(self) -> str:
+        """The summary, then each warning and note on a line of its own (as
+        ``photo3d make`` prints them)."""
+        return "\n".join([self.summary, *(f"warning: {w}" for w in self.warnings),
+                           *(f"note: {n}" for n in self.notes)])
 
 
 def run_job(photo: Path, folder: Path, *, options: JobOptions, depth: Path | None = None,
@@ -167,7 +200,8 @@ def run_job(photo: Path, folder: Path, *, options: JobOptions, depth: Path | Non
         name: the photo's name for the zip (``NAME-3d.zip``; sanitised).
         progress: ``progress(fraction, label)`` with ``fraction`` in [0, 1] over the
             whole request (:class:`~photo3d.ui.progress.StageMeter`).
-        cancel: when set, the request stops at its next progress report.
+        cancel: when set, the request stops at its next progress report (the
+            caller removes its folder).
 
     Yields:
         :class:`JobResult` without videos, then (if asked for) with them.
@@ -177,23 +211,36 @@ def run_job(photo: Path, folder: Path, *, options: JobOptions, depth: Path | Non
             behind).
         JobCancelled: ``cancel`` was set.
     """
+    from photo3d.ui.notes import collect_warnings
+
+    with collect_warnings() as notes:
+        yield from _run_job(photo, folder, options=options, depth=depth, right=right,
+                            name=name, progress=progress, cancel=cancel, notes=notes)
+
+
+def _run_job(photo, folder, *, options, depth, right, name, progress, cancel,
+             notes: list[str]) -> Iterator[JobResult]:
     from photo3d.depth.export import export_depth
     from photo3d.folder import make_folder, prepare
 
     start = time.perf_counter()
-    make = options.make_options()
     if depth is not None and right is not None:
         raise ConfigError("give a depth map or a right view, not both")
     if options.source == "model" and (depth is not None or right is not None):
         raise ConfigError("depth source 'model' estimates the depth: remove the uploaded "
                           "depth map or right view, or choose 'auto'")
-    meter = StageMeter(videos=bool(make.save.videos))
+    meter = StageMeter(videos=options.videos)
 
     def report(stage: str, fraction: float) -> None:
         if cancel is not None and cancel.is_set():
-            raise JobCancelled("the server is stopping")
+            raise JobCancelled("the request was cancelled")
         if progress is not None:
             progress(*meter(stage, fraction))
+
+    def say(line: str) -> None:  # a line of its own (the download of weights)
+        report("depth", 0.0)  # stops here when cancelled
+        if progress is not None:
+            progress(0.0, line)
 
     found: dict = {}
 
@@ -201,8 +248,15 @@ def run_job(photo: Path, folder: Path, *, options: JobOptions, depth: Path | Non
         report("depth", 1.0)
         found["estimate"] = estimate
         found["previews"] = export_depth(estimate, folder / "depth.png")
+        found["upscaled"] = _upscaled(image.shape[:2], make.config.size)
 
     report("depth", 0.0)
+    weights = None
+    if options.fill == "learned":
+        from photo3d.ui.learned import learned_weights
+
+        weights = learned_weights(say)
+    make = options.make_options(weights)
     inpainter = prepare(make)
     depth_model = None
     if options.source == "model":
@@ -220,10 +274,12 @@ def run_job(photo: Path, folder: Path, *, options: JobOptions, depth: Path | Non
     uploads = [p for p in (photo, depth, right) if p is not None]
     estimate = found["estimate"]
     w, h = photo3d.stats["working_size"]
+    said = [*estimate.warnings, *notes]
     result = JobResult(out=out, glb=out / "mesh.glb", viewer=out / "viewer.html", zip=bundle,
                        depth_preview=found["previews"][1], videos=(), size=(w, h),
                        seconds=time.perf_counter() - start, summary="",
-                       warnings=tuple(redact(note, uploads) for note in estimate.warnings))
+                       warnings=tuple(dict.fromkeys(redact(n, uploads) for n in said)),
+                       notes=tuple(found["upscaled"]))
     line = (f"{w}x{h}, {photo3d.stats['passes']} inpainting pass(es), depth from "
             f"{redact(estimate.source, uploads)}")
     if not make.save.videos:
@@ -239,9 +295,27 @@ def run_job(photo: Path, folder: Path, *, options: JobOptions, depth: Path | Non
                           progress=report)
     zip_folder(out, bundle, extra=found["previews"], progress=lambda f: report("rezip", f))
     seconds = time.perf_counter() - start
+    said = [*result.warnings, *(redact(n, uploads) for n in notes)]
+    result = dataclasses.replace(result, warnings=tuple(dict.fromkeys(said)))
     yield dataclasses.replace(result, videos=tuple(videos), seconds=seconds,
                               summary=f"3D photo and {len(videos)} video(s) made in "
                                       f"{seconds:.1f} s: {line}")
+
+
+def _upscaled(shape: tuple[int, int], size: int | None) -> list[str]:
+    """The note ``photo3d make`` prints when a photo is smaller than the working size.
+
+    Example:
+        >>> _upscaled((240, 320), 1024)
+        ['the photo is 320x240; it is upscaled to a 1024x768 working size (size 0 keeps its size)']
+    """
+    from photo3d.stages.preprocess import working_shape
+
+    if size is None or max(shape) >= size:
+        return []
+    h, w = working_shape(shape, size)
+    return [f"the photo is {shape[1]}x{shape[0]}; it is upscaled to a {w}x{h} working size "
+            "(size 0 keeps its size)"]
 
 
 def redact(text: str, paths: list[Path]) -> str:

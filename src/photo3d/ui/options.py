@@ -1,8 +1,9 @@
 """What ``photo3d ui`` is started with, and the checks that keep it safe by default.
 
 :class:`UiOptions` holds the server's settings (address, login, workers, limits);
-:func:`check_host` refuses to listen beyond this machine without a login, and
-:func:`parse_auth` reads ``USER:PASS``. Nothing here imports Gradio.
+:func:`check_host` refuses to listen beyond this machine without a login,
+:func:`parse_auth` reads ``USER:PASS`` and :func:`host_allowed` says which ``Host:``
+headers the server answers. Nothing here imports Gradio.
 
 Example:
     >>> options = UiOptions(host="0.0.0.0", auth=parse_auth("ana:s3cret"))
@@ -15,12 +16,16 @@ from __future__ import annotations
 
 import ipaddress
 import math
+import re
 from dataclasses import dataclass
 
 from photo3d.errors import ConfigError
 
 LOOPBACK_NAMES = ("localhost", "localhost.", "ip6-localhost")
 """Host names that always mean this machine (besides the loopback addresses)."""
+
+HOST_NAME = re.compile(r"[A-Za-z0-9._-]+|\[?[0-9A-Fa-f:.]+\]?")
+"""A host name or an IP address (an IPv6 one may be in brackets), without a port."""
 
 MAX_UPLOAD_BYTES = 200 * 2**20
 """Default largest upload, in bytes (a 16-bit TIFF of 24 megapixels is about 150 MB)."""
@@ -45,6 +50,9 @@ class UiOptions:
             decompression-bomb limit) and the working size by the memory check.
         warmup: make a tiny photo in the background at start, so that the first
             request does not wait for numba's compilation.
+        allowed_hosts: more names the server answers to in a request's ``Host:``
+            header, besides this machine's (:func:`host_allowed`); e.g. the name of
+            the machine or of a reverse proxy in front of it.
 
     Example:
         >>> UiOptions(workers=0)
@@ -60,8 +68,10 @@ class UiOptions:
     ttl: float = 3600.0
     max_upload_bytes: int = MAX_UPLOAD_BYTES
     warmup: bool = True
+    allowed_hosts: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
+        object.__setattr__(self, "allowed_hosts", tuple(self.allowed_hosts))
         if not 0 <= self.port <= 65535:
             raise ConfigError(f"port must be in [0, 65535], got {self.port}")
         if self.workers < 1:
@@ -72,6 +82,10 @@ class UiOptions:
             raise ConfigError(f"ttl must be a positive number of seconds, got {self.ttl}")
         if self.max_upload_bytes < 1:
             raise ConfigError(f"max_upload_bytes must be >= 1, got {self.max_upload_bytes}")
+        for name in self.allowed_hosts:
+            if not HOST_NAME.fullmatch(name):
+                raise ConfigError(f"--allow-host takes a host name or an address without a "
+                                  f"port (e.g. photos.lan), got {name!r}")
         if self.auth is not None:
             user, password = self.auth
             if not user or not password:
@@ -146,3 +160,54 @@ def url_of(host: str, port: int) -> str:
     if ":" in name and not name.startswith("["):
         name = f"[{name}]"
     return f"http://{name}:{port}/"
+
+
+def _bare(host: str) -> str:
+    """``host`` without brackets and a trailing dot, in lower case."""
+    name = host.strip().lower()
+    if name.startswith("[") and name.endswith("]"):
+        name = name[1:-1]
+    return name.rstrip(".")
+
+
+def _is_address(name: str) -> bool:
+    try:
+        ipaddress.ip_address(name)
+    except ValueError:
+        return False
+    return True
+
+
+def host_allowed(header: str | None, *, host: str, allowed: tuple[str, ...] = ()) -> bool:
+    """True if a request whose ``Host:`` header is ``header`` may be answered by a
+    server listening on ``host``; the port in the header is not compared.
+
+    Answered: this machine's names (:func:`is_loopback`), ``host`` itself and the
+    ``allowed`` names; and, for a server listening on every address (``0.0.0.0``,
+    ``::``), any IP address. A page of another site that rebinds its own name to this
+    machine (DNS rebinding) sends its own name, which is none of these, and gets no
+    answer.
+
+    Example:
+        >>> [host_allowed(h, host="127.0.0.1") for h in
+        ...  ("127.0.0.1:7860", "localhost:7860", "[::1]:7860", "evil.example:7860", None)]
+        [True, True, True, False, False]
+        >>> host_allowed("photos.lan", host="0.0.0.0", allowed=("photos.lan",))
+        True
+        >>> host_allowed("192.168.1.20:7860", host="0.0.0.0"), host_allowed(
+        ...     "192.168.1.20:7860", host="127.0.0.1")
+        (True, False)
+    """
+    if not header or any(c in header for c in " \t,/@"):
+        return False
+    name = header.strip()
+    if name.startswith("["):  # [v6]:port
+        name = name[:name.find("]") + 1] if "]" in name else name
+    elif name.count(":") == 1:  # name:port
+        name = name.split(":")[0]
+    name = _bare(name)
+    if not name:
+        return False
+    if is_loopback(name) or name in {_bare(h) for h in (host, *allowed)}:
+        return True
+    return _bare(host) in ("0.0.0.0", "::", "") and _is_address(name)

@@ -1,17 +1,22 @@
 """Per-request temporary folders that expire, and the check of every uploaded file.
 
-Each request of ``photo3d ui`` works in its own folder under one root
-(:class:`Workspace`): the 3D photo folder, the depth preview and the zip are
-written there and served from there. A folder is kept ``ttl`` seconds after its
-request ends (so the page's download links keep working), then removed by a
-background sweeper; everything is removed when the server stops. A server that
-could not clean up (killed with SIGKILL, a power cut) leaves its root behind; the
-root holds a lock file the live server keeps locked, so the next server removes
-the roots nobody holds (:func:`remove_stale`), and nothing else.
+Everything a ``photo3d ui`` server writes lies under one root (:class:`Workspace`):
+its upload folder (:attr:`Workspace.uploads`, where the web framework stores uploads
+and their partial files) and one folder per request, named by 128 random bits, where
+the 3D photo folder, the depth preview and the zip are written. Only the files a
+request returned are served, each under its own random token
+(:meth:`Workspace.publish`), never by their path. A request's folder is kept ``ttl``
+seconds after the request ends (so the page's download links keep working), then
+removed by a background sweeper, which also removes the upload folder's leftovers
+older than ``ttl`` (empty folders, partial uploads); a cancelled request's folder is
+removed at once (:meth:`Workspace.discard`); everything is removed when the server
+stops. A server that could not clean up (killed with SIGKILL, a power cut) leaves its
+root behind; the root holds a lock file the live server keeps locked, so the next
+server removes the roots nobody holds (:func:`remove_stale`), and nothing else.
 
 Uploads are never opened by a path the client chose: :func:`check_upload` accepts
 only a regular file inside the upload folder the server created (not a link, not
-inside another request's folder) and within the byte limit.
+inside a request's folder) and within the byte limit.
 
 Example:
     >>> import tempfile
@@ -28,9 +33,9 @@ from __future__ import annotations
 
 import os
 import re
+import secrets
 import shutil
 import stat
-import tempfile
 import threading
 import time
 import weakref
@@ -49,6 +54,10 @@ LOCK_NAME = ".photo3d-ui.lock"
 """The lock file in a workspace root, locked (``flock``) while its server runs."""
 ROOT_PATTERN = re.compile(r"photo3d-ui-[0-9a-f]{16}")
 """The names of the roots ``photo3d ui`` creates in the upload folder."""
+UPLOADS = "uploads"
+"""The root's folder the web framework stores this server's uploads in."""
+TOKEN = re.compile(r"[A-Za-z0-9_-]{22}")
+"""What a published file's token looks like (:meth:`Workspace.publish`)."""
 
 
 def _hold(path: Path) -> int | None:
@@ -107,13 +116,16 @@ def remove_stale(upload_root: str | os.PathLike[str]) -> list[Path]:
 
 
 class Workspace:
-    """A root folder holding one temporary folder per request, each removed ``ttl``
-    seconds after its request ends.
+    """A root folder holding the server's uploads and one temporary folder per
+    request, each removed ``ttl`` seconds after its request ends.
 
     Args:
         root: the folder to create (must not exist) and own; removed by :meth:`close`.
-        ttl: seconds a finished request's folder is kept.
+        ttl: seconds a finished request's folder (and an upload) is kept.
         clock: the time source (``time.monotonic``; tests pass a fake one).
+
+    Attributes:
+        uploads: the upload folder (``root/uploads``, ``0700``).
 
     Thread-safe: requests, the sweeper and :meth:`close` may run in any threads.
     """
@@ -131,25 +143,80 @@ class Workspace:
         fd = _hold(self.root / LOCK_NAME)
         # released by close(), or when the workspace is collected without one
         self._release = weakref.finalize(self, os.close, fd) if fd is not None else None
+        self.uploads = self.root / UPLOADS
+        self.uploads.mkdir(mode=0o700)
         self._lock = threading.Lock()
         self._busy: set[Path] = set()
         self._expires: dict[Path, float] = {}
+        self._published: dict[str, tuple[Path, Path]] = {}  # token -> (folder, file)
         self._stop = threading.Event()
         self._sweeper: threading.Thread | None = None
 
     @contextmanager
     def request(self) -> Iterator[Path]:
-        """A new, empty folder for one request (``0700``); its ``ttl`` starts when the
-        ``with`` block ends, also on an error."""
-        folder = Path(tempfile.mkdtemp(prefix="request-", dir=self.root))
+        """A new, empty folder for one request (``0700``, named by 128 random bits);
+        its ``ttl`` starts when the ``with`` block ends, also on an error (unless
+        :meth:`discard` removed it meanwhile)."""
+        folder = self.root / f"request-{secrets.token_hex(16)}"
+        folder.mkdir(mode=0o700)
         with self._lock:
             self._busy.add(folder)
         try:
             yield folder
         finally:
             with self._lock:
-                self._busy.discard(folder)
-                self._expires[folder] = self.clock() + self.ttl
+                if folder in self._busy:
+                    self._busy.discard(folder)
+                    self._expires[folder] = self.clock() + self.ttl
+
+    def discard(self, folder: Path) -> None:
+        """Remove a request's folder now (a cancelled request), with what it
+        published."""
+        with self._lock:
+            self._busy.discard(folder)
+            self._expires.pop(folder, None)
+            self._forget([folder])
+        shutil.rmtree(folder, ignore_errors=True)
+
+    def publish(self, path: Path) -> str:
+        """Serve ``path``, a file in a request's folder, under a new random token
+        (128 bits, :data:`TOKEN`) until its folder is removed; returns the token.
+
+        Example:
+            >>> import tempfile
+            >>> ws = Workspace(Path(tempfile.mkdtemp()) / "ws", ttl=60)
+            >>> with ws.request() as folder:
+            ...     _ = (folder / "a.zip").write_bytes(b"PK")
+            ...     token = ws.publish(folder / "a.zip")
+            >>> ws.published(token).name, ws.published("x" * 22)
+            ('a.zip', None)
+            >>> ws.close()
+        """
+        folder = self._request_of(path)
+        token = secrets.token_urlsafe(16)
+        with self._lock:
+            self._published[token] = (folder, path)
+        return token
+
+    def published(self, token: str) -> Path | None:
+        """The file published under ``token``, or None (unknown, expired, removed)."""
+        with self._lock:
+            found = self._published.get(token)
+        return None if found is None else found[1]
+
+    def _request_of(self, path: Path) -> Path:
+        """The request folder ``path`` lies in (a ValueError otherwise)."""
+        relative = Path(path).relative_to(self.root)
+        folder = self.root / relative.parts[0]
+        if len(relative.parts) < 2 or not folder.name.startswith("request-"):
+            raise ValueError(f"{path} is not in a request's folder")
+        return folder
+
+    def _forget(self, folders: list[Path]) -> None:
+        """Drop what ``folders`` published (the caller holds the lock)."""
+        gone = set(folders)
+        for token in [t for t, (f, _) in self._published.items() if f in gone]:
+            del self._published[token]
 
     def sweep(self, now: float | None = None) -> int:
         """Remove the folders of finished requests whose ``ttl`` has passed; returns
@@ -159,9 +226,31 @@ class Workspace:
             due = [f for f, end in self._expires.items() if end <= now and f not in self._busy]
             for folder in due:
                 del self._expires[folder]
+            self._forget(due)
         for folder in due:
             shutil.rmtree(folder, ignore_errors=True)  # already gone: nothing to do
+        self._sweep_uploads()
         return len(due)
+
+    def _sweep_uploads(self) -> None:
+        """Remove the upload folder's leftovers older than ``ttl`` (wall-clock age):
+        empty folders (the framework removes expired uploads but not their folders)
+        and files at its top (the partial files of aborted uploads)."""
+        limit = time.time() - self.ttl
+        try:
+            entries = list(os.scandir(self.uploads))
+        except OSError:
+            return
+        for entry in entries:
+            try:
+                if entry.stat(follow_symlinks=False).st_mtime > limit:
+                    continue
+                if entry.is_dir(follow_symlinks=False):
+                    os.rmdir(entry.path)  # only when empty
+                else:
+                    os.unlink(entry.path)
+            except OSError:  # not empty, or already gone
+                continue
 
     def start_sweeper(self, every: float | None = None) -> None:
         """Sweep every ``every`` seconds (default: a quarter of ``ttl``, at most a
@@ -176,14 +265,19 @@ class Workspace:
         self._sweeper.start()
 
     def contains(self, path: str | os.PathLike[str]) -> bool:
-        """True if ``path`` (resolved) lies inside the root."""
-        return Path(os.path.realpath(path)).is_relative_to(os.path.realpath(self.root))
+        """True if ``path`` (resolved) lies inside the root but not in its upload
+        folder (a request's result, the lock file, the warm-up)."""
+        real = Path(os.path.realpath(path))
+        return (real.is_relative_to(os.path.realpath(self.root))
+                and not real.is_relative_to(os.path.realpath(self.uploads)))
 
     def close(self) -> None:
         """Stop the sweeper and remove the root with everything in it."""
         self._stop.set()
         if self._sweeper is not None:
             self._sweeper.join()
+        with self._lock:
+            self._published.clear()
         for _ in range(3):  # a request still finishing may add a file meanwhile
             shutil.rmtree(self.root, ignore_errors=True)
             if not self.root.exists():

@@ -13,6 +13,8 @@ What is served, and to whom:
   without following any symbolic link: a link, even one pointing inside, a
   folder (never listed), a hidden name, ``..`` or anything that is not a regular
   file is 404. ``/`` redirects to ``viewer.html``.
+* A download the browser aborts (a closed tab, a video seeking elsewhere) ends
+  quietly: nothing is printed for it.
 """
 
 from __future__ import annotations
@@ -135,6 +137,15 @@ def _open_regular(folder: str, folder_fd: int | None, parts: list[str]) -> int |
     return fd
 
 
+class _Server(ThreadingHTTPServer):
+    """A threading HTTP server that says nothing when a client goes away mid-answer."""
+
+    def handle_error(self, request, client_address) -> None:
+        if isinstance(sys.exc_info()[1], ConnectionError):  # BrokenPipe, ConnectionReset
+            return  # the browser aborted a download: nothing went wrong here
+        super().handle_error(request, client_address)
+
+
 class ViewerServer:
     """An HTTP server for one 3D photo folder on 127.0.0.1 (a context manager).
 
@@ -177,7 +188,7 @@ class ViewerServer:
             raise InputError(f"cannot read {folder}: {err.strerror or err}") from None
         handler = partial(_QuietHandler, directory=real, folder_fd=self._folder_fd)
         try:
-            self._server = ThreadingHTTPServer((HOST, port), handler)
+            self._server = _Server((HOST, port), handler)
         except OSError as err:
             self._close_folder()
             raise InputError(f"cannot listen on {HOST}:{port}: {err.strerror or err}") from None
