@@ -5,8 +5,11 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 # The Khronos glTF validator (npm, 0.4 MB, no dependencies) for tests/io/test_gltf_validator.py;
 # installed by `make test` when npm is there, skipped (and the test with it) otherwise.
+# A real Gaussian splat renderer, Spark on three.js (npm, 50 MB, served from .node/ to
+# headless Chromium) for tests/export/test_splats_browser.py; the same way.
 NODE_DIR := .node
 VALIDATOR := $(NODE_DIR)/node_modules/gltf-validator
+SPARK := $(NODE_DIR)/node_modules/@sparkjsdev/spark
 
 .PHONY: demo test lint bench clean
 
@@ -24,6 +27,8 @@ demo: $(STAMP)
 test: $(STAMP)
 	-if command -v npm >/dev/null && ! test -d $(VALIDATOR); then \
 		npm install --prefix $(NODE_DIR) --no-audit --no-fund --silent gltf-validator@2.0.0-dev.3.10; fi
+	-if command -v npm >/dev/null && ! test -d $(SPARK); then \
+		npm install --prefix $(NODE_DIR) --no-audit --no-fund --silent @sparkjsdev/spark@2.2.0 three@0.180.0; fi
 	$(BIN)/ruff check src tests benchmarks scripts
 	PHOTO3D_NODE_MODULES=$(CURDIR)/$(NODE_DIR) $(BIN)/python -m pytest -q
 

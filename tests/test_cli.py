@@ -49,7 +49,7 @@ def test_render_reuses_a_saved_photo(files, capsys):
     assert probe(out / "video" / "swing.mp4")["size"] == (32, 24)
     assert frame_count(out / "video" / "swing.mp4") == 5
     assert main(args + ["--stereo", "sbs", "--format", "webm"]) == 0
-    info = probe(out / "video" / "swing_sbs.webm")
+    info = probe(out / "video" / "swing_LRF_Full_SBS.webm")
     assert info["codec"] == "vp9" and info["size"] == (64, 24)
     assert main(args + ["--stereo", "anaglyph", "--format", "gif"]) == 0
     assert frame_count(out / "video" / "swing_anaglyph.gif") == 5

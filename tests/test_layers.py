@@ -28,9 +28,9 @@ LAYERS = {
     "photo3d.inpaint": 5, "photo3d.mesh": 5,
     # 6: rendering, the viewer
     "photo3d.render": 6, "photo3d.viewer": 6,
-    # 7: the 3D photo, its folder, the memory check
+    # 7: the 3D photo, its folder, the memory check, its exports (splats, USDZ, quilts)
     "photo3d.photo": 7, "photo3d.output": 7, "photo3d.save_options": 7,
-    "photo3d.owned": 7, "photo3d.resources": 7,
+    "photo3d.owned": 7, "photo3d.resources": 7, "photo3d.export": 7,
     # 8: make, and make into an output folder (the path `make` and `batch` share)
     "photo3d.pipeline": 8, "photo3d.folder": 8,
     # 9: what runs make many times

@@ -25,9 +25,13 @@ from photo3d.files.atomic import refuse_symlink, write_json
 from photo3d.files.staging import owned_by_names
 
 LDI_FILE = "photo3d.npz"
+EXPORT_FILES = ("splats.ply", "splats.spz", "splats.glb", "mesh.usdz", "*_qs*x*a*.png")
+"""Names ``photo3d export`` writes (:mod:`photo3d.export`; the last, Looking Glass
+quilts ``NAME_qsCOLSxROWSaASPECT.png``)."""
 PHOTO_FILES = (LDI_FILE, "config.json", "mesh.ply", "mesh.glb", "viewer.html", "video",
-               "still.png", "still_*.png")
-"""Top-level names in a 3D photo folder (``render --still`` adds ``still*.png``)."""
+               "still.png", "still_*.png", *EXPORT_FILES)
+"""Top-level names in a 3D photo folder (``render --still`` adds ``still*.png``,
+``export`` the :data:`EXPORT_FILES`)."""
 
 FINISHED_FILES = (LDI_FILE, "config.json")
 """Files every finished 3D photo folder holds (whatever else was asked for)."""
@@ -35,7 +39,7 @@ FINISHED_FILES = (LDI_FILE, "config.json")
 VIDEO_FILES = ("*.mp4", "*.webm", "*.gif")
 """Names of the files in a 3D photo folder's ``video/`` (one per format photo3d writes)."""
 
-RECORDED = ("still.png", "still_*.png", "video/*")
+RECORDED = ("still.png", "still_*.png", "video/*", *EXPORT_FILES)
 """Entries that are photo3d's only if ``config.json`` lists them (see the module doc)."""
 
 _by_names = owned_by_names(LDI_FILE, PHOTO_FILES, inside={"video": VIDEO_FILES})

@@ -59,7 +59,10 @@ def option_argv(action: argparse.Action, weights: Path) -> list[str]:
     return [flag, *(v.format(weights=weights) for v in VALUES[action.dest])]
 
 
-def test_every_make_option_is_a_batch_option_and_reaches_make_options(tmp_path):
+def test_every_make_option_is_a_batch_option_and_reaches_make_options(tmp_path, monkeypatch):
+    # learned without --weights means the authors' weights: a folder here, not a download
+    monkeypatch.setattr("photo3d.nets.authors.authors_weights",
+                        lambda **_: tmp_path / "authors")
     make, batch = subcommands()
     weights = tmp_path / "weights"
     weights.mkdir()
@@ -127,7 +130,7 @@ def test_batch_makes_what_make_makes_with_every_output_option(photos):
                "--eye-order", "rl", "--depth-kind", "depth", "--overwrite"]
     made, batched = make_and_batch(photos, options, "all")
     meta = same_output(made, batched)
-    assert (batched / "video" / "circle_sbs.gif").is_file()
+    assert (batched / "video" / "circle_RLF_cross.gif").is_file()  # --eye-order rl
     assert (batched / "mesh.ply").read_bytes().startswith(b"ply\nformat ascii 1.0\n")
     full = read_glb(batched / "mesh.glb")  # --full-glb: every LDI pixel a vertex
     assert len(full.vertices) == load_npz(batched / "photo3d.npz")[0].size

@@ -1,5 +1,5 @@
-"""Command line: ``photo3d make``, ``batch``, ``depth``, ``demo``, ``render``, ``view``,
-``ui``, ``eval``, ``train``.
+"""Command line: ``photo3d make``, ``batch``, ``depth``, ``demo``, ``render``, ``export``,
+``view``, ``ui``, ``eval``, ``train``.
 
 Thin layer over the library: parses arguments, shows a progress bar and a timing
 summary, and turns :class:`~photo3d.errors.Photo3DError` into a one-line message
@@ -19,11 +19,11 @@ import signal
 import sys
 import warnings
 
-from photo3d.cli import batch, demo, depth, evaluate, make, render, train, ui, view
+from photo3d.cli import batch, demo, depth, evaluate, export, make, render, train, ui, view
 from photo3d.errors import Photo3DError
 from photo3d.files.signals import handle_signals
 
-COMMANDS = (make, batch, depth, demo, render, view, ui, evaluate, train)
+COMMANDS = (make, batch, depth, demo, render, export, view, ui, evaluate, train)
 """Subcommand modules, in the order ``photo3d --help`` lists them."""
 
 

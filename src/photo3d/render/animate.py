@@ -15,7 +15,7 @@ from photo3d.progress import CountProgress
 from photo3d.render._resolve import to_rgb8
 from photo3d.render.paths import STANDARD_PATHS, load_path, preset_path
 from photo3d.render.renderer import Renderer, output_intrinsics
-from photo3d.render.stereo import compose, eye_cameras
+from photo3d.render.stereo import compose, eye_cameras, file_tag
 from photo3d.structures.ldi import LDI
 
 
@@ -61,9 +61,16 @@ class VideoSpec:
 
     @property
     def name(self) -> str:
-        """File stem of the video (preset name or keyframe file stem, plus stereo mode)."""
+        """File stem of the video: the preset name or keyframe file stem, plus for
+        stereo the tag players recognise (:func:`~photo3d.render.stereo.file_tag`:
+        ``circle_LRF_Full_SBS``) or the mode (``circle_anaglyph``).
+
+        Example:
+            >>> VideoSpec(stereo="sbs").name, VideoSpec(path="swing", stereo="sbs-half").name
+            ('circle_LRF_Full_SBS', 'swing_sbs-half')
+        """
         stem = self.path if self.path in STANDARD_PATHS else Path(self.path).stem
-        return f"{stem}_{self.stereo}" if self.stereo else stem
+        return f"{stem}_{file_tag(self.stereo, self.eye_order)}" if self.stereo else stem
 
 
 def centre_depth(ldi: LDI) -> float:

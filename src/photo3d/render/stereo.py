@@ -12,6 +12,21 @@ MODES = ("sbs", "sbs-half", "anaglyph")
 squeezed to half width each (the frame keeps the mono size, as 3D TVs expect);
 ``anaglyph``: red from the left eye, green and blue from the right eye."""
 
+PLAYER_TAGS = {("sbs", "lr"): "LRF_Full_SBS", ("sbs", "rl"): "RLF_cross"}
+"""File-name tags by which headset video players (Pigasus needs ``LRF``, SKYBOX
+``Full_SBS``; DeoVR reads ``SBS``) recognise full-width side by side, as iw3 names
+it; cross-eyed files get iw3's ``RLF_cross`` so no player shows them swapped."""
+
+
+def file_tag(mode: str, order: str = "lr") -> str:
+    """The tag a stereo video's file name ends with: :data:`PLAYER_TAGS`, else the mode.
+
+    Example:
+        >>> file_tag("sbs"), file_tag("sbs", "rl"), file_tag("anaglyph")
+        ('LRF_Full_SBS', 'RLF_cross', 'anaglyph')
+    """
+    return PLAYER_TAGS.get((mode, order), mode)
+
 
 def eye_cameras(camera: Camera, eye_separation: float) -> tuple[Camera, Camera]:
     """Left and right eye cameras, ``eye_separation`` apart along the camera's x axis.

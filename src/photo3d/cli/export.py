@@ -1,0 +1,57 @@
+"""``photo3d export OUT FORMAT [FORMAT ...]``: a saved 3D photo as Gaussian splats
+(PLY, SPZ, glTF), a USDZ for AR Quick Look or a Looking Glass quilt."""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+
+from photo3d.cli.progress import count_bar
+
+_NAMES = ("splats.ply", "splats.spz", "splats.glb", "mesh.usdz", "quilt")  # export.FORMATS
+
+
+def add_parser(sub) -> None:
+    """Register ``export`` on the subparsers ``sub``."""
+    ex = sub.add_parser(
+        "export", help="write a saved 3D photo as splats, USDZ or a Looking Glass quilt",
+        description="Write a saved 3D photo in other formats, into its folder (recorded "
+                    "in config.json, so make --overwrite and later exports replace them) "
+                    "or, with -o, one format to FILE. Formats: splats.ply (3DGS PLY), "
+                    "splats.spz (Niantic SPZ), splats.glb (glTF KHR_gaussian_splatting), "
+                    "mesh.usdz (AR Quick Look), quilt (Looking Glass).")
+    ex.add_argument("photo", type=Path, help="a 3D photo folder written by make")
+    ex.add_argument("formats", nargs="+", metavar="FORMAT", choices=_NAMES,
+                    help="one or more of: " + ", ".join(_NAMES))
+    ex.add_argument("-o", "--output", type=Path, metavar="FILE",
+                    help="write the one FORMAT given to FILE instead of into the folder")
+    ex.add_argument("--overwrite", action="store_true",
+                    help="with -o: replace FILE if it exists")
+    ex.add_argument("--merge", action="store_true",
+                    help="splats: join flat, smooth areas into larger splats (fewer splats)")
+    ex.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
+    ex.set_defaults(run=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run ``photo3d export``; returns the exit status."""
+    from photo3d.export import export_folder
+    from photo3d.export.splats import splat_count
+
+    bar = count_bar(len(set(args.formats)), "export", quiet=args.quiet)
+    t = time.perf_counter()
+    try:
+        written = export_folder(args.photo, args.formats, output=args.output,
+                                overwrite=args.overwrite, merge=args.merge,
+                                progress=lambda stage, fraction: bar.update(
+                                    round(fraction * bar.total) - bar.n))
+    finally:
+        bar.close()
+    if not args.quiet:
+        print(f"exported {len(written)} file(s) in {time.perf_counter() - t:.2f}s:")
+        for path in written:
+            count = splat_count(path)
+            what = f"  {count:,} splats" if count is not None else ""
+            print(f"  {path}  {path.stat().st_size / 1e6:.2f} MB{what}")
+    return 0

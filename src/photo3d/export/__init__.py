@@ -1,0 +1,201 @@
+"""``photo3d export``: a saved 3D photo in the formats people view 3D in today.
+
+* ``splats.ply``: ``splats.ply``, the 3DGS PLY (:mod:`photo3d.export.splats`);
+* ``splats.spz``: ``splats.spz``, Niantic's SPZ (:mod:`photo3d.export.splats`);
+* ``splats.glb``: ``splats.glb``, glTF with ``KHR_gaussian_splatting``
+  (:mod:`photo3d.export.splats`);
+* ``mesh.usdz``: ``mesh.usdz`` for AR Quick Look (:mod:`photo3d.export.usdz`);
+* ``quilt``: ``NAME_qsCOLSxROWSaASPECT.png``, a Looking Glass quilt
+  (:mod:`photo3d.export.quilt`).
+
+:data:`FORMATS` names each format's writer by module path: a writer is imported only
+when asked for, so usd-core is needed only for ``mesh.usdz``. A writer is
+``writer(ldi, path, **options)`` and writes exactly ``path``, atomically.
+
+:func:`export_folder` reads a 3D photo folder's ``photo3d.npz`` and writes the
+formats into the folder, recording each file in ``config.json``'s ``"written"`` list
+as ``render`` records videos (:mod:`photo3d.owned`), so ``make --overwrite`` and a
+later export replace them, and nothing else: a file of the same name that photo3d
+did not write is never replaced.
+"""
+
+from __future__ import annotations
+
+import importlib
+from collections.abc import Callable, Sequence
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+from pathlib import Path
+
+from photo3d.errors import ConfigError, InputError, OutputError
+from photo3d.io.npz import load_npz
+from photo3d.owned import LDI_FILE, claim_files, record_files
+from photo3d.progress import StageProgress
+from photo3d.structures.ldi import LDI
+
+
+@dataclass(frozen=True)
+class Format:
+    """One export format.
+
+    Attributes:
+        name: what users ask for (``"splats.ply"``).
+        module: the module holding its writer (imported only when used).
+        writer: the writer's name in ``module``: ``writer(ldi, path, **options)``
+            writes ``path`` atomically.
+        filename: ``filename(ldi) -> str``, the file's name in a 3D photo folder.
+        options: the keyword options the writer takes (of :func:`export_folder`'s,
+            and ``splats``, the splats built once when several splat formats are
+            written).
+
+    Example:
+        >>> FORMATS["splats.spz"].filename(None)
+        'splats.spz'
+    """
+
+    name: str
+    module: str
+    writer: str
+    filename: Callable[[LDI], str]
+    options: tuple[str, ...] = ()
+
+    def load(self) -> Callable[..., None]:
+        """The writer function (imports its module)."""
+        return getattr(importlib.import_module(self.module), self.writer)
+
+
+def _fixed(name: str) -> Callable[[LDI], str]:
+    return lambda ldi: name
+
+
+def _named_by(module: str, attribute: str) -> Callable[[LDI], str]:
+    """A file name defined in ``module``: a string, or a function of the LDI."""
+    def filename(ldi: LDI) -> str:
+        value = getattr(importlib.import_module(module), attribute)
+        return value(ldi) if callable(value) else value
+
+    return filename
+
+
+_SPLATS = "photo3d.export.splats"
+_SPLAT_OPTIONS = ("merge", "splats")  # splats: built once for several splat formats
+FORMATS: dict[str, Format] = {
+    "splats.ply": Format("splats.ply", _SPLATS, "write_ply", _fixed("splats.ply"), _SPLAT_OPTIONS),
+    "splats.spz": Format("splats.spz", _SPLATS, "write_spz", _fixed("splats.spz"), _SPLAT_OPTIONS),
+    "splats.glb": Format("splats.glb", _SPLATS, "write_glb", _fixed("splats.glb"), _SPLAT_OPTIONS),
+    "mesh.usdz": Format("mesh.usdz", "photo3d.export.usdz", "write_usdz",
+                        _named_by("photo3d.export.usdz", "USDZ_NAME")),
+    "quilt": Format("quilt", "photo3d.export.quilt", "write_quilt",
+                    _named_by("photo3d.export.quilt", "quilt_filename")),
+}
+"""The export formats by name, in the order ``photo3d export --help`` lists them."""
+
+
+def export_folder(folder: str | Path, formats: Sequence[str], *,
+                  output: str | Path | None = None, overwrite: bool = False,
+                  merge: bool = False, progress: StageProgress | None = None) -> list[Path]:
+    """Write ``formats`` of the 3D photo saved in ``folder``.
+
+    Args:
+        folder: a 3D photo folder (``photo3d make``'s output).
+        formats: names from :data:`FORMATS` (repeats are written once).
+        output: write the one format asked for to this file instead of into the
+            folder (nothing is recorded).
+        overwrite: replace ``output`` if it exists (files in the folder are
+            replaced when photo3d wrote them, whatever this says).
+        merge: splat formats: join flat, smooth areas into larger splats
+            (:func:`photo3d.export.splats.build_splats`).
+        progress: ``progress("export", fraction)`` after each file.
+
+    The files are written two at a time (the machine's cores), each atomically, and
+    recorded as each is in place, so an error leaves the files finished before it
+    recorded and nothing half-written.
+
+    Returns:
+        The files written, in the order of ``formats``.
+
+    Raises:
+        ConfigError: an unknown format, no format, or several with ``output``.
+        InputError: no 3D photo in ``folder`` (or a damaged one).
+        OutputError: a file to write is a symbolic link, or exists and photo3d did
+            not write it (``output``: exists, without ``overwrite``); nothing is
+            written then.
+
+    Example:
+        >>> import numpy as np, photo3d, pathlib, tempfile
+        >>> photo = photo3d.make(np.full((16, 16, 3), 0.5), depth=np.ones((16, 16)),
+        ...                      config=photo3d.Config(size=None))
+        >>> out = photo.save(pathlib.Path(tempfile.mkdtemp()) / "out", viewer=False)
+        >>> [p.name for p in export_folder(out, ["splats.spz", "splats.ply"])]
+        ['splats.spz', 'splats.ply']
+        >>> from photo3d.owned import recorded_files
+        >>> sorted(recorded_files(out))
+        ['splats.ply', 'splats.spz']
+    """
+    chosen = check_formats(formats, output=output)
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise InputError(f"no 3D photo folder at {folder}")
+    if output is not None:
+        output = Path(output)
+        if (output.exists() or output.is_symlink()) and not overwrite:
+            raise OutputError(f"{output} exists; pass overwrite (--overwrite) to replace it")
+    if not (folder / LDI_FILE).is_file():
+        raise InputError(f"no 3D photo in {folder} (it has no {LDI_FILE})")
+    ldi, _ = load_npz(folder / LDI_FILE)
+    targets = [output] if output is not None else [folder / f.filename(ldi) for f in chosen]
+    if output is None:
+        claim_files(folder, [t.name for t in targets])  # before writing anything
+    options: dict[str, object] = {"merge": merge}
+    if sum(f.module == _SPLATS for f in chosen) > 1:  # build the splats once
+        from photo3d.export.splats import build_splats
+
+        options["splats"] = build_splats(ldi, merge=merge)
+    written: list[Path] = []
+    with ThreadPoolExecutor(max_workers=2) as pool:  # zlib, numpy and writes run on
+        jobs = [pool.submit(fmt.load(), ldi, target,  # both cores
+                            **{k: options[k] for k in fmt.options if k in options})
+                for fmt, target in zip(chosen, targets, strict=True)]
+        error = None
+        for job, target in zip(jobs, targets, strict=True):
+            try:
+                job.result()
+            except BaseException as err:  # noqa: B036 - raised below, once all are done
+                error = error or err
+                continue
+            if output is None:
+                record_files(folder, [target.name])  # as each file is in place
+            written.append(target)
+            if progress:
+                progress("export", len(written) / len(targets))
+    if error is not None:
+        raise error
+    return written
+
+
+def check_formats(formats: Sequence[str], *, output: str | Path | None = None
+                  ) -> list[Format]:
+    """The :class:`Format` of each name in ``formats``, repeats dropped.
+
+    Raises:
+        ConfigError: an unknown name (one line listing the known ones), no name,
+            or more than one with ``output``.
+
+    Example:
+        >>> [f.name for f in check_formats(["splats.ply", "splats.ply", "quilt"])]
+        ['splats.ply', 'quilt']
+        >>> check_formats(["splats.obj"])
+        Traceback (most recent call last):
+        photo3d.errors.ConfigError: unknown export format 'splats.obj'; choose from splats.ply, ...
+    """
+    unknown = [name for name in formats if name not in FORMATS]
+    if unknown:
+        raise ConfigError(f"unknown export format {unknown[0]!r}; choose from "
+                          + ", ".join(FORMATS))
+    chosen = [FORMATS[name] for name in dict.fromkeys(formats)]
+    if not chosen:
+        raise ConfigError("no export format given; choose from " + ", ".join(FORMATS))
+    if output is not None and len(chosen) > 1:
+        raise ConfigError(f"-o/output takes one format, got {len(chosen)}: "
+                          + ", ".join(f.name for f in chosen))
+    return chosen
