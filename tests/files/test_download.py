@@ -23,10 +23,19 @@ DIGEST = hashlib.sha256(CONTENT).hexdigest()
 
 
 class Handler(http.server.SimpleHTTPRequestHandler):
-    """Serves the folder; ``/cut/NAME`` announces NAME's full size but sends half."""
+    """Serves the folder; ``/cut/NAME`` announces NAME's full size but sends half;
+    ``/endless/NAME`` sends zeros, without a size, until the client hangs up."""
 
     def do_GET(self):
         self.server.requests.append(self.path)
+        if self.path.startswith("/endless/"):  # a mirror that never stops sending
+            self.send_response(200)
+            self.end_headers()
+            with contextlib.suppress(OSError):  # until the client hangs up
+                while True:
+                    self.wfile.write(bytes(1 << 16))
+            self.close_connection = True
+            return None
         if not self.path.startswith("/cut/"):
             return super().do_GET()
         data = (Path(self.directory) / self.path[5:]).read_bytes()
@@ -159,3 +168,38 @@ def test_sha256_of_matches_hashlib(tmp_path):
     path = tmp_path / "a.bin"
     path.write_bytes(CONTENT)
     assert dl.sha256_of(path) == DIGEST
+
+
+def _stop_at(limit: int):
+    """A progress callback that fails the test once ``limit`` bytes arrived (so code
+    without a cap fails instead of filling the disk)."""
+    def progress(*args):
+        if args[-2] > limit:
+            pytest.fail(f"the download went on past {limit} bytes")
+    return progress
+
+
+def test_a_download_larger_than_its_cap_is_refused_and_leaves_nothing(server, tmp_path):
+    url, _, requests = server
+    target = tmp_path / "cache" / "w.bin"
+    with pytest.raises(InputError, match=r"^refused .*/weights.bin: larger than 1000 bytes"):
+        dl.download(f"{url}/weights.bin", target, sha256=DIGEST, max_bytes=1000,
+                    progress=_stop_at(0))  # its size is announced: refused before any byte
+    with pytest.raises(InputError, match=r"^refused .*/endless/w.bin: larger than 3 MB"):
+        dl.download(f"{url}/endless/w.bin", target, sha256=DIGEST, max_bytes=3 * 10**6,
+                    progress=_stop_at(4 * 10**6))
+    assert not target.exists() and list(target.parent.iterdir()) == []
+
+
+def test_the_authors_weights_from_a_mirror_that_never_ends_are_refused(server, tmp_path,
+                                                                       monkeypatch):
+    from photo3d.nets import authors
+
+    url, _, _ = server
+    monkeypatch.setenv("PHOTO3D_CACHE", str(tmp_path / "cache"))
+    monkeypatch.setenv(authors.URL_ENV, f"{url}/endless")
+    monkeypatch.setattr(authors, "MAX_BYTES", 2 * 10**6, raising=False)
+    with pytest.raises(InputError, match=r"larger than 2 MB.*nothing was saved") as err:
+        authors.authors_weights(progress=_stop_at(20 * 10**6))  # before: until the disk fills
+    assert str(err.value).count("\n") == 0
+    assert list((tmp_path / "cache" / "authors").iterdir()) == []

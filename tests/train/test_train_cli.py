@@ -38,7 +38,8 @@ def test_two_steps_then_resume(folder, tmp_path, kind, capsys):
     out = capsys.readouterr().out
     assert "data: 4 photos (3 with depth)" in out and "trained 2 steps" in out
     assert {p.name for p in run.iterdir()} == {
-        "checkpoints", "config.json", "data", f"{kind}.safetensors", "losses.csv", "samples"}
+        "checkpoints", "checkpoints.json", "config.json", "data", f"{kind}.safetensors",
+        "losses.csv", "samples"}
     assert main([*args, "--steps", "3", "-q"]) == 0
     assert capsys.readouterr().out == ""
     with open(run / "losses.csv", newline="") as f:

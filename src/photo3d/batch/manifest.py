@@ -13,21 +13,30 @@ File names are bytes on POSIX: a name that is not UTF-8 (``caf\\xe9.jpg`` from a
 old Latin-1 disk) is written with its undecodable bytes as ``\\xNN`` escapes
 (:func:`json_text`), so the manifest stays valid UTF-8 JSON. The manifest is read
 leniently (:func:`read_records`): a line that is not a well-formed record is left
-out and reported, and its photo is made again.
+out and reported, and its photo is made again. But a manifest photo3d did not write
+is never rewritten: a line that is neither a record (a JSON object with a ``name``
+and only the keys above, well-formed or not) nor one cut short by a crash (the start
+of a line photo3d writes, ``{"name": ``) makes the batch refuse in one line, before
+any work (:func:`check_manifest`).
 """
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 from photo3d.errors import OutputError
-from photo3d.files.atomic import write_text
+from photo3d.files.atomic import refuse_symlink, write_text
 
 MANIFEST = "batch.jsonl"
 STATUSES = ("ok", "failed", "skipped")
+RECORD_KEYS = ("name", "status", "error", "seconds", "output", "depth", "warnings", "worker")
+"""The keys of a manifest record, in the order photo3d writes them."""
+_LINK_HINT = "remove it, or choose another output folder"
+_HEAD = '{"name": '  # how every line photo3d writes starts (PhotoResult.to_json)
 
 
 def json_text(text: str) -> str:
@@ -137,11 +146,41 @@ class ManifestRecords:
         records: the newest well-formed record of each photo, by (JSON) name.
         bad: names whose newest record is not well-formed (to make again).
         problems: one line per line left out (``line 3: not JSON``).
+        foreign: one line per line photo3d did not write (``line 1: a JSON list``):
+            if there is any, the file is not a photo3d manifest.
     """
 
     records: dict[str, dict]
     bad: frozenset[str] = frozenset()
     problems: tuple[str, ...] = ()
+    foreign: tuple[str, ...] = ()
+
+
+def foreign_line(line: str, record: object) -> str | None:
+    """Why a manifest ``line`` (parsed as ``record``, or None if it is not JSON) is not
+    one photo3d wrote, or None if it may be: a record, even damaged (a JSON object with
+    a string ``name`` and only :data:`RECORD_KEYS`), or a line cut short by a crash
+    (not JSON, starting like every line photo3d writes).
+
+    Example:
+        >>> [foreign_line(t, None) for t in ('{"name": "a", "sta', '{"na', 'my notes')]
+        [None, None, 'not JSON, nor the start of a record']
+        >>> foreign_line('{"id": 3}', {"id": 3})
+        "a JSON object with the key 'id', not a record"
+    """
+    if record is None:
+        head = line.strip()
+        if head.startswith(_HEAD) or (head and _HEAD.startswith(head)):
+            return None
+        return "not JSON, nor the start of a record"
+    if not isinstance(record, dict):
+        return f"a JSON {type(record).__name__}, not a record"
+    extra = sorted(set(record) - set(RECORD_KEYS))
+    if extra:
+        return f"a JSON object with the key {extra[0][:40]!r}, not a record"
+    if not isinstance(record.get("name"), str):
+        return "a JSON object without a name, not a record"
+    return None
 
 
 def read_records(path: str | Path) -> ManifestRecords:
@@ -149,7 +188,8 @@ def read_records(path: str | Path) -> ManifestRecords:
 
     A line that is not JSON (cut short by a crash, edited by hand) or not a
     well-formed record (:func:`record_problem`) is a problem; if it names a photo,
-    that photo is in ``bad`` unless a later good line replaces it.
+    that photo is in ``bad`` unless a later good line replaces it. A line photo3d
+    did not write (:func:`foreign_line`) is also listed in ``foreign``.
 
     Example:
         >>> import tempfile
@@ -164,6 +204,7 @@ def read_records(path: str | Path) -> ManifestRecords:
     records: dict[str, dict] = {}
     bad: set[str] = set()
     problems: list[str] = []
+    foreign: list[str] = []
     if not path.is_file() or path.is_symlink():
         return ManifestRecords(records)
     try:
@@ -175,7 +216,12 @@ def read_records(path: str | Path) -> ManifestRecords:
             continue
         try:
             record = json.loads(line)
-        except ValueError:
+        except (ValueError, RecursionError):
+            record = None
+        why = foreign_line(line, record)
+        if why is not None:
+            foreign.append(f"line {number}: {why}")
+        if record is None:
             problems.append(f"line {number}: not JSON")
             continue
         problem = record_problem(record)
@@ -188,7 +234,35 @@ def read_records(path: str | Path) -> ManifestRecords:
             if isinstance(name, str):
                 records.pop(name, None)
                 bad.add(name)
-    return ManifestRecords(records, frozenset(bad), tuple(problems))
+    return ManifestRecords(records, frozenset(bad), tuple(problems), tuple(foreign))
+
+
+def check_manifest(path: str | Path) -> ManifestRecords:
+    """Read the manifest ``path`` (:func:`read_records`) and refuse one photo3d did not
+    write: a symbolic link, or a file holding a line photo3d does not write.
+
+    Raises:
+        OutputError: one line naming the file and its first foreign line; nothing is
+            written.
+
+    Example:
+        >>> import tempfile
+        >>> p = Path(tempfile.mkdtemp()) / "batch.jsonl"
+        >>> _ = p.write_text('{"id": 1}\\n')
+        >>> try:
+        ...     check_manifest(p)
+        ... except OutputError as err:
+        ...     print(str(err).split(": ", 1)[1])
+        line 1 is a JSON object with the key 'id', not a record: photo3d did not write this file; move it away or choose another output folder (nothing was written)
+    """  # noqa: E501
+    path = Path(path)
+    refuse_symlink(path, hint=_LINK_HINT)
+    found = read_records(path)
+    if found.foreign:
+        where, _, why = found.foreign[0].partition(": ")
+        raise OutputError(f"{path}: {where} is {why}: photo3d did not write this file; move "
+                          "it away or choose another output folder (nothing was written)")
+    return found
 
 
 def read_manifest(path: str | Path) -> dict[str, dict]:
@@ -209,17 +283,6 @@ def read_manifest(path: str | Path) -> dict[str, dict]:
     return read_records(path).records
 
 
-def refuse_symlink(path: Path) -> None:
-    """Refuse a manifest that is a symbolic link (it would be written through it).
-
-    Raises:
-        OutputError: ``path`` is a symbolic link.
-    """
-    if os.path.islink(path):
-        raise OutputError(f"the manifest {path} is a symbolic link; photo3d batch does not "
-                          "write through links (remove it, or choose another output folder)")
-
-
 class ManifestWriter:
     """Appends results to the manifest as they come, and compacts it at the end.
 
@@ -227,12 +290,16 @@ class ManifestWriter:
     an error or Ctrl-C) the manifest is rewritten with one line per photo: the
     well-formed records of earlier runs, updated with this run's.
 
+    A manifest this writer created and never wrote to is removed on exit (a batch
+    that stopped before its first photo leaves no empty manifest behind).
+
     Attributes:
         previous: the earlier runs' records (:class:`ManifestRecords`).
 
     Raises:
-        OutputError: the manifest is a symbolic link, or cannot be opened, appended
-            to (full disk) or rewritten.
+        OutputError: the manifest is a symbolic link or not photo3d's
+            (:func:`check_manifest`), or cannot be opened, appended to (full disk) or
+            rewritten.
 
     Example:
         >>> import tempfile
@@ -247,20 +314,40 @@ class ManifestWriter:
 
     def __init__(self, path: str | Path) -> None:
         self.path = Path(path)
-        refuse_symlink(self.path)
-        self.previous = read_records(self.path)
+        self.previous = check_manifest(self.path)
         self.current: dict[str, dict] = {}
         self._file = None
+        self._created = False
 
     def __enter__(self) -> ManifestWriter:
+        flags = os.O_RDWR | os.O_APPEND | os.O_NOFOLLOW | os.O_CLOEXEC
         try:
-            fd = os.open(self.path, os.O_WRONLY | os.O_APPEND | os.O_CREAT | os.O_NOFOLLOW,
-                         0o666)
+            try:
+                fd = os.open(self.path, flags | os.O_CREAT | os.O_EXCL, 0o666)
+                self._created = True
+            except FileExistsError:
+                fd = os.open(self.path, flags)
             self._file = open(fd, "a", encoding="utf-8")  # noqa: SIM115
+            size = os.fstat(fd).st_size
+            if size and os.pread(fd, 1, size - 1) != b"\n":
+                self._file.write("\n")  # a line cut short by a crash stays a line of its own
         except OSError as err:
+            self._abandon()
             raise OutputError(f"cannot write the manifest {self.path}: "
                               f"{err.strerror or err}") from None
         return self
+
+    def _abandon(self) -> None:
+        """Close the file; remove it if this writer created it and wrote nothing."""
+        try:
+            if self._file is not None:
+                self._file.close()
+        except OSError:
+            pass
+        if self._created and not self.current:
+            with contextlib.suppress(OSError):
+                if os.lstat(self.path).st_size == 0:
+                    os.unlink(self.path)
 
     def add(self, result: PhotoResult) -> None:
         """Record one result now (appended and flushed to disk).
@@ -279,15 +366,14 @@ class ManifestWriter:
                               f"{err.strerror or err}") from None
 
     def __exit__(self, exc_type, exc, tb) -> None:
-        try:
-            self._file.close()
-        except OSError:
-            pass  # the buffered tail is rewritten just below
+        self._abandon()  # the buffered tail, if it could not be written, is rewritten below
+        if self._created and not self.current:
+            return
         merged = {**self.previous.records, **self.current}
         text = "".join(json.dumps(merged[name], ensure_ascii=False) + "\n"
                        for name in sorted(merged))
         try:
-            refuse_symlink(self.path)
+            refuse_symlink(self.path, hint=_LINK_HINT)
             write_text(self.path, text)
         except (OSError, OutputError) as err:
             if exc is None:  # else the error already on its way says what went wrong

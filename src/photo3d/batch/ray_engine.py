@@ -26,6 +26,7 @@ import logging
 import os
 import re
 import signal
+import socket
 import time
 from collections import deque
 from collections.abc import Callable, Sequence
@@ -40,7 +41,17 @@ _SIGNALS = tuple(getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP
                  if hasattr(signal, name))
 
 
-def _ray():
+def require_ray():
+    """The ``ray`` module, or :class:`~photo3d.errors.MissingExtra` naming the extra.
+
+    Example:
+        >>> try:
+        ...     ok = require_ray().__name__ == "ray"
+        ... except ImportError as err:  # Ray is an extra
+        ...     ok = "photo3d[ray]" in str(err)
+        >>> ok
+        True
+    """
     return require("ray", "ray", purpose="--engine ray", package="Ray")
 
 
@@ -62,6 +73,10 @@ class _Actor:
             return PhotoResult(job.name, "failed", self.error, 0.0, str(Path(out_dir) / job.name))
         return self.maker(job, Path(out_dir))
 
+    def where(self) -> tuple[str, int]:
+        """``(host name, process id)`` of this actor."""
+        return socket.gethostname(), os.getpid()
+
 
 def connect(address: str | None = None, *, local_cpus: int | None = None) -> str:
     """Connect to Ray (``address``, else ``RAY_ADDRESS``, else a new local Ray).
@@ -73,7 +88,7 @@ def connect(address: str | None = None, *, local_cpus: int | None = None) -> str
         ``"running"`` (Ray was initialized already), ``"local"`` or the address
         connected to.
     """
-    ray = _ray()
+    ray = require_ray()
     address = address or os.environ.get("RAY_ADDRESS") or None
     if ray.is_initialized():
         return "running"
@@ -121,7 +136,7 @@ def run_ray(jobs: Sequence[PhotoJob], out_dir: Path, options: MakeOptions, *,
     """
     if workers is not None and workers < 1:
         raise ConfigError(f"--workers must be at least 1, got {workers}")
-    ray = _ray()
+    ray = require_ray()
     started = connect(address, local_cpus=workers)
     try:
         cpus = int(ray.cluster_resources().get("CPU", 1))
@@ -152,33 +167,50 @@ def _why(err: BaseException) -> str:
 
 
 class _Pool:
-    """``count`` actors, one photo at a time each; a dead actor is replaced."""
+    """``count`` actors, one photo at a time each; a dead actor is replaced.
+
+    Stopping (Ctrl-C, SIGTERM, an error) kills every actor and waits until their
+    processes are gone before removing what the photos in flight had staged: an actor
+    that was still starting its photo when the kill was sent must not create its
+    temporary folder after that removal. Each actor reports its host and process id
+    first (:meth:`_Actor.where`, run before any photo: an actor runs its tasks in the
+    order they were sent), which is how its end is seen on this host.
+    """
 
     def __init__(self, ray, actor, count: int, args: tuple) -> None:
         self.ray, self.actor, self.count, self.args = ray, actor, count, args
+        self.started: dict = {}  # actor handle -> ObjectRef of its where()
+
+    def _start(self):
+        actor = self.actor.remote(*self.args)
+        self.started[actor] = actor.where.remote()
+        return actor
 
     def run(self, jobs: Sequence[PhotoJob], out: Path,
             on_result: Callable[[PhotoResult], None]) -> None:
         ray = self.ray
         queue = deque(jobs)
-        idle = [self.actor.remote(*self.args) for _ in range(self.count)]
         running: dict = {}  # ObjectRef -> (actor, job)
+        sending: list[PhotoJob] = []  # a job being sent (not in running yet)
         deaths: dict[str, int] = {}
         try:
+            idle = [self._start() for _ in range(self.count)]
             while queue or running:
                 while queue and idle:
-                    actor, job = idle.pop(), queue.popleft()
-                    running[actor.make.remote(job, str(out))] = (actor, job)
+                    sending[:] = [queue[0]]  # until it is in running: see _stop
+                    ref = idle[-1].make.remote(queue[0], str(out))
+                    running[ref] = (idle.pop(), queue.popleft())
+                    sending.clear()
                 done, _ = ray.wait(list(running), num_returns=1)
                 for ref in done:
                     actor, job = running[ref]  # until recorded: see _stop
                     try:
                         result = ray.get(ref)
                     except ray.exceptions.RayError as err:  # its actor died (memory, crash)
-                        del running[ref]
-                        ray.kill(actor)
+                        self._kill([actor])
                         discard_partial(out / job.name)
-                        idle.append(self.actor.remote(*self.args))
+                        del running[ref]
+                        idle.append(self._start())
                         deaths[job.name] = deaths.get(job.name, 0) + 1
                         if deaths[job.name] < 2:
                             queue.appendleft(job)  # again, on a new actor
@@ -191,15 +223,14 @@ class _Pool:
                         idle.append(actor)
                     on_result(result)
         except BaseException:
-            self._stop(running, out, on_result)
-            for actor in idle:
-                ray.kill(actor)
+            self._stop(running, sending, out, on_result)
             raise
 
-    def _stop(self, running: dict, out: Path, on_result: Callable[[PhotoResult], None]) -> None:
-        """Record the photos that finished meanwhile, kill the actors, clean up the rest."""
+    def _stop(self, running: dict, sending: list[PhotoJob], out: Path,
+              on_result: Callable[[PhotoResult], None]) -> None:
+        """Record the photos that finished meanwhile, kill every actor, wait for them to
+        be gone, then remove what the others had staged."""
         ray = self.ray
-        actors = [actor for actor, _ in running.values()]
         try:
             refs = list(running)
             done = ray.wait(refs, num_returns=len(refs), timeout=0)[0] if refs else []
@@ -211,9 +242,61 @@ class _Pool:
                 running.pop(ref)
                 on_result(result)
         finally:
-            for actor in actors:
-                ray.kill(actor)
-            if running:
-                time.sleep(1.0)  # ray.kill returns before the actor processes are gone
-            for _, job in running.values():
+            started = dict(self.started)
+            self._kill(list(started))
+            self._wait_gone(started.values(), deadline=time.monotonic() + _GONE_S)
+            for job in [*(job for _, job in running.values()), *sending]:
                 discard_partial(out / job.name)
+
+    def _kill(self, actors: list) -> None:
+        for actor in actors:
+            self.started.pop(actor, None)
+            self.ray.kill(actor)
+
+    def _wait_gone(self, where_refs, *, deadline: float) -> None:
+        """Wait (until ``deadline``) for the processes of killed actors to end.
+
+        An actor whose ``where()`` never ran made no photo. Ray's kill returns before the
+        process is gone; an actor on another host is given :data:`_REMOTE_S` seconds.
+        """
+        ray, host, remote = self.ray, socket.gethostname(), False
+        for ref in where_refs:
+            try:
+                name, pid = ray.get(ref, timeout=max(0.0, deadline - time.monotonic()))
+            except ray.exceptions.RayError:  # killed before it ran: no photo started
+                continue
+            if name != host:
+                remote = True
+                continue
+            while _alive(pid) and time.monotonic() < deadline:
+                time.sleep(0.02)
+        if remote:
+            time.sleep(_REMOTE_S)
+
+
+_GONE_S = 30.0
+"""Longest wait for killed actors' processes to end before cleaning up."""
+_REMOTE_S = 1.0
+"""Wait after killing actors on other hosts (their processes cannot be watched)."""
+
+
+def _alive(pid: int) -> bool:
+    """Whether process ``pid`` of this host still runs (a zombie does not).
+
+    Example:
+        >>> _alive(os.getpid())
+        True
+    """
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    try:
+        with open(f"/proc/{pid}/stat", "rb") as f:
+            return f.read().rpartition(b")")[2].split()[0] != b"Z"
+    except FileNotFoundError:  # gone meanwhile (no /proc at all: os.kill said it runs)
+        return not os.path.isdir("/proc")
+    except (OSError, IndexError):
+        return True

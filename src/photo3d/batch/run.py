@@ -15,8 +15,8 @@ from photo3d.batch.manifest import (
     ManifestRecords,
     ManifestWriter,
     PhotoResult,
+    check_manifest,
     json_text,
-    refuse_symlink,
 )
 from photo3d.batch.worker import discard_partial
 from photo3d.errors import ConfigError, OutputError
@@ -53,7 +53,8 @@ class BatchSummary:
 
 def check_out_dir(out: Path) -> Path:
     """Create the batch's output folder if needed; refuse one that cannot be written,
-    or whose manifest is a symbolic link."""
+    or whose manifest is a symbolic link or a file photo3d did not write
+    (:func:`~photo3d.batch.manifest.check_manifest`)."""
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise OutputError(f"output {out} exists and is not a folder")
@@ -63,7 +64,7 @@ def check_out_dir(out: Path) -> Path:
         raise OutputError(f"cannot create output folder {out}: {err.strerror or err}") from None
     if not os.access(out, os.W_OK | os.X_OK):
         raise OutputError(f"output folder {out} is not writable")
-    refuse_symlink(out / MANIFEST)
+    check_manifest(out / MANIFEST)
     return out
 
 
@@ -107,8 +108,8 @@ def run_batch(jobs: Sequence[PhotoJob], out: str | Path, options: MakeOptions | 
         >>> import tempfile, numpy as np
         >>> from photo3d.batch import find_photos
         >>> from photo3d.config import Config
-        >>> from photo3d.io.images import write_image
         >>> from photo3d.save_options import SaveOptions
+        >>> from photo3d.io.images import write_image
         >>> d = Path(tempfile.mkdtemp()); (d / "depth").mkdir()
         >>> write_image(d / "a.png", np.full((32, 32, 3), 0.5, np.float32))
         >>> np.save(d / "depth" / "a.npy", np.ones((32, 32), np.float32))
@@ -126,6 +127,10 @@ def run_batch(jobs: Sequence[PhotoJob], out: str | Path, options: MakeOptions | 
     if workers is not None and workers < 1:
         raise ConfigError(f"--workers must be at least 1, got {workers}")
     options = options or MakeOptions()
+    if engine == "ray":
+        from photo3d.batch.ray_engine import require_ray
+
+        require_ray()  # before anything is written
     out = check_out_dir(Path(out))
     start = time.perf_counter()
     results: dict[str, PhotoResult] = {}  # by job name: every photo ends up here once

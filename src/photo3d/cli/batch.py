@@ -88,6 +88,10 @@ def run_batch_command(args: argparse.Namespace) -> int:
         raise ConfigError(f"--workers must be at least 1, got {args.workers}")
     if args.ray_address and args.engine != "ray":
         raise ConfigError("--ray-address only applies to --engine ray")
+    if args.engine == "ray":
+        from photo3d.batch.ray_engine import require_ray
+
+        require_ray()  # without Ray: one line, before OUT is created
     options = make_options(args)  # the same options as make, read in the same place
     prepare(options)  # bad names, weights, memory or OpenGL: refused before any work
     jobs = find_photos(args.input, depth=args.depth, recursive=args.recursive, skip=args.out)

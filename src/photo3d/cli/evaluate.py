@@ -44,8 +44,9 @@ def add_parser(sub) -> None:
                     "downloaded once; 'random': the authors' architectures with random "
                     "weights)")
     ev.add_argument("--no-lpips", action="store_true", help="skip LPIPS (needs torch)")
-    ev.add_argument("-o", "--out", type=Path, default=Path("out/eval"),
-                    help="results folder (default out/eval; must not exist or be empty)")
+    ev.add_argument("-o", "--out", type=Path,
+                    help="results folder (must not exist or be empty; default: a new one, "
+                         "the first free one of out/eval, out/eval-2, ...)")
     ev.add_argument("--overwrite", action="store_true",
                     help="replace the results eval wrote in an existing --out folder "
                          "(other files there are left alone)")
@@ -67,7 +68,8 @@ def run(args: argparse.Namespace) -> int:
     methods = _chosen(args.methods, _methods())
     if args.synthetic is not None and not 1 <= args.synthetic <= 1000:
         raise Photo3DError(f"--synthetic must be between 1 and 1000, got {args.synthetic}")
-    check_results_folder(args.out, overwrite=args.overwrite)
+    if args.out is not None:
+        check_results_folder(args.out, overwrite=args.overwrite)
     weights = weights_folder(args.weights, quiet=args.quiet)  # 'authors': downloaded once
     if args.pair:
         for given in args.pair:
@@ -83,7 +85,7 @@ def run(args: argparse.Namespace) -> int:
         if not args.quiet:
             print(f"  {msg}", file=sys.stderr)
 
-    missing = [p for p in (args.out, *args.out.parents) if not p.exists()]
+    missing = _claim_out(args)
     try:
         record = run_eval(pairs, args.out, methods=methods, weights=weights,
                           overwrite=args.overwrite,
@@ -127,10 +129,11 @@ def _heldout(args: argparse.Namespace) -> int:
     methods = _chosen(args.methods, [*available(), "replicate"])
     if not 1 <= args.per_photo <= 100:
         raise Photo3DError(f"--per-photo must be between 1 and 100, got {args.per_photo}")
-    check_results_folder(args.out, overwrite=args.overwrite)
+    if args.out is not None:
+        check_results_folder(args.out, overwrite=args.overwrite)
     weights = weights_folder(args.weights, quiet=args.quiet)  # 'authors': downloaded once
     photos = photo_files(args.heldout)
-    missing = [p for p in (args.out, *args.out.parents) if not p.exists()]
+    missing = _claim_out(args)
     try:
         try:
             args.out.mkdir(parents=True, exist_ok=True)
@@ -154,6 +157,20 @@ def _heldout(args: argparse.Namespace) -> int:
         print(f"written: {args.out}/results.json, results.md")
         _say_kept(args.out, ["results.json", "results.md"])
     return 0
+
+
+def _claim_out(args: argparse.Namespace) -> list[Path]:
+    """Without ``-o``: create the run's own results folder (out/eval, out/eval-2, ...)
+    and say which. Returns the folders this run creates, the outermost last, which a
+    failed run removes."""
+    if args.out is not None:
+        return [p for p in (args.out, *args.out.parents) if not p.exists()]
+    from photo3d.eval.report import new_results_folder
+
+    args.out, outermost = new_results_folder()
+    if not args.quiet:
+        print(f"results folder: {args.out}", file=sys.stderr)
+    return [args.out, outermost]
 
 
 def _say_kept(out: Path, written: Sequence[str]) -> None:

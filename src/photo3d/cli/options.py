@@ -207,10 +207,34 @@ def videos_from(args: argparse.Namespace) -> list:
     from photo3d.render.paths import STANDARD_PATHS
 
     paths = args.paths or list(STANDARD_PATHS)
-    return [VideoSpec(path=p, size=args.video_size, fps=args.fps, frames=args.frames,
-                      format=args.format, stereo=args.stereo,
-                      eye_separation=args.eye_separation, eye_order=args.eye_order)
-            for p in paths]
+    videos = [VideoSpec(path=p, size=args.video_size, fps=args.fps, frames=args.frames,
+                        format=args.format, stereo=args.stereo,
+                        eye_separation=args.eye_separation, eye_order=args.eye_order)
+              for p in paths]
+    if not getattr(args, "still", False):  # a still is a PNG: no encoder limit
+        check_video_sizes([v for v in videos if v.size is not None])  # before any work
+    return videos
+
+
+def check_video_sizes(videos, photo_size: tuple[int, int] | None = None) -> None:
+    """Refuse a video its encoder would not open (``--stereo sbs`` doubles the width),
+    before any work. ``photo_size``: ``(width, height)`` of the photo, the size of
+    videos without one (None: check only videos with a size).
+
+    Raises:
+        ConfigError: one line (:func:`photo3d.io.video.check_video_size`).
+    """
+    from photo3d.io.video import check_video_size
+
+    for spec in videos:
+        width, height = spec.size or photo_size
+        if spec.stereo != "sbs":
+            check_video_size((width, height), spec.format)
+            continue
+        try:
+            check_video_size((2 * width, height), spec.format)
+        except ConfigError as err:
+            raise ConfigError(f"--stereo sbs doubles the width: {err}") from None
 
 
 def render_settings_from(args: argparse.Namespace):

@@ -3,10 +3,17 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
+import os
 import time
 from pathlib import Path
 
-from photo3d.cli.options import add_video_options, render_settings_from, videos_from
+from photo3d.cli.options import (
+    add_video_options,
+    check_video_sizes,
+    render_settings_from,
+    videos_from,
+)
 from photo3d.cli.progress import StageBar
 
 
@@ -27,15 +34,23 @@ def run(args: argparse.Namespace) -> int:
     from photo3d.output import write_videos
     from photo3d.photo import load
 
+    videos = videos_from(args)  # checks the videos with a size against their encoder
     photo = load(args.photo)
-    videos = videos_from(args)
     if args.still:
         return _still(args, photo, videos[0])
+    check_video_sizes(videos, (photo.ldi.width // 2 * 2, photo.ldi.height // 2 * 2))
+    folder = args.photo / "video"
+    new_folder = not os.path.lexists(folder)
     bar = StageBar(args.quiet)
     t = time.perf_counter()
     try:
         written = write_videos(photo, None, args.photo, videos,
                                settings=render_settings_from(args), progress=bar)
+    except BaseException:
+        if new_folder:  # created by this render, which wrote nothing there
+            with contextlib.suppress(OSError):
+                folder.rmdir()
+        raise
     finally:
         bar.close()
     if not args.quiet:

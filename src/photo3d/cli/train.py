@@ -3,10 +3,11 @@
 from __future__ import annotations
 
 import argparse
+import errno
 from pathlib import Path
 
 from photo3d.cli.progress import count_bar
-from photo3d.errors import ConfigError, require
+from photo3d.errors import ConfigError, OutputError, require
 
 
 def add_parser(sub) -> None:
@@ -92,7 +93,26 @@ _TRAIN_OPTIONS = ("arch", "width", "channels", "levels", "blocks", "edges", "siz
 
 
 def run(args: argparse.Namespace) -> int:
-    """Run ``photo3d train``; returns the exit status."""
+    """Run ``photo3d train``; returns the exit status.
+
+    Raises:
+        OutputError: the disk filled up or is read-only (one line naming the run
+            folder; what was written so far is a run the next invocation resumes).
+    """
+    try:
+        return _run(args)
+    except OSError as err:
+        if err.errno not in _DISK_ERRORS:
+            raise
+        raise OutputError(f"cannot write in the run folder {args.out}: "
+                          f"{err.strerror or err}") from None
+
+
+_DISK_ERRORS = (errno.ENOSPC, errno.EDQUOT, errno.EROFS)
+"""Write errors of the disk itself (any other OSError is not turned into one line here)."""
+
+
+def _run(args: argparse.Namespace) -> int:
     torch = require("torch", "learned", purpose="photo3d train", package="PyTorch")
     from photo3d.train import (
         TrainConfig,
@@ -102,7 +122,8 @@ def run(args: argparse.Namespace) -> int:
         train,
         write_builtin,
     )
-    from photo3d.train.run import check_run, checkpoints, open_run
+    from photo3d.train.bounds import check_request
+    from photo3d.train.run import check_checkpoints, check_run, checkpoints, open_run
 
     options = {k: getattr(args, k) for k in _TRAIN_OPTIONS if getattr(args, k) is not None}
     config = TrainConfig(args.kind, **options)
@@ -114,12 +135,16 @@ def run(args: argparse.Namespace) -> int:
         raise ConfigError("--device cuda: no CUDA device is available")
     if args.shape_scenes is not None and args.shape_scenes < 0:
         raise ConfigError(f"--shape-scenes must be at least 0, got {args.shape_scenes}")
+    if args.builtin_scenes < 0:
+        raise ConfigError(f"--builtin-scenes must be at least 0, got {args.builtin_scenes}")
     if args.threads is not None:
         if args.threads < 1:
             raise ConfigError(f"--threads must be at least 1, got {args.threads}")
         torch.set_num_threads(args.threads)
     run = args.out
     check_run(run, config)  # refuses a folder that is not a photo3d run; writes nothing
+    saved = checkpoints(run)
+    check_checkpoints(run, config, start=saved[-1][0] if saved else 0)
     say = (lambda msg: None) if args.quiet else (lambda msg: print(msg, flush=True))
 
     def bar(total: int, desc: str, initial: int = 0):
@@ -128,6 +153,7 @@ def run(args: argparse.Namespace) -> int:
     if args.images == "builtin":
         if args.depth is not None or args.shapes is not None:
             raise ConfigError("--images builtin brings its own depth: drop --depth/--shapes")
+        check_request(config, run, scenes=args.builtin_scenes)  # memory and disk, first
         open_run(run, config)
         folder = run / "builtin"
         if not (folder / "shapes" / "motorcycle.pfm").is_file():  # written last: complete
@@ -140,6 +166,7 @@ def run(args: argparse.Namespace) -> int:
                                     shapes=folder / "shapes")
     else:
         files = find_training_files(Path(args.images), depth=args.depth, shapes=args.shapes)
+        check_request(config, run, files=files, shape_scenes=args.shape_scenes)
         open_run(run, config)  # marks the folder as a run before the data is prepared
     with bar(100, "prepare") as b:
         shapes = {} if args.shape_scenes is None else {"builtin_shapes": args.shape_scenes}

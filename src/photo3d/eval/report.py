@@ -93,6 +93,48 @@ def check_results_folder(out: str | Path, *, overwrite: bool) -> Path:
     return out
 
 
+DEFAULT_OUT = Path("out/eval")
+"""Where ``photo3d eval`` writes without ``-o``: the first free one of ``out/eval``,
+``out/eval-2``, ... (:func:`new_results_folder`)."""
+
+
+def new_results_folder(base: str | Path = DEFAULT_OUT) -> tuple[Path, Path]:
+    """Create and return the first of ``base``, ``base-2``, ``base-3``, ... that does not
+    exist, so that every run gets a folder of its own and none is replaced.
+
+    The folder is created here (``mkdir``, which fails if another run took the name
+    first: then the next name is tried), with its missing parents.
+
+    Returns:
+        ``(folder, outermost)``: the new folder, and the outermost folder this call
+        created (``folder`` or one of its parents), to remove if the run fails.
+
+    Raises:
+        OutputError: one line: no folder can be created there.
+
+    Example:
+        >>> import tempfile
+        >>> root = Path(tempfile.mkdtemp())
+        >>> [new_results_folder(root / "out" / "eval")[0].name for _ in range(3)]
+        ['eval', 'eval-2', 'eval-3']
+    """
+    base = Path(base)
+    missing = [p for p in base.parents if not p.exists()]
+    try:
+        base.parent.mkdir(parents=True, exist_ok=True)
+        for number in range(1, 100_000):
+            folder = base if number == 1 else base.with_name(f"{base.name}-{number}")
+            try:
+                folder.mkdir()
+            except FileExistsError:
+                continue
+            return folder, missing[-1] if missing else folder
+    except OSError as err:
+        raise OutputError(f"cannot create a results folder {base}: "
+                          f"{err.strerror or err}") from None
+    raise OutputError(f"every results folder {base}, {base}-2, ... exists: choose one with -o")
+
+
 def _text(name: str) -> str:
     """A pair ``name`` (a file stem) for UTF-8 text: bytes of a file name that is not
     UTF-8 (held as lone surrogates, :func:`os.fsdecode`) become ``\\xNN`` escapes.

@@ -353,14 +353,15 @@ def check_writable(file: PathLike, *, follow_symlinks: bool = True) -> Path:
     return Path(file)
 
 
-def refuse_symlink(path: PathLike) -> Path:
+def refuse_symlink(path: PathLike, *, hint: str = "") -> Path:
     """Refuse ``path`` if it is a symbolic link (to anything, or to nothing).
 
     For writers that must never write outside their folder: a link placed there
     could point anywhere. Returns ``path`` as a Path.
 
     Raises:
-        OutputError: ``PATH is a symbolic link; photo3d does not write through links``.
+        OutputError: ``PATH is a symbolic link; photo3d does not write through links``
+            (then `` (HINT)`` when a ``hint`` says what to do).
 
     Example:
         >>> import pathlib, tempfile
@@ -374,7 +375,8 @@ def refuse_symlink(path: PathLike) -> Path:
     """
     path = Path(path)
     if path.is_symlink():
-        raise OutputError(f"{path} is a symbolic link; photo3d does not write through links")
+        raise OutputError(f"{path} is a symbolic link; photo3d does not write through links"
+                          + (f" ({hint})" if hint else ""))
     return path
 
 

@@ -39,6 +39,10 @@ CACHE_ENV = "PHOTO3D_CACHE"
 """Environment variable naming the cache folder (default ``~/.cache/photo3d``)."""
 
 
+MAX_BYTES = 2 << 30
+"""The largest download :func:`download` takes by default (2 GiB): a server that never
+stops sending cannot fill the disk."""
+
 _BLOCK = 1 << 20
 
 
@@ -73,7 +77,7 @@ def sha256_of(path: PathLike) -> str:
 
 
 def download(url: str, path: PathLike, *, sha256: str, progress: ByteProgress | None = None,
-             timeout: float = 30.0) -> Path:
+             timeout: float = 30.0, max_bytes: int = MAX_BYTES) -> Path:
     """Download ``url`` to ``path`` (its folder is created), atomically and verified.
 
     The bytes go to a temporary sibling of ``path`` that is renamed over it only once
@@ -89,13 +93,16 @@ def download(url: str, path: PathLike, *, sha256: str, progress: ByteProgress | 
             after every block (1 MB); the library never prints.
         timeout: seconds to wait for the server before giving up (per request, and
             per block read).
+        max_bytes: refuse a file larger than this: at once if the server announces
+            its size, else as soon as more arrives (default :data:`MAX_BYTES`).
 
     Returns:
         ``path``.
 
     Raises:
         InputError: the server cannot be reached or fails (offline?), the transfer
-            stops early, or the content has another SHA-256 (refused); one line.
+            stops early, or the content is larger than ``max_bytes`` or has another
+            SHA-256 (refused: the message starts with ``refused``); one line.
         OutputError: ``path`` cannot be written.
 
     Example:
@@ -108,6 +115,10 @@ def download(url: str, path: PathLike, *, sha256: str, progress: ByteProgress | 
         photo3d.errors.InputError: refused file:///.../w.bin: its SHA-256 is ..., expected 000...
         >>> source.with_name("copy.bin").exists()
         False
+        >>> download(source.as_uri(), source.with_name("copy.bin"), sha256="0" * 64,
+        ...          max_bytes=8)  # doctest: +ELLIPSIS
+        Traceback (most recent call last):
+        photo3d.errors.InputError: refused file:///.../w.bin: larger than 8 bytes, the most expected
     """
     path = Path(path)
     try:
@@ -117,6 +128,8 @@ def download(url: str, path: PathLike, *, sha256: str, progress: ByteProgress | 
     with response:
         length = response.headers.get("Content-Length")
         total = int(length) if length and length.isdigit() else None
+        if total is not None and total > max_bytes:
+            raise InputError(_too_large(url, max_bytes))
         path.parent.mkdir(parents=True, exist_ok=True)
         with atomic_write(path, "wb") as f:
             digest, done = hashlib.sha256(), 0
@@ -130,6 +143,8 @@ def download(url: str, path: PathLike, *, sha256: str, progress: ByteProgress | 
                                      f"{_reason(err)}") from err
                 if not block:
                     break
+                if done + len(block) > max_bytes:  # a server that never stops
+                    raise InputError(_too_large(url, max_bytes))
                 f.write(block)
                 digest.update(block)
                 done += len(block)
@@ -170,6 +185,11 @@ def check_reachable(url: str, *, what: str, timeout: float = 5.0) -> None:
     except (OSError, ValueError):
         raise InputError(f"cannot download {what}: {parts.netloc} is not reachable "
                          "(offline?)") from None
+
+
+def _too_large(url: str, max_bytes: int) -> str:
+    size = f"{max_bytes} bytes" if max_bytes < 10**6 else f"{max_bytes / 1e6:.0f} MB"
+    return f"refused {url}: larger than {size}, the most expected"
 
 
 def _reason(err: BaseException) -> str:

@@ -44,6 +44,11 @@ FOLDER = "authors"
 FILES = {kind: f"{kind}-model.pth" for kind in weights.KINDS}
 """Net kind -> the authors' file name."""
 
+MAX_BYTES = 512 << 20
+"""The largest file accepted from :func:`authors_url` (512 MiB; the largest of the
+authors' files holds 25.8 M float32 parameters, about 103 MB): a mirror that never
+stops sending is refused instead of filling the disk."""
+
 FileProgress = Callable[[str, int, int | None], None]
 """``progress(file name, bytes done, total bytes or None)`` of each download."""
 
@@ -114,7 +119,8 @@ def authors_weights(*, progress: FileProgress | None = None) -> Path:
     for name in missing:
         report = None if progress is None else partial(progress, name)
         try:
-            download(base + name, folder / name, sha256=_expected(name), progress=report)
+            download(base + name, folder / name, sha256=_expected(name), progress=report,
+                     max_bytes=MAX_BYTES)
         except InputError as err:
             raise InputError(_failure(err, name, base, folder)) from err
     return folder

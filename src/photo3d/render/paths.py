@@ -282,6 +282,8 @@ def load_path(path: str | Path, intrinsics: Intrinsics, *, frames: int) -> list[
                                  f"{' '.join(str(err).split())}") from None
         else:
             data = json.loads(text)
+    except InputError:  # the YAML message above, already one line naming the file
+        raise
     except (ValueError, AttributeError) as err:
         raise InputError(f"cannot parse camera path {path}: {err}") from None
     except RecursionError:

@@ -9,6 +9,7 @@
                                   held-out set; photo3d.train.heldout)
     samples/step_0000500.png      inputs | regions | output | target, 4 samples
     checkpoints/step_0000500/     see photo3d.train.trainer (the last 2 are kept)
+    checkpoints.json              the checkpoint folders this run wrote (and kept)
     <kind>.safetensors            the final weights (photo3d make --weights RUN_DIR/..)
 
 Running again in the same folder resumes from the last checkpoint; the step count
@@ -17,6 +18,13 @@ continues and ``steps`` is the total to reach.
 Every file is written atomically (:mod:`photo3d.files.atomic`) and every checkpoint
 folder is staged (:mod:`photo3d.files.staging`), so an interrupted run never leaves
 a half-written one; ``losses.csv`` is appended to, one row per step.
+
+Only checkpoints the run recorded writing (``checkpoints.json``, updated after each
+one is in place) are ever replaced or pruned; anything else in ``checkpoints/`` (a
+user's ``step_0000002_best/``, a symbolic link, checkpoints of a run saved before the
+record existed) is left alone, and a checkpoint name the run would write that is
+taken by something it did not write is refused before the work
+(:func:`check_checkpoints`).
 """
 
 from __future__ import annotations
@@ -25,6 +33,7 @@ import csv
 import dataclasses
 import io
 import json
+import re
 import shutil
 import time
 from collections.abc import Callable
@@ -44,6 +53,9 @@ StepProgress = Callable[[int, int, dict[str, float]], None]
 """``progress(step, total, losses)`` after every optimisation step."""
 KEEP = 2
 """Checkpoints kept in ``checkpoints/``."""
+RECORD = "checkpoints.json"
+"""The list of the checkpoint folders a run wrote (``{"written": ["step_0000500"]}``)."""
+_STEP = re.compile(r"step_([0-9]{7,})")
 
 
 @dataclass(frozen=True)
@@ -78,9 +90,64 @@ def checkpoints(run_dir: str | Path) -> list[tuple[int, Path]]:
     folder = Path(run_dir) / "checkpoints"
     if not folder.is_dir():
         return []
-    found = [(int(p.name.split("_")[1]), p) for p in folder.glob("step_*")
-             if p.is_dir() and p.name.split("_")[1].isdigit() and (p / "state.json").is_file()]
+    found = [(int(m.group(1)), p) for p in folder.glob("step_*")
+             if (m := _STEP.fullmatch(p.name)) and p.is_dir() and (p / "state.json").is_file()]
     return sorted(found)
+
+
+def written_checkpoints(run_dir: str | Path) -> list[str]:
+    """The names of the checkpoint folders the run in ``run_dir`` recorded writing
+    (:data:`RECORD`; none if it is missing or damaged).
+
+    Example:
+        >>> import tempfile
+        >>> written_checkpoints(tempfile.mkdtemp())
+        []
+    """
+    path = Path(run_dir) / RECORD
+    try:
+        if path.is_symlink() or path.stat().st_size > 1 << 20:
+            return []
+        written = json.loads(path.read_text()).get("written")
+    except (OSError, UnicodeDecodeError, ValueError, AttributeError):
+        return []
+    if not isinstance(written, list):
+        return []
+    return [w for w in written if isinstance(w, str) and _STEP.fullmatch(w)]
+
+
+def check_checkpoints(run_dir: str | Path, config: TrainConfig, *, start: int = 0) -> None:
+    """Refuse, before the work, a checkpoint name the run will write that holds
+    something the run did not write (nothing is replaced but its own checkpoints).
+
+    ``start``: the step the run resumes from.
+
+    Raises:
+        OutputError: one line naming the folder.
+
+    Example:
+        >>> import tempfile
+        >>> run = Path(tempfile.mkdtemp())
+        >>> (run / "checkpoints" / "step_0000004").mkdir(parents=True)
+        >>> try:
+        ...     check_checkpoints(run, TrainConfig("depth", levels=3, size=32, steps=4))
+        ... except OutputError as err:
+        ...     print(str(err).split(" exists")[0].endswith("step_0000004"))
+        True
+    """
+    folder = Path(run_dir) / "checkpoints"
+    if not folder.is_dir():
+        return
+    ours = set(written_checkpoints(run_dir))
+    every = config.checkpoint_every
+    for entry in folder.iterdir():
+        m = _STEP.fullmatch(entry.name)
+        if m is None or entry.name in ours:
+            continue
+        step = int(m.group(1))
+        if start < step <= config.steps and (step % every == 0 or step == config.steps):
+            raise OutputError(f"{entry} exists and this run did not write it; move it away "
+                              "(nothing was written)")
 
 
 MARKER = "config.json"
@@ -149,12 +216,26 @@ def open_run(run_dir: str | Path, config: TrainConfig) -> Path:
     The marker is written only in a new run (a run being resumed keeps its config
     until :func:`train` starts), so an interrupted data preparation leaves a folder
     that the next run recognises and resumes. Returns ``run_dir`` as a Path.
+
+    Raises:
+        OutputError: as :func:`check_run`; or the folder or its marker cannot be
+            written (read-only or full disk: one line, and the folders this call
+            created are removed again).
     """
     run_dir = Path(run_dir)
     check_run(run_dir, config)
-    run_dir.mkdir(parents=True, exist_ok=True)
-    if not (run_dir / MARKER).is_file():
-        write_json(run_dir / MARKER, config.to_dict())
+    made = [p for p in (*reversed(run_dir.parents), run_dir) if not p.exists()]
+    try:
+        run_dir.mkdir(parents=True, exist_ok=True)
+        if not (run_dir / MARKER).is_file():
+            write_json(run_dir / MARKER, config.to_dict())
+    except OSError as err:  # a read-only or full disk: one line, no empty folder left
+        _remove_made(made)
+        raise OutputError(f"cannot create the run folder {run_dir}: "
+                          f"{err.strerror or err}") from None
+    except OutputError:
+        _remove_made(made)
+        raise
     return run_dir
 
 
@@ -243,6 +324,8 @@ def train(data: TrainingData, run_dir: str | Path, config: TrainConfig, *,
     Raises:
         InputError: the data cannot train this net.
         ConfigError: ``run_dir`` holds a run with another architecture.
+        OutputError: ``run_dir`` cannot be created, or a checkpoint name the run would
+            write holds something it did not write (:func:`check_checkpoints`).
 
     Example:
         >>> import tempfile
@@ -262,6 +345,7 @@ def train(data: TrainingData, run_dir: str | Path, config: TrainConfig, *,
     run_dir = open_run(run_dir, config)
     trainer = Trainer(config, device=device, features=features)
     saved = checkpoints(run_dir)
+    check_checkpoints(run_dir, config, start=saved[-1][0] if saved else 0)
     start = _resume(trainer, saved[-1]) if saved else 0
     write_json(run_dir / MARKER, config.to_dict())
     log = _LossLog(run_dir / "losses.csv", start)
@@ -317,17 +401,34 @@ def _resume(trainer: Trainer, checkpoint: tuple[int, Path]) -> int:
 
 
 def _checkpoint(trainer: Trainer, run_dir: Path, step: int) -> None:
-    """Write ``checkpoints/step_NNNNNNN/`` (staged, replacing one already there) and
-    keep the last :data:`KEEP`."""
-    folder = run_dir / "checkpoints" / f"step_{step:07d}"
+    """Write ``checkpoints/step_NNNNNNN/`` (staged, replacing only a checkpoint this run
+    wrote), record it, and keep the last :data:`KEEP` of those the run recorded."""
+    name = f"step_{step:07d}"
+    folder = run_dir / "checkpoints" / name
+    written = written_checkpoints(run_dir)
+
+    def owned(existing: Path) -> list[str]:
+        return [] if name in written and not folder.is_symlink() else [
+            "was not written by this run"]
+
+    (run_dir / "checkpoints").mkdir(exist_ok=True)
     remove_leftovers(folder)  # of a run killed while writing this checkpoint
-    with stage_output(folder, overwrite=True, owned=_run_owned) as staging:
+    with stage_output(folder, overwrite=True, owned=owned) as staging:
         trainer.save(staging.path, step)
         staging.commit()
-    for _, old in checkpoints(run_dir)[:-KEEP]:
-        shutil.rmtree(old)
+    written = [w for w in written if w != name] + [name]
+    keep = sorted(written, key=lambda w: int(w[5:]))[-KEEP:]
+    write_json(run_dir / RECORD, {"written": keep})  # first: a pruned name is never listed
+    for old in written:
+        path = run_dir / "checkpoints" / old
+        if old not in keep and path.is_dir() and not path.is_symlink():
+            shutil.rmtree(path)
 
 
-def _run_owned(folder: Path) -> list[str]:
-    """``checkpoints/`` belongs to the run: whatever is there may be replaced."""
-    return []
+def _remove_made(made: list[Path]) -> None:
+    """Remove the folders of ``made`` (innermost last in the list) that are still empty."""
+    for path in reversed(made):
+        try:
+            path.rmdir()
+        except OSError:
+            return
