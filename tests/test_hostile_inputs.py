@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import test_robustness
+from memtrace import spy_read_npy
 from test_robustness import FAST, run
 
 
@@ -78,16 +79,7 @@ def test_a_valid_small_npz_renders(tmp_path, capsys):
 def test_ldi_pixel_count_is_bounded_by_the_image_size(tmp_path, capsys, monkeypatch, n,
                                                       declared, border):
     path = _ldi_npz(tmp_path / "photo", n, border=border, declared=declared)
-    import photo3d.io.npz as npz
-
-    read = npz.read_npy
-    sizes = []
-
-    def spy(f, *, max_items, size=None):
-        sizes.append(max_items)
-        return read(f, max_items=max_items, size=size)
-
-    monkeypatch.setattr(npz, "read_npy", spy)
+    sizes = spy_read_npy(monkeypatch)
     run(capsys, "render", path, "--still", "-q", status=2, root=tmp_path,
         message="pixels declared for a 1x1 image")
     assert sizes == [1 << 24]  # only the JSON header was read

@@ -163,7 +163,8 @@ def make_folder(image: np.ndarray | PathLike, out: PathLike, *,
     ``depth``, ``right`` or ``depth_model`` if one is given, else the photo's
     embedded map, else ``options.depth_model``), the photo read
     (:func:`~photo3d.depth.sources.read_photo`, or the better image the depth
-    source carries), :func:`photo3d.make` run and the folder written with
+    source carries; a photo more than twice ``options.config.size`` is decoded at
+    about twice that size), :func:`photo3d.make` run and the folder written with
     ``options``; nothing appears at ``out`` unless all of it succeeds.
 
     Args:
@@ -215,10 +216,10 @@ def make_folder(image: np.ndarray | PathLike, out: PathLike, *,
         est = resolve_depth(image, depth=depth, right=right, depth_model=depth_model,
                             kind=options.depth_kind,
                             fallback_model=options.depth_model or "default",
-                            download_bar=download_bar)
+                            download_bar=download_bar, working_size=options.config.size)
         photo_image = next((p for p in (est.image, est.photo) if p is not None), None)
         if photo_image is None:
-            photo_image = read_photo(image)
+            photo_image = read_photo(image, working_size=options.config.size)
         if on_depth is not None:
             on_depth(est, photo_image)
         config = options.config.with_(depth_kind=est.kind)

@@ -14,13 +14,14 @@ Example:
 
 from __future__ import annotations
 
-import os
+import math
 
 from photo3d.config import Config
 from photo3d.errors import ConfigError
 from photo3d.stages.preprocess import working_shape
 
 BASE_BYTES = 200e6
+from photo3d.io import limits
 """Interpreter, numpy, numba and the nets' code, resident before any pixel."""
 BYTES_PER_PIXEL = 1400
 """Peak bytes per working pixel (measured 850-1050, rounded up)."""
@@ -34,18 +35,9 @@ def memory_estimate(shape: tuple[int, int], config: Config) -> int:
 
 
 def available_memory() -> int | None:
-    """Bytes the system can give this process now (Linux ``MemAvailable``), or None."""
-    try:
-        with open("/proc/meminfo") as f:
-            for line in f:
-                if line.startswith("MemAvailable:"):
-                    return int(line.split()[1]) * 1024
-    except OSError:
-        pass
-    try:
-        return os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
-    except (ValueError, OSError, AttributeError):
-        return None
+    """Bytes the system can give this process now (Linux ``MemAvailable``), or None
+    (:func:`photo3d.io.limits.available_memory`, which the file readers check)."""
+    return limits.available_memory()
 
 
 def check_memory(shape: tuple[int, int], config: Config, *, at_least: bool = False) -> None:
@@ -66,3 +58,58 @@ def check_memory(shape: tuple[int, int], config: Config, *, at_least: bool = Fal
                       f"{need / 1e9:.1f} GB of memory but "
                       f"{have / 1e9:.1f} GB are available: use a smaller --size (1024 needs "
                       f"about {memory_estimate(shape, config.with_(size=1024)) / 1e9:.1f} GB)")
+
+
+RENDER_BYTES_PER_LDI_PIXEL = 400
+"""Bytes per LDI pixel of a loaded 3D photo and the mesh the renderer draws (measured
+315 with ``render --still``: 628 MB for a 1.47M pixel LDI, 273 MB for 335k)."""
+RENDER_BYTES_PER_PIXEL = 48
+"""Bytes per output pixel and view besides the supersamples (measured 32)."""
+RENDER_BYTES_PER_SAMPLE = 20
+"""Bytes per supersample (``ssaa * ssaa`` per output pixel and view; measured 16:
+``render --still`` at 4096x2768 took 810 MB, 1.34 GB and 2.23 GB at ssaa 1, 2, 3)."""
+VIDEO_BYTES_PER_PIXEL = 64
+"""Bytes per pixel of a video frame the encoder holds (measured 53 for mp4)."""
+
+
+def render_memory_estimate(ldi_pixels: int, size: tuple[int, int], *, ssaa: int,
+                           views: int = 1, video: bool = False) -> int:
+    """Peak bytes ``render`` needs for a 3D photo of ``ldi_pixels`` LDI pixels at
+    output ``size`` ``(width, height)`` with supersampling ``ssaa`` per axis, ``views``
+    views per frame (2 for stereo) and, for ``video``, the encoder.
+
+    Example:
+        >>> round(render_memory_estimate(1_500_000, (1024, 768), ssaa=2) / 1e9, 2)
+        0.9
+    """
+    width, height = size
+    per_view = RENDER_BYTES_PER_PIXEL + RENDER_BYTES_PER_SAMPLE * ssaa * ssaa
+    per_pixel = views * per_view + (VIDEO_BYTES_PER_PIXEL if video else 0)
+    return int(BASE_BYTES + RENDER_BYTES_PER_LDI_PIXEL * ldi_pixels
+               + per_pixel * width * height)
+
+
+def check_render_memory(ldi_pixels: int, size: tuple[int, int], *, ssaa: int,
+                        views: int = 1, video: bool = False) -> None:
+    """Raise :class:`ConfigError` if rendering would need more memory than is available
+    (:func:`render_memory_estimate`); the message names the largest size that fits.
+
+    Example:
+        >>> check_render_memory(300_000, (640, 480), ssaa=2)  # within any machine
+    """
+    need, have = render_memory_estimate(ldi_pixels, size, ssaa=ssaa, views=views,
+                                        video=video), available_memory()
+    if have is None or need <= have:
+        return
+    width, height = size
+    fixed = render_memory_estimate(ldi_pixels, (0, 0), ssaa=ssaa, views=views, video=video)
+    what = (f"rendering {width}x{height} with --ssaa {ssaa} needs about "
+            f"{limits.format_bytes(need)} of memory but {limits.format_bytes(have)} are "
+            "available")
+    scale = math.sqrt(max(have - fixed, 0) / (need - fixed))
+    if min(width, height) * scale < 16:
+        raise ConfigError(f"{what}: the 3D photo's {ldi_pixels:,} LDI pixels alone need "
+                          f"{limits.format_bytes(fixed)}")
+    fits = f"{int(width * scale) // 2 * 2}x{int(height * scale) // 2 * 2}"
+    smaller = " or --ssaa 1" if ssaa > 1 else ""
+    raise ConfigError(f"{what}: use a smaller --size (about {fits} fits){smaller}")

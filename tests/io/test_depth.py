@@ -268,3 +268,72 @@ def test_write_pfm_errors(tmp_path):
         write_pfm(tmp_path / "d.pfm", np.zeros((2, 2, 2)))
     with pytest.raises(OutputError, match=r"cannot write depth .*nowhere"):
         write_pfm(tmp_path / "nowhere" / "d.pfm", np.zeros((2, 2)))
+
+
+# --- maps read for a working size: resampled before the float conversion (issue 36) ----
+
+
+def _write_map(path, values: np.ndarray) -> None:
+    """Write ``values`` in the format ``path``'s suffix names (npy, pfm, else Pillow)."""
+    if path.suffix == ".npy":
+        np.save(path, values)
+    elif path.suffix == ".pfm":
+        write_pfm(path, values)
+    else:
+        Image.fromarray(values).save(path)
+
+
+def _large_map() -> np.ndarray:
+    """``(3000, 4000) uint16``: steps and a ramp, compressible."""
+    values = np.full((3000, 4000), 1000, np.uint16)
+    values[:, 2000:] = 3000
+    values[1000:2000, 500:1500] = np.arange(1000, dtype=np.uint16)[None, :] + 5000
+    return values
+
+
+@pytest.mark.parametrize("suffix", [".png", ".npy", ".pfm", ".tif"])
+def test_a_large_map_comes_back_at_the_photos_decoded_shape(tmp_path, suffix):
+    """As the photo of its size is decoded (io.images.decoded_shape), by nearest
+    neighbour as match_shape resamples, and never whole as float32."""
+    import tracemalloc
+
+    from photo3d.depth.normalize import match_shape
+    from photo3d.io.images import decoded_shape
+
+    values = _large_map()
+    path = tmp_path / f"d{suffix}"
+    _write_map(path, values)
+    tracemalloc.start()
+    try:
+        depth = read_depth(path, working_size=64)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    shape = decoded_shape(values.shape, 64)
+    assert depth.shape == shape == (96, 128) and depth.dtype == np.float32
+    np.testing.assert_array_equal(depth, match_shape(values.astype(np.float32), shape)[0])
+    # the stored values and one copy; before, also the whole map as float32: 3 times
+    # (PFM: 4 times) the map's uint16 bytes
+    assert peak < 2.5 * values.nbytes, peak / values.nbytes
+    np.testing.assert_array_equal(read_depth(path), values.astype(np.float32))
+
+
+@pytest.mark.parametrize("suffix", [".png", ".npy", ".pfm", ".tif"])
+def test_a_map_beyond_the_available_memory_is_refused_first(tmp_path, monkeypatch, suffix):
+    path = tmp_path / f"d{suffix}"
+    values = _large_map()
+    _write_map(path, values)
+    monkeypatch.setattr("photo3d.io.limits.available_memory", lambda: 20_000_000)
+    with pytest.raises(InputError, match=r"d\.\w+: decoding .* needs about \d+ MB of memory "
+                                         r"but 20 MB are available") as err:
+        read_depth(path)
+    assert "\n" not in str(err.value)
+
+
+@pytest.mark.parametrize("suffix", [".png", ".tif"])
+def test_pillows_decompression_bomb_warning_is_not_shown_for_maps(tmp_path, monkeypatch,
+                                                                  suffix):
+    path = tmp_path / f"d{suffix}"
+    Image.fromarray(np.full((1000, 1200), 7, np.uint16)).save(path)
+    monkeypatch.setattr(Image, "MAX_IMAGE_PIXELS", 1_000_000)
+    assert read_depth(path).shape == (1000, 1200)  # pytest turns warnings into errors

@@ -7,6 +7,7 @@ import sys
 import numpy as np
 import pytest
 import tifffile
+from memtrace import traced_peak
 from PIL import Image
 
 from photo3d.errors import InputError, MissingExtra, OutputError
@@ -290,3 +291,180 @@ def test_write_image_errors(tmp_path):
         write_image(tmp_path / "out.png", np.zeros((8, 8, 3), np.uint16))
     with pytest.raises(InputError, match="NaN"):
         write_image(tmp_path / "out.png", np.full((8, 8, 3), np.nan))
+
+
+# --- photos read for a working size: decoded reduced, memory checked first (issue 36) --
+
+
+def _natural(name: str) -> np.ndarray:
+    """A natural photo of scikit-image: ``(H, W, 3) uint8``."""
+    data = pytest.importorskip("skimage.data")
+    return getattr(data, name)()
+
+
+def test_decoded_shape_keeps_the_working_shape_and_the_aspect():
+    from photo3d.io.images import KEEP, decoded_shape
+    from photo3d.stages.preprocess import working_shape
+
+    rng = np.random.default_rng(3)
+    reduced = 0
+    for _ in range(3000):
+        size = int(rng.integers(16, 2048))
+        shape = tuple(int(v) for v in rng.integers(8, 20 * size, 2))
+        out = decoded_shape(shape, size)
+        if max(shape) <= KEEP * size:
+            assert out == shape
+            continue
+        working = working_shape(shape, size)
+        assert working_shape(out, size) == working, (shape, size, out)
+        if out != shape:
+            reduced += 1
+            assert KEEP * size <= max(out) < 2 * KEEP * size
+            assert min(out) >= max(8, KEEP * min(working))
+            assert abs(out[1] * shape[0] / (out[0] * shape[1]) - 1) <= 1.001e-3
+            assert decoded_shape(shape[::-1], size) == out[::-1]  # either way up
+    assert reduced > 2000
+    assert decoded_shape((9750, 13000), None) == (9750, 13000)
+
+
+@pytest.mark.parametrize("suffix", [".png", ".jpg"])
+@pytest.mark.parametrize(("name", "size"), [("astronaut", 48), ("astronaut", 100),
+                                            ("coffee", 64), ("coffee", 125)])
+def test_a_reduced_photo_gives_the_same_working_image(tmp_path, suffix, name, size):
+    """The pipeline's resize of the reduced photo matches its resize of the whole."""
+    from photo3d.io.images import decoded_shape
+    from photo3d.stages.preprocess import resize, working_shape
+
+    path = tmp_path / f"{name}{suffix}"
+    Image.fromarray(_natural(name)).save(path, quality=92)
+    whole = read_image(path)
+    reduced = read_image(path, working_size=size)
+    assert reduced.shape[:2] == decoded_shape(whole.shape[:2], size) != whole.shape[:2]
+    shape = working_shape(whole.shape[:2], size)
+    diff = np.abs(np.clip(resize(whole, shape), 0, 1) - np.clip(resize(reduced, shape), 0, 1))
+    assert diff.mean() < 0.5 / 255 and diff.max() < 16 / 255, (diff.mean() * 255,
+                                                                 diff.max() * 255)
+
+
+def test_photos_up_to_keep_times_the_working_size_are_decoded_exactly(tmp_path):
+    path = tmp_path / "a.png"
+    Image.fromarray(_natural("coffee")).save(path)  # 600 x 400
+    whole = read_image(path)
+    for size in (300, 400, 1024):
+        np.testing.assert_array_equal(read_image(path, working_size=size), whole)
+
+
+@pytest.mark.parametrize("mode", ["P", "LA", "RGBA", "1", "I;16", "I", "F", "CMYK"])
+def test_every_mode_is_reduced_like_the_whole(tmp_path, mode):
+    from photo3d.stages.preprocess import resize, working_shape
+
+    rgb = Image.fromarray(_natural("coffee"))
+    alpha = Image.fromarray(np.tile(np.linspace(0, 255, 600, dtype=np.uint8), (400, 1)))
+    if mode == "P":
+        im = rgb.convert("P")
+        im.info["transparency"] = 0
+    elif mode in ("LA", "RGBA"):
+        im = rgb.convert("RGBA")
+        im.putalpha(alpha)
+        im = im.convert(mode)
+    elif mode in ("I;16", "I", "F"):
+        grey = np.asarray(rgb.convert("L"), np.float32) / 255
+        im = Image.fromarray((grey * 65535).astype(np.uint16)) if mode == "I;16" else (
+            Image.fromarray((grey * 65535).astype(np.int32)) if mode == "I" else
+            Image.fromarray(grey, "F"))
+    else:
+        im = rgb.convert(mode)
+    path = tmp_path / ("a.tif" if mode in ("I", "F", "CMYK") else "a.png")
+    im.save(path)
+    whole = read_image(path)
+    reduced = read_image(path, working_size=64)
+    shape = working_shape(whole.shape[:2], 64)
+    diff = np.abs(np.clip(resize(whole, shape), 0, 1) - np.clip(resize(reduced, shape), 0, 1))
+    assert reduced.shape[:2] != whole.shape[:2]
+    assert diff.mean() < 1 / 255 and diff.max() < 16 / 255, (diff.mean() * 255,
+                                                              diff.max() * 255)
+
+
+@pytest.mark.parametrize("kind", ["tiff16", "png16"])
+def test_sixteen_bit_colour_photos_are_reduced_like_the_whole(tmp_path, kind):
+    from photo3d.stages.preprocess import resize, working_shape
+
+    pixels = _natural("astronaut").astype(np.uint16) * 257
+    if kind == "tiff16":
+        path = tmp_path / "a.tif"
+        tifffile.imwrite(path, pixels, photometric="rgb")
+    else:
+        cv2 = pytest.importorskip("cv2")
+        path = tmp_path / "a.png"
+        cv2.imwrite(str(path), np.ascontiguousarray(pixels[:, :, ::-1]))
+    whole = read_image(path)
+    reduced = read_image(path, working_size=64)
+    assert reduced.shape == (128, 128, 3)
+    shape = working_shape(whole.shape[:2], 64)
+    diff = np.abs(np.clip(resize(whole, shape), 0, 1) - np.clip(resize(reduced, shape), 0, 1))
+    assert diff.mean() < 0.5 / 255 and diff.max() < 16 / 255
+
+
+@pytest.mark.parametrize("suffix", [".jpg", ".png"])
+def test_a_reduced_photo_is_turned_upright(tmp_path, suffix):
+    from photo3d.io.images import decoded_shape
+
+    stored = np.zeros((400, 600, 3), np.uint8)  # red block top-left
+    stored[:100, :100, 0] = 255
+    exif = Image.Exif()
+    exif[0x0112] = 6  # turned clockwise: the block goes top right
+    path = tmp_path / f"rotated{suffix}"
+    Image.fromarray(stored).save(path, exif=exif, quality=95)
+    image = read_image(path, working_size=64)
+    assert image.shape[:2] == decoded_shape((600, 400), 64) == (129, 86)
+    assert image[5, -5, 0] > 0.9 and image[5, 5, 0] < 0.1 and image[-5, -5, 0] < 0.1
+
+
+def test_a_large_photo_never_exists_as_float32(tmp_path):
+    """4000 x 3000 at working size 64: today's reader made a 144 MB float32 copy (and
+    more) before any resize."""
+    path = tmp_path / "large.png"
+    Image.new("RGB", (4000, 3000), (200, 100, 50)).save(path)
+    image, peak = traced_peak(lambda: read_image(path, working_size=64))
+    assert image.shape == (96, 128, 3)
+    np.testing.assert_allclose(image[0, 0], [200 / 255, 100 / 255, 50 / 255], atol=EXACT)
+    assert peak < 10e6, peak
+
+
+@pytest.mark.parametrize("suffix", [".png", ".jpg", ".tif"])
+def test_decoding_beyond_the_available_memory_is_refused_first(tmp_path, monkeypatch,
+                                                               suffix):
+    import photo3d.io.images as images
+
+    path = tmp_path / f"large{suffix}"
+    Image.new("RGB", (4000, 3000), (200, 100, 50)).save(path)
+    monkeypatch.setattr("photo3d.io.limits.available_memory", lambda: 50_000_000)
+
+    def no_decoding(im):
+        raise AssertionError("decoded before the memory check")
+
+    monkeypatch.setattr(images, "load_pixels", no_decoding)
+    with pytest.raises(InputError, match=r"large\S*: decoding its 4000x3000 pixels needs "
+                                         r"about \d+ MB of memory but 50 MB are avail") as err:
+        read_image(path)
+    assert "\n" not in str(err.value)
+
+
+def test_a_reduced_photo_fits_where_the_whole_would_not(tmp_path, monkeypatch):
+    path = tmp_path / "large.jpg"
+    Image.new("RGB", (4000, 3000), (200, 100, 50)).save(path)
+    monkeypatch.setattr("photo3d.io.limits.available_memory", lambda: 100_000_000)
+    with pytest.raises(InputError, match="decoding its 4000x3000 pixels needs about"):
+        read_image(path)
+    assert read_image(path, working_size=256).shape == (384, 512, 3)  # the decoder scales
+
+
+@pytest.mark.parametrize("suffix", [".png", ".tif"])
+def test_pillows_decompression_bomb_warning_is_not_shown(tmp_path, monkeypatch, suffix):
+    """More pixels than Pillow's warning limit: the memory check decides, silently
+    (pytest turns any warning into an error)."""
+    path = tmp_path / f"many{suffix}"
+    Image.new("RGB", (1200, 1000), (200, 100, 50)).save(path)
+    monkeypatch.setattr(Image, "MAX_IMAGE_PIXELS", 1_000_000)
+    assert read_image(path).shape == (1000, 1200, 3)
+    assert read_image(path, working_size=64).shape == (110, 132, 3)

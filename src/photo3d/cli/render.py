@@ -36,6 +36,7 @@ def run(args: argparse.Namespace) -> int:
 
     videos = videos_from(args)  # checks the videos with a size against their encoder
     photo = load(args.photo)
+    _check_memory(args, photo, videos[:1] if args.still else videos)
     if args.still:
         return _still(args, photo, videos[0])
     check_video_sizes(videos, (photo.ldi.width // 2 * 2, photo.ldi.height // 2 * 2))
@@ -58,6 +59,16 @@ def run(args: argparse.Namespace) -> int:
         for path in written:
             print(f"  {path}  {path.stat().st_size / 1e6:.2f} MB")
     return 0
+
+
+def _check_memory(args: argparse.Namespace, photo, videos) -> None:
+    """Refuse, before rendering, a size and ``--ssaa`` the memory cannot hold."""
+    from photo3d.resources import check_render_memory
+
+    for spec in videos:
+        size = spec.size or (photo.ldi.width // 2 * 2, photo.ldi.height // 2 * 2)
+        check_render_memory(photo.ldi.size, size, ssaa=args.ssaa,
+                            views=2 if spec.stereo else 1, video=not args.still)
 
 
 def _still(args: argparse.Namespace, photo, spec) -> int:

@@ -22,7 +22,7 @@ from photo3d.depth.normalize import DepthInput, match_shape, prepare_depth
 from photo3d.errors import InputError
 from photo3d.files.folders import HEIF_SUFFIXES
 from photo3d.io.depth import read_depth
-from photo3d.io.images import read_image, to_float_image
+from photo3d.io.images import decoded_shape, read_image, to_float_image
 
 PathLike = str | os.PathLike[str]
 
@@ -34,7 +34,8 @@ class DepthEstimate:
     Attributes:
         depth: ``(H, W) float32`` at the image size (a map of another size with the
             same aspect ratio is resampled here, nearest neighbour, with one
-            warning). Unknown values
+            warning; a map of the photo file's size, silently, when the photo was
+            decoded reduced for a working size). Unknown values
             (NaN, inf, negative) may remain; the pipeline fills them.
         kind: ``"disparity"`` (larger = nearer) or ``"depth"`` (camera z).
         source: one line for humans, e.g. ``"embedded GDepth depth map (range
@@ -62,12 +63,20 @@ UNKNOWN_WARNING = 0.5
 """Warn when more than this fraction of the depth map is unknown."""
 
 
-def read_photo(image: np.ndarray | PathLike) -> np.ndarray:
+def read_photo(image: np.ndarray | PathLike, *, working_size: int | None = None
+               ) -> np.ndarray:
     """A photo path (JPEG/PNG/TIFF/WebP, or HEIF/HEIC with pillow-heif) or array ->
     ``(H, W, 3) float32`` in [0, 1].
 
     The one photo reader of :func:`photo3d.make`, ``photo3d make`` and ``photo3d
     batch`` (:func:`photo3d.load` reloads a saved 3D photo, not a photo).
+
+    Args:
+        image: the photo file or an array (:func:`~photo3d.io.images.to_float_image`).
+        working_size: the longer side the photo will be resized to (``Config.size``):
+            a file more than ``KEEP`` (2) times larger is decoded at about ``KEEP``
+            times that size (:func:`~photo3d.io.images.read_image`); None, an array
+            or a HEIF file: whole.
 
     Example:
         >>> read_photo(np.zeros((8, 8), np.uint8)).shape
@@ -78,7 +87,7 @@ def read_photo(image: np.ndarray | PathLike) -> np.ndarray:
             from photo3d.depth.heif import read_heif_image
 
             return read_heif_image(image)
-        return read_image(image)
+        return read_image(image, working_size=working_size)
     return to_float_image(image)
 
 
@@ -104,6 +113,7 @@ def resolve_depth(
     kind: str | None = None,
     fallback_model: str | PathLike | None = "default",
     download_bar=None,
+    working_size: int | None = None,
 ) -> DepthEstimate:
     """Get the depth for a photo from whichever source was given.
 
@@ -126,6 +136,9 @@ def resolve_depth(
             Depth Anything V2 Small), another model, or None (refuse such photos).
         download_bar: a ``tqdm`` class showing the download of a hub model that is
             not cached yet (default: nothing shown).
+        working_size: the longer side the photo will be resized to: a much larger
+            photo (and a depth file of its size) is decoded reduced
+            (:func:`read_photo`, :func:`~photo3d.io.depth.read_depth`).
 
     Returns:
         :class:`DepthEstimate`.
@@ -154,18 +167,18 @@ def resolve_depth(
         from photo3d.depth.fetch import check_model_name
 
         check_model_name(depth_model)  # a missing folder or a bad hub name: at once
-    photo = read_photo(image)
+    photo = read_photo(image, working_size=working_size)
     notes: list[str] = []
     better_image = None
     if depth is not None:
         kind = kind or "disparity"
-        raw = read_depth(depth) if isinstance(depth, str | os.PathLike) else np.asarray(
-            depth, np.float32)
+        raw = (read_depth(depth, working_size=working_size)
+               if isinstance(depth, str | os.PathLike) else np.asarray(depth, np.float32))
         source = describe_depth(depth, kind)
     elif right is not None:
         from photo3d.depth.stereo import stereo_disparity
 
-        result = stereo_disparity(photo, read_photo(right))
+        result = stereo_disparity(photo, read_photo(right, working_size=working_size))
         raw, kind = result.disparity, "disparity"
         notes += result.warnings
         source = (f"stereo pair (SGBM, {result.valid.mean():.0%} of pixels matched, "
@@ -182,7 +195,10 @@ def resolve_depth(
                                                  download_bar)
         notes += found
     if raw.ndim == 2:  # resample once here, so that the pipeline does not warn again
-        raw, note = match_shape(raw, photo.shape[:2])
+        matched, note = match_shape(raw, photo.shape[:2])
+        if decoded_shape(raw.shape, working_size) == photo.shape[:2]:
+            note = ""  # a map of the file's size, for a photo decoded reduced
+        raw = matched
         notes += [note] if note else []
     prepared, found = _checks(raw, photo, kind)
     return DepthEstimate(depth=raw.astype(np.float32), kind=kind, source=source,

@@ -202,11 +202,18 @@ def photo_files(folder: str | Path) -> list[Path]:
 
 
 def load_photo(path: str | Path | np.ndarray, size: int = SIZE) -> np.ndarray:
-    """A photo as ``(H, W, 3) float32`` with its longer side resized to ``size``."""
+    """A photo as ``(H, W, 3) float32`` with its longer side resized to ``size`` (a
+    file more than twice as large is decoded at about twice ``size`` first:
+    :func:`~photo3d.depth.sources.read_photo`).
+
+    Example:
+        >>> load_photo(np.zeros((48, 64, 3), np.uint8), size=32).shape
+        (24, 32, 3)
+    """
     from photo3d.depth.sources import read_photo
     from photo3d.stages.preprocess import resize, working_shape
 
-    image = read_photo(path)
+    image = read_photo(path, working_size=size)
     return np.clip(resize(image, working_shape(image.shape[:2], size)), 0.0, 1.0)
 
 

@@ -25,7 +25,8 @@ import numpy as np
 from PIL import Image, UnidentifiedImageError
 
 from photo3d.errors import InputError, OutputError
-from photo3d.io.images import load_pixels, open_image, read_tiff_page
+from photo3d.io.images import decoded_shape, load_pixels, open_image, read_tiff_page
+from photo3d.io.limits import check_available
 from photo3d.io.npy import read_npy
 
 PathLike = str | os.PathLike[str]
@@ -36,7 +37,7 @@ SUPPORTED = ".png (8/16-bit grey), .npy, .pfm, .tif/.tiff (float or 16-bit grey)
 _PFM_HEADER = re.compile(rb"\s*(P[Ff])\s+(\d+)\s+(\d+)\s+(\S+)\s")
 
 
-def read_depth(path: PathLike) -> np.ndarray:
+def read_depth(path: PathLike, *, working_size: int | None = None) -> np.ndarray:
     """Read a depth or disparity map with its raw stored values.
 
     The format follows the extension:
@@ -50,16 +51,27 @@ def read_depth(path: PathLike) -> np.ndarray:
     * ``.tif``/``.tiff``: 32-bit float or 8/16-bit grey through Pillow, anything
       else (float64, several channels) through ``tifffile`` (extra ``photo3d[tiff]``).
 
+    What decoding needs is estimated from the header and checked against the
+    available memory first (:func:`photo3d.io.limits.check_available`). Given
+    ``working_size``, a map of a photo's size comes back at the size
+    :func:`~photo3d.io.images.read_image` decodes that photo to
+    (:func:`~photo3d.io.images.decoded_shape`), resampled by nearest neighbour at
+    pixel centres (as :func:`photo3d.depth.normalize.match_shape` does) before the
+    float conversion; maps at most ``KEEP * working_size`` on the longer side are
+    returned whole.
+
     Args:
         path: the depth file.
+        working_size: the longer side the caller resizes the map to (None: whole).
 
     Returns:
         ``(H, W) float32``, row 0 at the top of the picture, values as stored.
 
     Raises:
         InputError: the file is missing, has an unsupported extension, cannot be
-            decoded, or does not hold a single-channel 2-D map. The message names
-            the path and the supported formats.
+            decoded, does not hold a single-channel 2-D map, or needs more memory to
+            decode than is available. The message names the path and the supported
+            formats.
 
     Example:
         >>> import pathlib, tempfile
@@ -80,7 +92,9 @@ def read_depth(path: PathLike) -> np.ndarray:
             f"photo3d reads {SUPPORTED}"
         )
     try:
-        depth = _as_depth_map(reader(path))
+        values = _checked_map(reader(path, working_size))
+        values = _nearest(values, decoded_shape(values.shape, working_size))
+        depth = np.array(values, dtype=np.float32, order="C")  # always a fresh copy
     except InputError as err:
         raise InputError(f"cannot read depth {path}: {err}; photo3d reads {SUPPORTED}") from err
     return depth
@@ -173,6 +187,11 @@ def write_depth_png16(
 
 def _as_depth_map(array: np.ndarray) -> np.ndarray:
     """Check a real ``(H, W)`` (or singleton-3-D) array and return it as float32."""
+    return np.array(_checked_map(array), dtype=np.float32, order="C")  # a fresh copy
+
+
+def _checked_map(array: np.ndarray) -> np.ndarray:
+    """Check a real ``(H, W)`` (or singleton-3-D) array; ``(H, W)`` in its own dtype."""
     if array.ndim == 3 and 1 in array.shape:
         array = np.squeeze(array, axis=array.shape.index(1))
     if array.ndim != 2:
@@ -181,7 +200,32 @@ def _as_depth_map(array: np.ndarray) -> np.ndarray:
         raise InputError(f"depth has dtype {array.dtype}; expected a real number type")
     if array.size == 0:
         raise InputError(f"depth has shape {array.shape}; it holds no pixels")
-    return np.array(array, dtype=np.float32, order="C")  # always a fresh, writable copy
+    return array
+
+
+def _nearest(array: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
+    """``array`` at ``shape`` by nearest neighbour at pixel centres, in its own dtype
+    (the rule of :func:`photo3d.depth.normalize.match_shape`).
+
+    Example:
+        >>> _nearest(np.arange(16).reshape(4, 4), (2, 2)).tolist()
+        [[5, 7], [13, 15]]
+    """
+    if array.shape == tuple(shape):
+        return array
+    (h, w), (big_h, big_w) = shape, array.shape
+    ys = np.minimum(((np.arange(h) + 0.5) * big_h / h).astype(int), big_h - 1)
+    xs = np.minimum(((np.arange(w) + 0.5) * big_w / w).astype(int), big_w - 1)
+    return array[np.ix_(ys, xs)]
+
+
+def _check_memory(width: int, height: int, per_pixel: int, working_size: int | None) -> None:
+    """Refuse a map whose decoding needs ``per_pixel`` bytes per declared pixel, and its
+    float32 result (at :func:`~photo3d.io.images.decoded_shape`), beyond the available
+    memory."""
+    out_h, out_w = decoded_shape((height, width), working_size)
+    check_available(per_pixel * width * height + 4 * out_h * out_w,
+                    f"its {width}x{height} pixels")
 
 
 def _first_of_equal_channels(array: np.ndarray) -> np.ndarray:
@@ -194,7 +238,7 @@ def _first_of_equal_channels(array: np.ndarray) -> np.ndarray:
     return colour[:, :, 0]
 
 
-def _read_png(path: Path) -> np.ndarray:
+def _read_png(path: Path, working_size: int | None) -> np.ndarray:
     """Raw values of a grey (or grey-looking RGB) PNG, 8 or 16 bit."""
     with path.open("rb") as file:
         head = file.read(26)
@@ -203,7 +247,11 @@ def _read_png(path: Path) -> np.ndarray:
     if head[:8] == b"\x89PNG\r\n\x1a\n" and head[24] == 16 and head[25] != 0:
         raise InputError("16-bit PNGs with colour or alpha are not supported; save 16-bit grey")
     try:
-        with Image.open(path) as im:
+        with open_image(path) as im:
+            grey = im.mode in ("1", "L", "I", "I;16", "I;16B", "I;16L", "I;16N")
+            stored = 1 if im.mode in ("1", "L") else 2 if im.mode.startswith("I;16") else 4
+            # decoded and copied; colour: also converted and its channels compared
+            _check_memory(*im.size, 2 * stored if grey else 16, working_size)
             im.load()
             if im.mode in ("1", "LA", "La"):
                 im = im.convert("L")  # drops alpha; "1" becomes 0 / 255
@@ -216,8 +264,9 @@ def _read_png(path: Path) -> np.ndarray:
         raise InputError(str(err)) from err
 
 
-def _read_npy(path: Path) -> np.ndarray:
-    """Array of a ``.npy`` file; pickled (object) arrays and huge shapes are refused."""
+def _read_npy(path: Path, working_size: int | None) -> np.ndarray:
+    """Array of a ``.npy`` file; pickled (object) arrays, huge shapes and shapes the
+    memory cannot hold are refused."""
     try:
         with path.open("rb") as file:
             return read_npy(file, size=path.stat().st_size)
@@ -225,8 +274,14 @@ def _read_npy(path: Path) -> np.ndarray:
         raise InputError(err.strerror or str(err)) from err
 
 
-def _read_pfm(path: Path) -> np.ndarray:
+def _read_pfm(path: Path, working_size: int | None) -> np.ndarray:
     """First channel of a PFM file, rows flipped to top-to-bottom."""
+    size = path.stat().st_size
+    with path.open("rb") as file:
+        head = _PFM_HEADER.match(file.read(256))
+    out = decoded_shape((int(head.group(3)), int(head.group(2))), working_size) if head else (
+        size // 4, 1)
+    check_available(size + 4 * out[0] * out[1], f"its {size:,} bytes")  # read, converted
     raw = path.read_bytes()
     match = _PFM_HEADER.match(raw)
     if match is None:
@@ -250,18 +305,20 @@ def _read_pfm(path: Path) -> np.ndarray:
     return data.reshape(height, width, channels)[::-1, :, 0]
 
 
-def _read_tiff(path: Path) -> np.ndarray:
+def _read_tiff(path: Path, working_size: int | None) -> np.ndarray:
     """Float or grey TIFF through Pillow, else through tifffile."""
-    pixels = _read_tiff_with_pillow(path)
+    pixels = _read_tiff_with_pillow(path, working_size)
     return pixels if pixels is not None else _first_of_equal_channels(read_tiff_page(path)[0])
 
 
-def _read_tiff_with_pillow(path: Path) -> np.ndarray | None:
+def _read_tiff_with_pillow(path: Path, working_size: int | None) -> np.ndarray | None:
     """Single-channel TIFF pixels, or None if Pillow cannot decode them exactly."""
     try:
         with open_image(path) as im:
             if im.mode not in ("F", "I", "L", "I;16", "I;16L", "I;16B", "I;16N"):
                 return None
+            stored = 1 if im.mode == "L" else 2 if im.mode.startswith("I;16") else 4
+            _check_memory(*im.size, 2 * stored, working_size)  # decoded and copied
             load_pixels(im)
             return np.asarray(im)
     except UnidentifiedImageError:

@@ -2,8 +2,9 @@
 
 ``np.load`` trusts the header: a 100-byte file declaring shape ``(100000, 100000)``
 makes it allocate 37 GiB (or fail with ``MemoryError``). :func:`read_npy` reads the
-header, refuses object (pickle) arrays, arrays larger than ``max_items`` and data
-shorter than declared, and only then reads the values.
+header, refuses object (pickle) arrays, arrays larger than ``max_items`` or than the
+available memory holds (:func:`photo3d.io.limits.check_available`) and data shorter
+than declared, and only then reads the values, straight into the array.
 
 Example:
     >>> import io
@@ -22,9 +23,11 @@ from typing import BinaryIO
 import numpy as np
 
 from photo3d.errors import InputError
+from photo3d.io.limits import check_available
 
 MAX_ITEMS = 2 * 89_478_485
 """Default limit on the values of one array (Pillow's decompression-bomb limit)."""
+_CHUNK = 1 << 24  # bytes read at a time (a zip member's reader copies what it returns)
 
 
 def read_npy_header(file: BinaryIO) -> tuple[tuple[int, ...], bool, np.dtype]:
@@ -72,7 +75,8 @@ def read_npy(file: BinaryIO, *, max_items: int = MAX_ITEMS, size: int | None = N
 
     Raises:
         InputError: not a ``.npy`` array, an object (pickled) dtype, more than
-            ``max_items`` values, or truncated data.
+            ``max_items`` values, more bytes than the available memory holds, or
+            truncated data.
     """
     shape, fortran, dtype = read_npy_header(file)
     count = int(np.prod(shape, dtype=np.float64)) if shape else 1
@@ -80,15 +84,25 @@ def read_npy(file: BinaryIO, *, max_items: int = MAX_ITEMS, size: int | None = N
         shown = "x".join(str(s) for s in shape)
         raise InputError(f"declared shape {shown} holds {count:,} values; "
                          f"photo3d accepts at most {max_items:,}")
-    if size is not None and size - file.tell() < count * dtype.itemsize:
+    nbytes = count * dtype.itemsize
+    if size is not None and size - file.tell() < nbytes:
         raise InputError(f"truncated: shape {shape} declared but the data is shorter")
+    check_available(nbytes * (2 if fortran else 1),
+                    f"an array of shape {'x'.join(str(s) for s in shape)} ({dtype})")
+    array = np.empty(count, dtype)
+    data = memoryview(array.view(np.uint8))
+    done = 0
     try:
-        data = file.read(count * dtype.itemsize)
+        while done < nbytes:
+            chunk = file.read(min(_CHUNK, nbytes - done))
+            if not chunk:
+                break
+            data[done:done + len(chunk)] = chunk
+            done += len(chunk)
     except (OSError, EOFError, ValueError) as err:
         raise InputError(f"cannot read the data ({err})") from None
-    if len(data) < count * dtype.itemsize:
+    if done < nbytes:
         raise InputError(f"truncated: shape {shape} declared but the data is shorter")
-    array = np.frombuffer(data, dtype=dtype, count=count)
     if fortran:
         return array.reshape(shape[::-1]).transpose().copy()
-    return array.reshape(shape).copy()
+    return array.reshape(shape)

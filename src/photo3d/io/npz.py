@@ -16,6 +16,7 @@ import numpy as np
 
 from photo3d.camera import DepthMapping, Intrinsics
 from photo3d.errors import InputError
+from photo3d.io.limits import check_available
 from photo3d.io.npy import read_npy, read_npy_header
 from photo3d.structures.ldi import LDI
 
@@ -59,13 +60,17 @@ def load_npz(path: str | Path) -> tuple[LDI, dict]:
     """Inverse of :func:`save_npz`: returns ``(ldi, meta)``.
 
     Everything read is checked before use (the file may come from anywhere): a zip
-    holding the six arrays and the header, sizes within limits before allocating,
-    dtypes and shapes, link indices in range and symmetric, lattice positions inside
-    the image plus border, finite and plausible intrinsics.
+    holding the six arrays and the header, sizes within limits before allocating (the
+    pixel count within :data:`MAX_LAYERS` of the image size, and what reading it
+    needs, :data:`LOAD_BYTES` per pixel, within the available memory:
+    :func:`photo3d.io.limits.check_available`), dtypes and shapes, link indices in
+    range and symmetric, lattice positions inside the image plus border, finite and
+    plausible intrinsics.
 
     Raises:
         InputError: one line; the file is missing, not a photo3d file (any other zip,
-            a text file, pickled data: nothing is unpickled), truncated or inconsistent.
+            a text file, pickled data: nothing is unpickled), truncated, inconsistent,
+            or larger than the available memory holds.
 
     Example:
         >>> import tempfile
@@ -101,6 +106,10 @@ MAX_LAYERS = 16
 (the image and the inpainted layers behind its depth edges), so 16 is generous; the
 bound is checked on the declared ``.npy`` shapes before any data is decompressed."""
 _HEADER_BYTES = 1 << 24  # the JSON header and its metadata
+LOAD_BYTES = 400
+"""Peak bytes per LDI pixel of :func:`load_npz`, rounded up: the arrays are 41 bytes a
+pixel, the link checks need the rest (peak resident memory measured 295 bytes a pixel
+above the interpreter's on a 1.47M pixel LDI)."""
 
 
 def _relative_links(links: np.ndarray) -> np.ndarray:
@@ -123,8 +132,11 @@ def _absolute_links(relative: np.ndarray) -> np.ndarray:
         >>> _absolute_links(np.array([[0, 1], [-1, 0]])).tolist()
         [[-1, 1], [0, -1]]
     """
-    rel = relative.astype(np.int64)
-    return np.where(rel != 0, rel + np.arange(len(rel), dtype=np.int64)[:, None], -1)
+    links = relative.astype(np.int64)
+    absent = links == 0
+    links += np.arange(len(links), dtype=np.int64)[:, None]  # in place: one int64 copy
+    links[absent] = -1
+    return links
 
 
 def _reason(err: BaseException) -> str:
@@ -166,6 +178,7 @@ def _read_arrays(path: Path) -> tuple[dict[str, np.ndarray], dict]:
                 raise InputError(f"{n} pixels declared for a {w}x{h} image with a {border} "
                                  f"px border; expected {w * h} to {limit:,} "
                                  f"({MAX_LAYERS} layers)")
+        check_available(LOAD_BYTES * n, f"its {n:,} LDI pixels")
         arrays = {name: _read_member(zf, name, int(np.prod(shape)))
                   for name, (shape, _) in declared.items()}
     return arrays, header
@@ -222,10 +235,11 @@ def _checked_ldi(arrays: dict[str, np.ndarray], header: dict) -> LDI:
         raise InputError(f"links point outside the {n} pixels")
     if not (np.isfinite(arrays["color"]).all() and np.isfinite(arrays["disparity"]).all()):
         raise InputError("colours or disparities are not finite")
-    ldi = LDI(y=y.astype(np.int32), x=x.astype(np.int32),
-              color=arrays["color"].astype(np.float32),
-              disparity=arrays["disparity"].astype(np.float32),
-              links=links.astype(np.int32), label=arrays["label"].astype(np.uint8),
+    ldi = LDI(y=y.astype(np.int32, copy=False), x=x.astype(np.int32, copy=False),
+              color=arrays["color"].astype(np.float32, copy=False),
+              disparity=arrays["disparity"].astype(np.float32, copy=False),
+              links=links.astype(np.int32, copy=False),
+              label=arrays["label"].astype(np.uint8, copy=False),
               intrinsics=Intrinsics(fx, fy, cx, cy, w, h), mapping=DepthMapping(*mapping),
               border=border)
     try:
