@@ -18,10 +18,10 @@ import math
 
 from photo3d.config import Config
 from photo3d.errors import ConfigError
+from photo3d.io import limits
 from photo3d.stages.preprocess import working_shape
 
 BASE_BYTES = 200e6
-from photo3d.io import limits
 """Interpreter, numpy, numba and the nets' code, resident before any pixel."""
 BYTES_PER_PIXEL = 1400
 """Peak bytes per working pixel (measured 850-1050, rounded up)."""
