@@ -32,7 +32,6 @@ from __future__ import annotations
 import contextlib
 import math
 import os
-from collections.abc import Iterable
 from fractions import Fraction
 from pathlib import Path
 from typing import Any
@@ -290,28 +289,6 @@ class VideoWriter:
             pal8 = _require_av().VideoFrame.from_ndarray((np.asarray(indices), argb), "pal8")
             self._encode(pal8, index)
         self._pending = []
-
-
-def write_video(
-    path: PathLike, frames: Iterable[np.ndarray], *, fps: float = 30, quality: int | None = None
-) -> Path:
-    """Write ``frames`` (``(height, width, 3)`` ``uint8`` or float in [0, 1], all one
-    size) to ``path`` and return it as a ``Path``; ``fps`` and ``quality`` are as in
-    :class:`VideoWriter`, which also lists the errors. No frames is an ``InputError``."""
-    iterator = iter(frames)
-    first = next(iterator, None)
-    if first is None:
-        raise InputError(f"no frames to write to video {path}")
-    first = np.asarray(first)
-    if first.ndim != 3 or first.shape[2] != 3:
-        raise InputError(f"frame 0 has shape {first.shape}; expected (height, width, 3)")
-    with VideoWriter(
-        path, fps=fps, size=(first.shape[1], first.shape[0]), quality=quality
-    ) as writer:
-        writer.write(first)
-        for frame in iterator:
-            writer.write(frame)
-    return writer.path
 
 
 def _check_settings(
