@@ -37,7 +37,7 @@ from photo3d.sample import motorcycle
 
 case, rules = sys.argv[1], sys.argv[2] == "on"
 if not rules:
-    M.merge.__kwdefaults__.update(link_fills=False, clamp=False)
+    M.merge_fills.__kwdefaults__["link_fills"] = M.take.__kwdefaults__["clamp"] = False
 backend, name = None, case
 if case in ("compact", "authors-random", "compact-random"):
     from photo3d.eval.evaluate import random_nets
@@ -67,7 +67,7 @@ from photo3d.eval.stereo_pair import motorcycle_pair
 from photo3d.eval.synthetic import synthetic_pair
 
 if sys.argv[1] == "off":
-    M.merge.__kwdefaults__.update(link_fills=False, clamp=False)
+    M.merge_fills.__kwdefaults__["link_fills"] = M.take.__kwdefaults__["clamp"] = False
 pairs = {"motorcycle": motorcycle_pair} | {
     f"synthetic{i}": partial(synthetic_pair, i) for i in range(int(sys.argv[2]))}
 out = {}

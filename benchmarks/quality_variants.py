@@ -34,7 +34,7 @@ if variant.endswith("perpatch"):
     L.LearnedInpainter.later_context = 1.0
 if variant.endswith("-whole-fills"):  # before issue 18's fill rules (merge, edge paths)
     import photo3d.stages.merge as M
-    M.merge.__kwdefaults__.update(link_fills=False, clamp=False)
+    M.merge_fills.__kwdefaults__["link_fills"] = M.take.__kwdefaults__["clamp"] = False
     L.LearnedInpainter.__init__.__kwdefaults__["paths"] = False
 pairs = {"motorcycle": motorcycle_pair} | {f"synthetic{i}": partial(synthetic_pair, i)
                                            for i in range(int(sys.argv[2]))}

@@ -43,3 +43,17 @@ def test_normalize_range_and_constant_map():
     assert n.tolist() == [[0.0, 1.0, 0.5]] and (lo, hi) == (3.0, 5.0)
     n, _, _ = normalize(np.full((2, 2), 7.0, np.float32))
     assert not n.any()
+
+
+def test_normalize_and_check_depth_agree_on_flat():
+    """One threshold (photo3d.depth.checks.FLAT_RANGE) for both: a map that check_depth
+    calls flat is normalised flat, one it does not is stretched to [0, 1]. Before,
+    normalize flattened only a range of 1e-12 and stretched the rest."""
+    from photo3d.depth.checks import FLAT_RANGE, check_depth
+
+    for relative in (0.0, 1e-7, 0.5 * FLAT_RANGE, 0.99 * FLAT_RANGE, 1.01 * FLAT_RANGE, 0.5):
+        d = np.array([[10.0 * (1.0 - relative), 10.0]], np.float32)
+        n, lo, hi = normalize(d)
+        flat = bool(check_depth(np.repeat(d, 3, axis=0)))
+        assert flat == (relative < FLAT_RANGE) and (lo, hi) == (float(d.min()), 10.0)
+        assert n.tolist() == ([[0.0, 0.0]] if flat else [[0.0, 1.0]])

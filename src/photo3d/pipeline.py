@@ -22,8 +22,7 @@ from photo3d.photo import Photo3D
 from photo3d.progress import StageProgress
 from photo3d.resources import check_memory
 from photo3d.stages.border import fill_border
-from photo3d.stages.merge import merge
-from photo3d.stages.passes import PassInput, pass_patches, start
+from photo3d.stages.passes import PassInput, fill_pass, start
 from photo3d.stages.preprocess import preprocess
 from photo3d.structures.patch import Patch
 
@@ -116,25 +115,26 @@ def make(
     done("ldi")
 
     edges_per_pass, added_per_pass = [], []
+    # a backend that fills each patch on its own gets them in batches (bounded memory)
+    rows, cols = state.ldi.lattice_shape
+    batch = rows * cols if getattr(backend, "patchwise", False) else None
     for k in range(reg.max_passes):
         if state.edge_pixels.size == 0:
             break
-        # a backend may want thinner contexts after the first pass (learned: the authors'),
-        # or the paper's contexts only (learned: its nets were trained on those)
-        jobs = pass_patches(state, config=config, working_size=pre.working_size,
-                            margin=backend.margin, scale=scale, pass_index=k,
-                            later_context=getattr(backend, "later_context", 1.0),
-                            paper_context=getattr(backend, "paper_context", False))
+
+        def fill(patches, progress, k: int = k):
+            return backend.inpaint(patches, progress=progress, pass_index=k)
 
         def on_patch(i: int, n: int, k: int = k) -> None:
             report("inpaint", (k + i / max(n, 1)) / reg.max_passes)
 
-        results = backend.inpaint([j.patch for j in jobs], progress=on_patch, pass_index=k)
-        merged = merge(state.ldi, jobs, results, label=min(k + 2, 3),
-                       threshold=config.preprocess.discontinuity,
-                       min_edge_length=config.spatial(config.preprocess.min_edge_length,
-                                                      pre.working_size),
-                       overwrite_band=reg.overwrite_dilation)
+        # a backend may want thinner contexts after the first pass (learned: the authors'),
+        # or the paper's contexts only (learned: its nets were trained on those)
+        merged = fill_pass(state, fill, config=config, working_size=pre.working_size,
+                           margin=backend.margin, scale=scale, pass_index=k,
+                           later_context=getattr(backend, "later_context", 1.0),
+                           paper_context=getattr(backend, "paper_context", False),
+                           batch_area=batch, progress=on_patch)
         edges_per_pass.append(state.edges)
         added_per_pass.append(merged.added)
         state = PassInput(merged.ldi, merged.edge_ptr, merged.edge_pixels)

@@ -4,12 +4,20 @@ The estimate is linear in the working pixels (longer side ``Config.size``, borde
 included): ``benchmarks/bench_memory.py`` measured the peak resident memory of
 ``photo3d demo --no-video`` at ``--size`` 256, 512 and 1024 (246, 392 and 1123 MB:
 about 200 MB of interpreter and libraries plus 850-1050 bytes per working pixel).
-The per-pixel figure used here rounds that up (1024 px: 1.5 GB estimated).
+
+It must hold whatever the depth map holds, and a depth map with an edge every few
+pixels costs more: ``make`` bounds each inpainting pass and the LDI by the working
+pixels (:mod:`photo3d.stages.passes`), but the light mesh of such a fragmented LDI
+takes up to about 550 bytes per LDI pixel while it is built. The worst measured, 3x3
+blocks of uniform noise for a 741x500 photo (``benchmarks/bench_hard_depth.py
+--hostile`` has noise, a checkerboard and a flat map), peaked at 609 MB at 512 px and
+1.60 GB at 1024 px (the LDI at its limit): about 280 MB plus 1430 bytes per working
+pixel. The figures used here round that up (1024 px: 1.8 GB estimated).
 
 Example:
     >>> from photo3d.config import Config
     >>> round(memory_estimate((768, 1024), Config()) / 1e9, 1)  # with its 60 px border
-    1.6
+    1.9
 """
 
 from __future__ import annotations
@@ -23,15 +31,19 @@ from photo3d.stages.preprocess import working_shape
 
 BASE_BYTES = 200e6
 """Interpreter, numpy, numba and the nets' code, resident before any pixel."""
-BYTES_PER_PIXEL = 1400
-"""Peak bytes per working pixel (measured 850-1050, rounded up)."""
+MAKE_BASE_BYTES = 100e6
+"""What ``make``'s kernels and libraries add to :data:`BASE_BYTES` before any pixel."""
+BYTES_PER_PIXEL = 1600
+"""Peak bytes of ``make`` per working pixel (measured 850-1050 for photos, 1430 for the
+worst depth maps; rounded up)."""
 
 
 def memory_estimate(shape: tuple[int, int], config: Config) -> int:
-    """Peak bytes ``make`` needs for an input of ``shape`` ``(H, W)`` with ``config``."""
+    """Peak bytes ``make`` needs for an input of ``shape`` ``(H, W)`` with ``config``,
+    whatever its depth map holds."""
     h, w = working_shape(shape, config.size)
     border = 2 * config.spatial(config.regions.border, max(h, w))
-    return int(BASE_BYTES + BYTES_PER_PIXEL * (h + border) * (w + border))
+    return int(BASE_BYTES + MAKE_BASE_BYTES + BYTES_PER_PIXEL * (h + border) * (w + border))
 
 
 def available_memory() -> int | None:

@@ -677,7 +677,8 @@ def test_trim_keeps_every_mask_pixel_and_never_pads_more():
 def test_random_nets_do_not_make_later_passes_explode(seed, monkeypatch):
     """Random (the poorest) nets leave steps all over their fills. With the
     merge's fill rules every pass finds fewer new edges than the one before; without
-    them the second pass found about three times the first's."""
+    them the second pass found about three times the first's, and, since new edges
+    are only where the next pass can fill (issue 35), still more than with them."""
     pytest.importorskip("skimage")
     import photo3d.stages.merge
     from photo3d.sample import motorcycle
@@ -686,16 +687,16 @@ def test_random_nets_do_not_make_later_passes_explode(seed, monkeypatch):
     cfg = photo3d.Config(size=256, inpainter="learned")
 
     def edges(rules: bool) -> list[int]:
-        kw = photo3d.stages.merge.merge.__kwdefaults__
-        monkeypatch.setitem(kw, "link_fills", rules)
-        monkeypatch.setitem(kw, "clamp", rules)
+        monkeypatch.setitem(photo3d.stages.merge.merge_fills.__kwdefaults__, "link_fills",
+                            rules)
+        monkeypatch.setitem(photo3d.stages.merge.take.__kwdefaults__, "clamp", rules)
         backend = LearnedInpainter(nets=random_nets(seed), paths=rules)
         return photo3d.make(s.left, depth=np.asarray(s.disparity), config=cfg,
                             inpainter=backend).stats["edges"]
 
     now, before = edges(True), edges(False)
     assert all(b < a for a, b in zip(now, now[1:], strict=False)), now
-    assert before[1] > 2 * before[0]  # what the rules prevent (the test can fail)
+    assert before[1] > now[1]  # what the rules prevent (the test can fail)
 
 
 def refine_nets(seed: int | None = None) -> InpaintingNets:

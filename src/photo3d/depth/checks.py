@@ -5,6 +5,12 @@ way round), which turns the scene inside out, and a map with almost no range, wh
 gives a flat 3D photo. :func:`check_depth` returns human-readable warnings for both;
 it never raises and never changes the map.
 
+"Flat" is defined once, here (:func:`is_flat`), and the pipeline agrees: a map whose
+values all lie within :data:`FLAT_RANGE` of its largest is made flat
+(:func:`photo3d.depth.normalize.normalize` gives zeros) instead of having its last
+digits stretched to the full depth range, where they would become relief made of
+noise (a map of 1.0 and 1.0000001 turned into 3.5 million LDI pixels).
+
 The inversion heuristic ("the ground is near"): in most photos the bottom of the
 picture (ground, table, the subject's body) is nearer than the top (sky, walls,
 ceiling far away, background behind a head). Per column, the median disparity of the
@@ -29,11 +35,14 @@ INVERTED_COLUMNS = 2.0 / 3.0
 """Fraction of columns whose top must be nearer than their bottom to warn."""
 
 FLAT_RANGE = 0.05
-"""Warn when ``(p99 - p1) / p99`` of the disparity is below this."""
+"""A disparity map whose relative range (:func:`depth_range`) is below this is flat."""
 
 
 def depth_range(disparity: np.ndarray) -> float:
-    """Robust relative range ``(p99 - p1) / p99`` of a disparity map.
+    """Relative range ``(max - min) / max`` of a disparity map (finite values).
+
+    The whole range, not percentiles: a small object in front of a wall is relief,
+    however few its pixels.
 
     Args:
         disparity: ``(H, W)`` disparity (>= 0, larger = nearer), any scale.
@@ -43,14 +52,29 @@ def depth_range(disparity: np.ndarray) -> float:
 
     Example:
         >>> round(depth_range(np.linspace(1.0, 2.0, 101).reshape(1, -1)), 3)
-        0.492
+        0.5
     """
     finite = np.asarray(disparity, np.float64)
     finite = finite[np.isfinite(finite)]
     if finite.size == 0:
         return 0.0
-    lo, hi = np.percentile(finite, [1, 99])
-    return float((hi - lo) / hi) if hi > 0 else 0.0
+    lo, hi = float(finite.min()), float(finite.max())
+    return (hi - lo) / hi if hi > 0 else 0.0
+
+
+def is_flat(disparity: np.ndarray) -> bool:
+    """Whether photo3d treats ``disparity`` as flat (:func:`depth_range` below
+    :data:`FLAT_RANGE`): :func:`check_depth` warns, and
+    :func:`photo3d.depth.normalize.normalize` makes it flat everywhere.
+
+    Args:
+        disparity: ``(H, W)`` disparity (>= 0, larger = nearer), any scale.
+
+    Example:
+        >>> is_flat(np.array([[1.0, 1.0000001]])), is_flat(np.array([[1.0, 2.0]]))
+        (True, False)
+    """
+    return depth_range(disparity) < FLAT_RANGE
 
 
 def inverted_columns(disparity: np.ndarray) -> float:
@@ -113,8 +137,7 @@ def check_depth(
     if image is not None and np.shape(image)[:2] != d.shape:
         raise InputError(f"disparity has shape {d.shape} but image is {np.shape(image)}")
     notes = []
-    relative = depth_range(d)
-    if relative < FLAT_RANGE:
+    if is_flat(d):
         notes.append("depth has almost no range: the 3D photo will look flat")
         return notes  # a flat map has no reliable orientation either
     share = inverted_columns(d)

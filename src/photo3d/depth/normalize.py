@@ -15,6 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from photo3d.depth.checks import is_flat
 from photo3d.errors import InputError
 
 
@@ -136,15 +137,20 @@ def fill_unknown(disparity: np.ndarray, unknown: np.ndarray) -> np.ndarray:
 def normalize(disparity: np.ndarray) -> tuple[np.ndarray, float, float]:
     """Map disparity to [0, 1] by its min and max (paper, Sec. 3.1).
 
-    Returns ``(normalised, min, max)``; a constant map gives all zeros.
+    Returns ``(normalised, min, max)``. A flat map (:func:`photo3d.depth.checks.is_flat`:
+    all values within 5 % of the largest, the map :func:`~photo3d.depth.checks.check_depth`
+    warns about) gives all zeros: stretching its last digits to the full range would
+    turn rounding noise into relief.
 
     Example:
         >>> n, lo, hi = normalize(np.array([[2.0, 4.0]], np.float32))
         >>> n.tolist(), lo, hi
         ([[0.0, 1.0]], 2.0, 4.0)
+        >>> normalize(np.array([[1.0, 1.0000001]], np.float32))[0].tolist()
+        [[0.0, 0.0]]
     """
     lo, hi = float(disparity.min()), float(disparity.max())
-    if hi - lo <= 1e-12 * max(abs(hi), 1.0):
+    if is_flat(disparity):
         return np.zeros_like(disparity, dtype=np.float32), lo, hi
     return ((disparity - lo) / (hi - lo)).astype(np.float32), lo, hi
 

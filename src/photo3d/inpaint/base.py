@@ -17,9 +17,9 @@ from photo3d.structures.patch import InpaintResult, Patch
 class Inpainter(Protocol):
     """What a backend provides: every attribute the pipeline reads.
 
-    ``later_context``, ``paper_context`` and ``settings`` are optional for a backend of
-    your own (:func:`photo3d.inpaint.register`); the pipeline then takes 1.0, ``False``
-    and ``{"name": name}``. The built-in backends define all of them.
+    ``later_context``, ``paper_context``, ``patchwise`` and ``settings`` are optional for
+    a backend of your own (:func:`photo3d.inpaint.register`); the pipeline then takes
+    1.0, ``False``, ``False`` and ``{"name": name}``. The built-in backends define all of them.
 
     Attributes:
         name: the backend's registered name (:func:`photo3d.inpaint.available`).
@@ -32,12 +32,16 @@ class Inpainter(Protocol):
             :attr:`~photo3d.config.RegionConfig.context_around` and
             :attr:`~photo3d.config.RegionConfig.thin_context` (the learned nets were
             trained on the paper's).
+        patchwise: ``True`` if each patch is filled on its own, so the pipeline may hand
+            a pass's patches over in batches and hold one batch at a time (bounded
+            memory); ``False``: all of a pass's patches in one call.
     """
 
     name: str
     margin: int
     later_context: float
     paper_context: bool
+    patchwise: bool
 
     def settings(self) -> dict[str, object]:
         """JSON-able settings recorded in ``config.json`` (at least ``name``)."""

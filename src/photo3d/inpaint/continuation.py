@@ -181,7 +181,8 @@ def _continue(color, disparity, context, synthesis, threshold, disp_step, reach,
                     near = True
         if near:
             continue
-        tx, ty, coh = _tangent(jxx, jxy, jyy, context, y0, x0, radius)
+        # int64 centres, as the second call's: one compiled _tangent, not two
+        tx, ty, coh = _tangent(jxx, jxy, jyy, context, np.int64(y0), np.int64(x0), radius)
         if coh < coherence:
             continue
         # Which way leads into the synthesis region (within reach + 1 px)?
@@ -324,6 +325,13 @@ def _continue(color, disparity, context, synthesis, threshold, disp_step, reach,
             if entered and 0.5 * k > length + reach:
                 break
     return lines
+
+
+KERNELS = ((_continue, "(float32[:, :, ::1], float32[:, ::1], boolean[:, ::1], boolean[:, ::1], "
+                       "float32, float32, int64, int64, float64, int64, float64, int64)"),)
+"""The kernels ``make`` runs here and the argument types it gives them, compiled ahead
+by :func:`photo3d.kernels.compile_kernels` (``tests/test_kernels.py`` checks ``make``
+gives no others)."""
 
 
 def continue_edges(

@@ -48,7 +48,11 @@ def diffuse_in_place(values, context, synthesis, iterations, tolerance, omega): 
     """
     h, w, c = values.shape
     known = context.copy()
-    # Breadth-first initial guess: mean of already known neighbours.
+    dys = (0, 0, -1, 1)
+    dxs = (-1, 1, 0, 0)
+    # Breadth-first initial guess: mean of already known neighbours. It starts from the
+    # context pixels next to the synthesis region, in raster order (the others would
+    # queue nothing).
     qy = np.empty(h * w, np.int64)
     qx = np.empty(h * w, np.int64)
     head = 0
@@ -57,11 +61,13 @@ def diffuse_in_place(values, context, synthesis, iterations, tolerance, omega): 
     for y in range(h):
         for x in range(w):
             if context[y, x]:
-                qy[tail] = y
-                qx[tail] = x
-                tail += 1
-    dys = (0, 0, -1, 1)
-    dxs = (-1, 1, 0, 0)
+                for k in range(4):
+                    yy, xx = y + dys[k], x + dxs[k]
+                    if 0 <= yy < h and 0 <= xx < w and synthesis[yy, xx]:
+                        qy[tail] = y
+                        qx[tail] = x
+                        tail += 1
+                        break
     while head < tail:
         y, x = qy[head], qx[head]
         head += 1
@@ -121,6 +127,13 @@ def diffuse_in_place(values, context, synthesis, iterations, tolerance, omega): 
         if worst < tolerance:
             break
     return known
+
+
+KERNELS = ((diffuse_in_place, "(float32[:, :, ::1], boolean[:, ::1], boolean[:, ::1], int64, "
+                              "float64, float64)"),)
+"""The kernels ``make`` runs here and the argument types it gives them, compiled ahead
+by :func:`photo3d.kernels.compile_kernels` (``tests/test_kernels.py`` checks ``make``
+gives no others)."""
 
 
 def diffuse(
@@ -200,6 +213,8 @@ class DiffusionInpainter:
     """Later passes grow contexts as deep as the first (read by the pipeline)."""
     paper_context = False
     """Contexts take photo3d's rules too (read by the pipeline)."""
+    patchwise = True
+    """Each patch is filled on its own: the pipeline may give a pass's patches in batches."""
 
     def __init__(self, options: DiffusionOptions | None = None, *,
                  workers: int | None = None, **changes) -> None:

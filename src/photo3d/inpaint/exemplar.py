@@ -56,25 +56,38 @@ def _dist(img, weight, py, px, qy, qx, r, best):  # pragma: no cover - jit
 def _fill(img, context, synthesis, r, iterations, em_steps, guide_weight, seed,
           copy):  # pragma: no cover
     h, w, c = img.shape
-    # Valid source centres: the whole patch inside the context.
+    # Valid source centres: the whole patch inside the context (a window sum of the
+    # context's integral image).
+    area = np.zeros((h + 1, w + 1), np.int64)
+    for y in range(h):
+        run = 0
+        for x in range(w):
+            if context[y, x]:
+                run += 1
+            area[y + 1, x + 1] = area[y, x + 1] + run
+    full = (2 * r + 1) * (2 * r + 1)
     src = np.zeros((h, w), np.bool_)
     n_src = 0
     for y in range(r, h - r):
         for x in range(r, w - r):
-            ok = True
-            for dy in range(-r, r + 1):
-                for dx in range(-r, r + 1):
-                    if not context[y + dy, x + dx]:
-                        ok = False
-                        break
-                if not ok:
-                    break
-            src[y, x] = ok
-            if ok:
+            if (area[y + r + 1, x + r + 1] - area[y - r, x + r + 1]
+                    - area[y + r + 1, x - r] + area[y - r, x - r]) == full:
+                src[y, x] = True
                 n_src += 1
     if n_src == 0:
         return False
-    # Nearest source (breadth-first over the lattice) as the initial match.
+    # Synthesis pixels in scan order.
+    n = 0
+    sy = np.empty(h * w, np.int32)
+    sx = np.empty(h * w, np.int32)
+    for y in range(h):
+        for x in range(w):
+            if synthesis[y, x]:
+                sy[n] = y
+                sx[n] = x
+                n += 1
+    # Nearest source (breadth-first over the lattice) as the initial match; it stops
+    # once every synthesis pixel has one (only theirs are read).
     fy = np.full((h, w), -1, np.int32)
     fx = np.full((h, w), -1, np.int32)
     qy = np.empty(h * w, np.int32)
@@ -89,7 +102,8 @@ def _fill(img, context, synthesis, r, iterations, em_steps, guide_weight, seed,
                 qy[tail] = y
                 qx[tail] = x
                 tail += 1
-    while head < tail:
+    missing = n
+    while head < tail and missing > 0:
         y, x = qy[head], qx[head]
         head += 1
         for k in range(4):
@@ -101,16 +115,8 @@ def _fill(img, context, synthesis, r, iterations, em_steps, guide_weight, seed,
                 qy[tail] = yy
                 qx[tail] = xx
                 tail += 1
-    # Synthesis pixels in scan order.
-    n = 0
-    sy = np.empty(h * w, np.int32)
-    sx = np.empty(h * w, np.int32)
-    for y in range(h):
-        for x in range(w):
-            if synthesis[y, x]:
-                sy[n] = y
-                sx[n] = x
-                n += 1
+                if synthesis[yy, xx]:
+                    missing -= 1
     weight = np.zeros((h, w), np.float32)
     for y in range(h):
         for x in range(w):
@@ -125,8 +131,9 @@ def _fill(img, context, synthesis, r, iterations, em_steps, guide_weight, seed,
     big = max(h, w)
     for em in range(em_steps):
         for i in range(n):
-            cost[sy[i], sx[i]] = _dist(img, weight, sy[i], sx[i], fy[sy[i], sx[i]],
-                                       fx[sy[i], sx[i]], r, np.inf)
+            # int64 sources, as the searches below give: one compiled _dist, not two
+            cost[sy[i], sx[i]] = _dist(img, weight, sy[i], sx[i], np.int64(fy[sy[i], sx[i]]),
+                                       np.int64(fx[sy[i], sx[i]]), r, np.inf)
         for it in range(iterations):
             forward = (it % 2) == 0
             step = 1 if forward else -1
@@ -191,6 +198,13 @@ def _fill(img, context, synthesis, r, iterations, em_steps, guide_weight, seed,
                 acc[y, x, ch] = 0.0
             cnt[y, x] = 0.0
     return True
+
+
+KERNELS = ((_fill, "(float32[:, :, ::1], boolean[:, ::1], boolean[:, ::1], int64, int64, int64, "
+                   "float64, int64, boolean)"),)
+"""The kernels ``make`` runs here and the argument types it gives them, compiled ahead
+by :func:`photo3d.kernels.compile_kernels` (``tests/test_kernels.py`` checks ``make``
+gives no others)."""
 
 
 def exemplar_fill(

@@ -250,6 +250,9 @@ class LearnedInpainter:
     """The nets see the paper's context regions only (read by the pipeline): they were
     trained on those, not on :attr:`~photo3d.config.RegionConfig.context_around` or
     ``thin_context``'s larger ones."""
+    patchwise = False
+    """A pass's patches come in one call (read by the pipeline): the nets fill them in
+    batches of their own."""
 
     def __init__(self, options: LearnedOptions | None = None, *,
                  weights: str | Path | None = None, device: str | torch.device | None = None,

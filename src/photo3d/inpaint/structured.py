@@ -108,6 +108,26 @@ def texture_weight(color: np.ndarray, context: np.ndarray, synthesis: np.ndarray
     """
     from scipy.ndimage import gaussian_filter
 
+    # Only the context next to the synthesis region is carried into it, and its detail
+    # reads the context within two Gaussian reaches: the rest of the patch is not read
+    # (but for synthesis pixels no context reaches: the window's mean detail, not the
+    # patch's).
+    reach = 2 * int(4.0 * radius + 0.5) + 1  # gaussian_filter's truncate=4, twice, + 1
+    rows, cols = np.flatnonzero(synthesis.any(axis=1)), np.flatnonzero(synthesis.any(axis=0))
+    if rows.size == 0:
+        return np.zeros(synthesis.shape, np.float32)
+    y0, x0 = max(rows[0] - reach, 0), max(cols[0] - reach, 0)
+    y1, x1 = rows[-1] + reach + 1, cols[-1] + reach + 1
+    if (y0, x0) != (0, 0) or y1 < synthesis.shape[0] or x1 < synthesis.shape[1]:
+        window = np.s_[y0:y1, x0:x1]
+        inner = texture_weight(np.ascontiguousarray(color[window]),
+                               np.ascontiguousarray(context[window]),
+                               np.ascontiguousarray(synthesis[window]),
+                               smooth=smooth, textured=textured, radius=radius)
+        out = np.zeros(synthesis.shape, np.float32)
+        out[window] = inner
+        return out
+
     known = context.astype(np.float32)
     grey = np.where(context, color.mean(axis=2), 0.0).astype(np.float32)
 
@@ -196,6 +216,8 @@ class StructuredInpainter:
     """Later passes grow contexts as deep as the first (read by the pipeline)."""
     paper_context = False
     """Contexts take photo3d's rules too (read by the pipeline)."""
+    patchwise = True
+    """Each patch is filled on its own: the pipeline may give a pass's patches in batches."""
 
     def __init__(self, options: StructuredOptions | None = None, *,
                  workers: int | None = None, **changes) -> None:

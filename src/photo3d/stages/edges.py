@@ -108,6 +108,12 @@ def _link(disc, candidates):  # pragma: no cover - jit
     return labels
 
 
+KERNELS = ((_link, "(uint8[:, ::1], boolean[:, ::1])"),)
+"""The kernels ``make`` runs here and the argument types it gives them, compiled ahead
+by :func:`photo3d.kernels.compile_kernels` (``tests/test_kernels.py`` checks ``make``
+gives no others)."""
+
+
 def link_edges(disparity: np.ndarray, *, threshold: float, min_length: int,
                attach_short: bool = True) -> DepthEdges:
     """Detect, link and clean depth edges.

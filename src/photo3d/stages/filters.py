@@ -59,6 +59,13 @@ def _weighted_median_at(disp, ys, xs, radius, sigma_s, sigma_i):  # pragma: no c
     return out
 
 
+KERNELS = ((_weighted_median_at, "(float32[:, ::1], int64[::1], int64[::1], int64, float64, "
+                                 "float64)"),)
+"""The kernels ``make`` runs here and the argument types it gives them, compiled ahead
+by :func:`photo3d.kernels.compile_kernels` (``tests/test_kernels.py`` checks ``make``
+gives no others)."""
+
+
 def bilateral_median(
     disparity: np.ndarray,
     *,

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import dataclass
 
 import numpy as np
@@ -29,7 +30,8 @@ class PatchJob:
 
 def extract_patches(ldi: LDI, regions: Regions, edge_pixels: np.ndarray, *,
                     margin: int, scale: float = 1.0) -> list[PatchJob]:
-    """Rasterise each edge's regions into a :class:`Patch` (its bounding box + margin).
+    """Rasterise each edge's regions into a :class:`Patch` (its bounding box + margin):
+    the list of :func:`iter_patches`.
 
     Args:
         ldi: the LDI the regions were grown on.
@@ -57,9 +59,26 @@ def extract_patches(ldi: LDI, regions: Regions, edge_pixels: np.ndarray, *,
         >>> job.patch.shape, int(job.patch.context.sum()), int(job.patch.synthesis.sum())
         ((10, 7), 16, 24)
     """
+    return list(iter_patches(ldi, regions, edge_pixels, margin=margin, scale=scale))
+
+
+def iter_patches(ldi: LDI, regions: Regions, edge_pixels: np.ndarray, *,
+                 margin: int, scale: float = 1.0) -> Iterator[PatchJob]:
+    """:func:`extract_patches` one job at a time, in edge order, so that a pass need
+    not hold all of its patches at once (same arguments).
+
+    Example:
+        >>> from photo3d.stages.regions import Regions
+        >>> from photo3d.stages.ldi import from_image
+        >>> ldi = from_image(np.zeros((2, 2, 3), np.float32), np.zeros((2, 2), np.float32))
+        >>> none = Regions(np.zeros(1, np.int64), np.zeros(0, np.int64),
+        ...                np.zeros(0, np.int32), np.zeros(1, np.int64),
+        ...                np.zeros(0, np.int32), np.zeros(0, np.int32), 0)
+        >>> list(iter_patches(ldi, none, np.zeros(0, np.int64), margin=1))
+        []
+    """
     is_edge = np.zeros(ldi.size, bool)
     is_edge[edge_pixels] = True
-    jobs = []
     for e in range(regions.count):
         c0, c1 = regions.context_ptr[e], regions.context_ptr[e + 1]
         s0, s1 = regions.synthesis_ptr[e], regions.synthesis_ptr[e + 1]
@@ -88,5 +107,4 @@ def extract_patches(ldi: LDI, regions: Regions, edge_pixels: np.ndarray, *,
         synthesis[sy - y0, sx - x0] = True
         synthesis[ldi.y[band] - y0, ldi.x[band] - x0] = True
         patch = Patch(color, disparity, edges, context, synthesis, (y0, x0), scale)
-        jobs.append(PatchJob(patch=patch, new_y=sy, new_x=sx, band=band))
-    return jobs
+        yield PatchJob(patch=patch, new_y=sy, new_x=sx, band=band)

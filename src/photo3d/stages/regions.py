@@ -59,13 +59,30 @@ class Regions:
     def count(self) -> int:
         return int(self.context_ptr.shape[0] - 1)
 
+    def areas(self, ldi: LDI) -> np.ndarray:
+        """``(E,) int64`` bounding-box pixels of each edge's context and synthesis (its
+        patch without the margin); ``ldi``: the LDI the regions were grown on."""
+        cols = ldi.lattice_shape[1]
+        syn = (self.synthesis_y.astype(np.int64) + ldi.border) * cols + (
+            self.synthesis_x + ldi.border)
+        return _box_areas(self.context_ptr, ldi.positions()[self.context],
+                          self.synthesis_ptr, syn, cols)
+
+    def head(self, n: int) -> Regions:
+        """The regions of the first ``n`` edges."""
+        c, s = int(self.context_ptr[n]), int(self.synthesis_ptr[n])
+        return Regions(self.context_ptr[:n + 1], self.context[:c], self.context_step[:c],
+                       self.synthesis_ptr[:n + 1], self.synthesis_y[:s],
+                       self.synthesis_x[:s], self.dilation)
+
 
 @numba.njit(cache=True)
 def _grow(arr, n):  # pragma: no cover - jit
     if n < arr.shape[0]:
         return arr
     out = np.empty(max(2 * arr.shape[0], 16), arr.dtype)
-    out[: arr.shape[0]] = arr
+    for i in range(arr.shape[0]):  # not out[:k] = arr: its shape check compiles str()
+        out[i] = arr[i]
     return out
 
 
@@ -164,8 +181,10 @@ def _regions(pos, disp, links, starts, order, rows, cols, edge_ptr, edge_pix,
     syn_seed = np.empty(1024, np.float32)
     ctx_ptr = np.zeros(n_edges + 1, np.int64)
     syn_ptr = np.zeros(n_edges + 1, np.int64)
-    nc = 0
-    ns = 0
+    # int64 from the start: a literal 0 would compile the helpers it is passed to
+    # once more for the type Literal[int](0)
+    nc = np.int64(0)
+    ns = np.int64(0)
     for e in range(n_edges):
         c0 = nc
         for k in range(edge_ptr[e], edge_ptr[e + 1]):
@@ -227,6 +246,14 @@ def _regions(pos, disp, links, starts, order, rows, cols, edge_ptr, edge_pix,
     return ctx_ptr, ctx[:nc].copy(), ctx_step[:nc].copy(), syn_ptr, syn[:ns].copy()
 
 
+KERNELS = ((_regions, "(int64[::1], float32[::1], int32[:, ::1], int64[::1], int64[::1], int64, "
+                      "int64, int64[::1], int64[::1], int64, int64, float32, float32, boolean, "
+                      "int64)"),)
+"""The kernels ``make`` runs here and the argument types it gives them, compiled ahead
+by :func:`photo3d.kernels.compile_kernels` (``tests/test_kernels.py`` checks ``make``
+gives no others)."""
+
+
 @dataclass(frozen=True)
 class RegionSizes:
     """The sizes and rules of one pass's regions, in working pixels (made from a
@@ -254,11 +281,30 @@ class RegionSizes:
     thin_context_iterations: int
 
 
+@dataclass(frozen=True)
+class RegionLimit:
+    """The most one pass's regions may hold, summed over its edges (see
+    :func:`photo3d.stages.passes.pass_limit`, which sets them).
+
+    Attributes:
+        context: context pixels.
+        synthesis: synthesis positions (the new pixels' candidates).
+        area: bounding-box pixels of each edge's context and synthesis (the patches).
+    """
+
+    context: int
+    synthesis: int
+    area: int
+
+
 def find_regions(
     ldi: LDI,
     edge_ptr: np.ndarray,
     edge_pixels: np.ndarray,
     sizes: RegionSizes,
+    *,
+    limit: RegionLimit | None = None,
+    index: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> Regions:
     """Grow context and synthesis regions for a batch of depth edges.
 
@@ -267,6 +313,10 @@ def find_regions(
         edge_ptr: ``(E + 1,) int64`` CSR offsets into ``edge_pixels``.
         edge_pixels: ``(K,) int64`` background silhouette pixels of each edge.
         sizes: the pass's :class:`RegionSizes` (already scaled to the working size).
+        limit: grow the edges in groups (1/16 of them each, in order) and stop after
+            the group that takes a total over this: the result then holds the first
+            ``count < E`` edges only. None: every edge.
+        index: ``ldi.position_index()`` if the caller has it.
 
     Returns:
         :class:`Regions`.
@@ -283,22 +333,71 @@ def find_regions(
         >>> r = find_regions(ldi, np.array([0, 8]), sil, sizes)
         >>> sorted(set(r.synthesis_x.tolist())), sorted(set(ldi.x[r.context].tolist()))
         ([4, 5], [1, 2, 3])
+        >>> find_regions(ldi, np.array([0, 4, 8]), sil, sizes,
+        ...              limit=RegionLimit(context=100, synthesis=4, area=100)).count
+        1
     """
-    starts, order = ldi.position_index()
+    starts, order = index if index is not None else ldi.position_index()
     rows, cols = ldi.lattice_shape
-    ctx_ptr, ctx, ctx_step, syn_ptr, syn = _regions(
-        ldi.positions(), ldi.disparity, ldi.links, starts, order, rows, cols,
-        np.asarray(edge_ptr, np.int64), np.asarray(edge_pixels, np.int64),
-        max(1, sizes.synthesis_iterations), max(1, sizes.context_iterations),
-        np.float32(sizes.threshold / 2), np.float32(sizes.thin_context),
-        bool(sizes.context_around), max(1, sizes.thin_context_iterations),
-    )
+    pos = ldi.positions()
+    edge_ptr = np.asarray(edge_ptr, np.int64)
+    edge_pixels = np.asarray(edge_pixels, np.int64)
+    n_edges = edge_ptr.size - 1
+    group = n_edges if limit is None else max(1, -(-n_edges // 16))
+    parts = []
+    used = np.zeros(3, np.int64)  # context, synthesis, area
+    for a in range(0, max(n_edges, 1), max(group, 1)):
+        b = min(n_edges, a + group)
+        part = _regions(
+            pos, ldi.disparity, ldi.links, starts, order, rows, cols,
+            edge_ptr[a:b + 1] - edge_ptr[a], edge_pixels[edge_ptr[a]:edge_ptr[b]],
+            max(1, sizes.synthesis_iterations), max(1, sizes.context_iterations),
+            np.float32(sizes.threshold / 2), np.float32(sizes.thin_context),
+            bool(sizes.context_around), max(1, sizes.thin_context_iterations),
+        )
+        parts.append(part)
+        if limit is not None:
+            ctx_ptr, ctx, _, syn_ptr, syn = part
+            used += (ctx.size, syn.size,
+                     _box_areas(ctx_ptr, pos[ctx], syn_ptr, syn, cols).sum())
+            if (used > (limit.context, limit.synthesis, limit.area)).any():
+                break
+    ctx_ptr, syn_ptr = _join_ptr([p[0] for p in parts]), _join_ptr([p[3] for p in parts])
+    syn = np.concatenate([p[4] for p in parts])
     return Regions(
         context_ptr=ctx_ptr,
-        context=ctx,
-        context_step=ctx_step,
+        context=np.concatenate([p[1] for p in parts]),
+        context_step=np.concatenate([p[2] for p in parts]),
         synthesis_ptr=syn_ptr,
         synthesis_y=(syn // cols - ldi.border).astype(np.int32),
         synthesis_x=(syn % cols - ldi.border).astype(np.int32),
         dilation=int(sizes.dilation),
     )
+
+
+def _join_ptr(ptrs: list[np.ndarray]) -> np.ndarray:
+    """CSR offsets of consecutive groups joined into one."""
+    out, base = [np.zeros(1, np.int64)], 0
+    for ptr in ptrs:
+        out.append(ptr[1:] + base)
+        base += int(ptr[-1])
+    return np.concatenate(out)
+
+
+def _box_areas(ctx_ptr: np.ndarray, ctx_pos: np.ndarray, syn_ptr: np.ndarray,
+               syn_pos: np.ndarray, cols: int) -> np.ndarray:
+    """``(E,) int64`` bounding-box area of each edge's context and synthesis (flat
+    lattice positions in CSR groups)."""
+    n = ctx_ptr.size - 1
+    lo = np.full((2, n), np.iinfo(np.int64).max)
+    hi = np.full((2, n), -1)
+    for ptr, flat in ((ctx_ptr, ctx_pos), (syn_ptr, syn_pos)):
+        some = np.diff(ptr) > 0
+        if not some.any():
+            continue
+        at = ptr[:-1][some]
+        for k, v in enumerate((flat // cols, flat % cols)):
+            lo[k, some] = np.minimum(lo[k, some], np.minimum.reduceat(v, at))
+            hi[k, some] = np.maximum(hi[k, some], np.maximum.reduceat(v, at))
+    size = np.maximum(hi - lo + 1, 0)
+    return size[0] * size[1]
