@@ -1,4 +1,4 @@
-"""Which mesh the videos of ``save`` are drawn from (light with OpenGL, full with numba)."""
+"""Which mesh the videos of ``save`` are drawn from (the light one, with either backend)."""
 
 from __future__ import annotations
 
@@ -20,10 +20,13 @@ def _photo():
                         config=photo3d.Config(size=None))
 
 
-def test_numba_videos_use_the_full_mesh():
+def test_numba_videos_use_the_light_mesh():
     photo = _photo()
     mesh = photo.mesh()
-    assert _video_mesh(photo, mesh, None, NUMBA) is mesh
+    chosen = _video_mesh(photo, mesh, None, NUMBA)
+    assert isinstance(chosen, TexturedMesh) and not isinstance(chosen, Mesh)
+    light = photo.light_mesh()
+    assert _video_mesh(photo, mesh, light, NUMBA) is light
 
 
 def test_opengl_videos_use_the_light_mesh():

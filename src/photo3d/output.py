@@ -5,8 +5,7 @@ A 3D photo folder holds ``photo3d.npz`` (the LDI, lossless), ``mesh.ply``
 (the light textured mesh of :mod:`photo3d.mesh.light`, or the full vertex-coloured mesh
 with ``full_glb``), ``viewer.html`` (interactive, self-contained) and ``config.json``
 (everything that changes the output, see :func:`photo_meta`), and videos in ``video/``
-(rendered from the full mesh with the numba backend, where the light one is not
-faster, and from the light mesh with OpenGL, where it is; see benchmarks/RESULTS.md).
+(rendered from the light mesh, with either backend; see benchmarks/RESULTS.md).
 Everything is written into a temporary sibling folder first and moved into place at
 the end (:mod:`photo3d.files.staging`), so an interrupted or failed run never leaves a
 half-written output folder, and ``overwrite`` only ever replaces a folder holding
@@ -210,13 +209,11 @@ def photo_meta(photo: SavedPhoto, options: SaveOptions | None = None) -> dict:
 
 
 def _video_mesh(photo: SavedPhoto, mesh, light, options: SaveOptions):
-    """The mesh videos are drawn from: the light one with the OpenGL backend (about
-    3 times faster per frame there at the same look), the full one with numba (the
-    light one is not faster there); benchmarks/RESULTS.md, light mesh."""
-    from photo3d.render.renderer import RenderSettings, select_backend
-
-    if select_backend((options.render_settings or RenderSettings()).backend) != "gl":
-        return mesh
+    """The mesh videos are drawn from: the light textured one, with either backend
+    (``light``, or built from ``mesh``). With OpenGL it draws about 3 times faster than
+    the full mesh at the same look; with numba, at one sample per pixel antialiased at
+    depth edges (``RenderSettings.antialias`` ``auto``), about 3 times faster than the
+    full mesh at 2x2 samples, 38-40 dB from it (benchmarks/RESULTS.md, videos)."""
     return light if light is not None else build_light_mesh(
         photo.ldi, full=mesh, max_error=light_error(options))
 
@@ -250,8 +247,7 @@ def write_videos(photo: SavedPhoto, mesh, folder: Path, videos: Sequence[VideoSp
     """Render ``videos`` of ``photo`` into ``folder/video/`` (one renderer for all).
 
     ``mesh``: the mesh to draw, a full :class:`~photo3d.structures.mesh.Mesh` or a light
-    :class:`~photo3d.structures.mesh.TexturedMesh`; None: the light one with the OpenGL
-    backend, else the full one (built here).
+    :class:`~photo3d.structures.mesh.TexturedMesh`; None: the light one (built here).
 
     Nothing is written through a symbolic link, and no file photo3d did not write is
     replaced: a ``video`` that is a link, or a video name that is a link or a file

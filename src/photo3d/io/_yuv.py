@@ -18,7 +18,7 @@ _SB = 224.0 / 255.0 / (2.0 * (1.0 - _KB))  # chroma: -127.5..127.5 -> 16..240
 _SR = 224.0 / 255.0 / (2.0 * (1.0 - _KR))
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def rgb_to_yuv420(rgb):  # pragma: no cover - jit
     """``(H, W, 3) uint8`` RGB (H, W even) -> ``(3H/2, W) uint8``: the Y, U and V planes
     one after the other, as PyAV's ``VideoFrame.from_ndarray(..., "yuv420p")`` takes.
