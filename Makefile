@@ -2,6 +2,9 @@
 PYTHON ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
+# Two installs: the demo's (photo3d and the sample: what `photo3d demo` runs), then for
+# the tests everything else on top (torch, every extra, the test tools).
+DEMO_STAMP := $(VENV)/.installed-demo
 STAMP := $(VENV)/.installed
 # The Khronos glTF validator (npm, 0.4 MB, no dependencies) for tests/io/test_gltf_validator.py;
 # installed by `make test` when npm is there, skipped (and the test with it) otherwise.
@@ -13,15 +16,20 @@ SPARK := $(NODE_DIR)/node_modules/@sparkjsdev/spark
 
 .PHONY: demo test lint bench clean
 
-$(STAMP): pyproject.toml
+$(DEMO_STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
+	$(BIN)/pip install --quiet --disable-pip-version-check -e '.[sample]'
+	touch $(DEMO_STAMP)
+
+$(STAMP): $(DEMO_STAMP)
 	$(BIN)/pip install --quiet --upgrade pip
 	# torch pinned first: an unpinned spec would pull the newest CUDA build (GBs)
 	$(BIN)/pip install --quiet torch==2.13.0
 	$(BIN)/pip install --quiet -e '.[all,test]'
 	touch $(STAMP)
 
-demo: $(STAMP)
+# The first run compiles photo3d's numba kernels once ("compiling, once" in the bar).
+demo: $(DEMO_STAMP)
 	$(BIN)/photo3d demo -o out/demo --overwrite
 
 test: $(STAMP)

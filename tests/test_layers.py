@@ -32,7 +32,7 @@ LAYERS = {
     "photo3d.photo": 7, "photo3d.output": 7, "photo3d.save_options": 7,
     "photo3d.owned": 7, "photo3d.resources": 7, "photo3d.export": 7,
     # 8: make, and make into an output folder (the path `make` and `batch` share)
-    "photo3d.pipeline": 8, "photo3d.folder": 8,
+    "photo3d.pipeline": 8, "photo3d.folder": 8, "photo3d.kernels": 8,
     # 9: what runs make many times
     "photo3d.eval": 9, "photo3d.train": 9, "photo3d.batch": 9,
     # 10: the command line

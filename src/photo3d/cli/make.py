@@ -36,13 +36,17 @@ def run(args: argparse.Namespace) -> int:
 
 def run_make(args: argparse.Namespace, image, *, say_source: bool = True, **sources) -> int:
     """Check every option first, then make ``image`` into ``args.out`` with a progress
-    bar (:func:`photo3d.folder.make_folder`) and print a summary.
+    bar (:func:`photo3d.folder.make_folder`) and print a summary. Once the depth is
+    known, numba's kernels are compiled (:func:`photo3d.kernels.compile_kernels`: the
+    first run's "compiling, once" step; loaded from the cache afterwards); a kernel
+    still compiled on first use (the renderer's) shows as "compiling, once" too.
 
     ``sources``: ``depth``, ``right`` or ``depth_model`` of the photo (none: its
     embedded map, else the depth model). ``say_source``: print where the depth came
     from (its warnings are printed anyway).
     """
     from photo3d.folder import make_folder, prepare
+    from photo3d.kernels import compile_kernels, watch_compiles
 
     options = make_options(args)
     inpainter = prepare(options)
@@ -52,14 +56,16 @@ def run_make(args: argparse.Namespace, image, *, say_source: bool = True, **sour
         say_depth(est, quiet=args.quiet, source=say_source)
         if not args.quiet:
             _say_if_upscaled(photo.shape[:2], options.config)
+        compile_kernels(lambda fraction: bar("compile", fraction))
 
     try:
-        photo = make_folder(image, args.out, options=options, inpainter=inpainter,
-                            progress=bar, on_depth=on_depth,
-                            download_bar=download_bar(args.quiet),
-                            # by its name here, so a test can stand in another estimate
-                            need_bytes=output_bytes(options.config, options.save.videos),
-                            **sources)
+        with watch_compiles(lambda busy: bar.note(STAGE_LABELS["compile"] if busy else None)):
+            photo = make_folder(image, args.out, options=options, inpainter=inpainter,
+                                progress=bar, on_depth=on_depth,
+                                download_bar=download_bar(args.quiet),
+                                # by its name here, so a test can stand in another estimate
+                                need_bytes=output_bytes(options.config, options.save.videos),
+                                **sources)
     finally:
         bar.close()
     if not args.quiet:
@@ -79,6 +85,10 @@ class _LateBar:
         if self.bar is None:
             self.bar = StageBar(self.quiet)
         self.bar(stage, fraction)
+
+    def note(self, label: str | None) -> None:
+        if self.bar is not None:
+            self.bar.note(label)
 
     def close(self) -> None:
         if self.bar is not None:

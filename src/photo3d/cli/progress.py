@@ -11,7 +11,8 @@ class StageBar:
     """Stage-aware progress bar: the library's ``progress(stage, fraction)`` callback.
 
     Stages are weighted by their usual share of a ``make`` run, so the bar moves
-    at a roughly even pace; ``quiet`` (or stderr not a terminal) shows nothing.
+    at a roughly even pace (the ``compile`` step counts only if it is the first
+    reported); ``quiet`` (or stderr not a terminal) shows nothing.
 
     >>> bar = StageBar(quiet=True)
     >>> bar("inpaint", 0.5); bar.close()
@@ -22,7 +23,7 @@ class StageBar:
         if not quiet:
             from tqdm import tqdm
 
-            self.bar = tqdm(total=100, bar_format="{desc:<12}{bar}| {percentage:3.0f}% "
+            self.bar = tqdm(total=100, bar_format="{desc:<16}{bar}| {percentage:3.0f}% "
                             "[{elapsed}]", file=sys.stderr, leave=False,
                             disable=None)  # no bar when stderr is not a terminal
         self.weights = dict(STAGE_WEIGHTS)
@@ -31,6 +32,10 @@ class StageBar:
     def __call__(self, stage: str, fraction: float) -> None:
         if self.bar is None:
             return
+        if self.stage is None:  # the first report: with a warm cache, no compile step
+            if stage != "compile":
+                self.weights.pop("compile", None)
+            self.bar.total = sum(self.weights.values())
         order = list(self.weights)
         base = sum(self.weights[s] for s in order[: order.index(stage)])
         value = base + self.weights[stage] * fraction
@@ -38,6 +43,12 @@ class StageBar:
             self.stage = stage
             self.bar.set_description_str(STAGE_LABELS.get(stage, stage), refresh=False)
         self.bar.update(max(0.0, value - self.bar.n))
+
+    def note(self, label: str | None) -> None:
+        """Show ``label`` instead of the stage's name (None: the stage's name again),
+        e.g. while numba compiles a kernel on first use."""
+        if self.bar is not None and self.stage is not None:
+            self.bar.set_description_str(label or STAGE_LABELS.get(self.stage, self.stage))
 
     def close(self) -> None:
         if self.bar is not None:

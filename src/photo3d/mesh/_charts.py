@@ -110,7 +110,6 @@ def fill_charts(src, colors):
     return out
 
 
-@njit(cache=True, nogil=True)
 def chart_vertices(faces, chart, n_pixels):
     """One vertex per (pixel, chart) that the faces use: texture seams split vertices.
 
@@ -125,7 +124,17 @@ def chart_vertices(faces, chart, n_pixels):
         ``(pixel, chart)`` (what ``np.unique`` of the pair keys gives, at a fraction
         of its time: most pixels are in one chart, and only the others are sorted).
     """
-    first = np.full(n_pixels, -1, np.int64)  # chart + 1 of the pixel, -2: several
+    # two kernels around NumPy's unique: numba's np.unique would compile a sort (1 s)
+    first, keys, span = _pixel_charts(faces, chart, n_pixels)
+    return _chart_corners(faces, chart, first, np.unique(keys), span)
+
+
+@njit(cache=True, nogil=True)
+def _pixel_charts(faces, chart, n_pixels):
+    """``(first (N,) int64, keys (K,) int64, span)``: each pixel's chart + 1 (-1: in
+    no face, -2: in several charts), and the key ``pixel * span + chart + 1`` of every
+    face corner at a pixel in several charts."""
+    first = np.full(n_pixels, -1, np.int64)
     n_multi = 0
     for f in range(len(faces)):
         for c in range(3):
@@ -138,7 +147,7 @@ def chart_vertices(faces, chart, n_pixels):
         for c in range(3):
             if first[faces[f, c]] == -2:
                 n_multi += 1
-    keys = np.empty(n_multi, np.int64)  # pixel * (charts + 2) + chart + 1
+    keys = np.empty(n_multi, np.int64)
     span = chart.max() + 2 if len(chart) else 1
     j = 0
     for f in range(len(faces)):
@@ -147,7 +156,14 @@ def chart_vertices(faces, chart, n_pixels):
             if first[p] == -2:
                 keys[j] = p * span + chart[f] + 1
                 j += 1
-    keys = np.unique(keys)
+    return first, keys, span
+
+
+@njit(cache=True, nogil=True)
+def _chart_corners(faces, chart, first, keys, span):
+    """:func:`chart_vertices` from :func:`_pixel_charts`' ``first`` and ``span`` and
+    its ``keys`` sorted without repeats."""
+    n_pixels = len(first)
     vid = np.full(n_pixels, -1, np.int64)  # the vertex of a one-chart pixel, or the
     n_v = 0                                 # first of a several-chart pixel's
     k = 0
@@ -185,3 +201,15 @@ def pixel_ranks(pos, n_positions):
         rank[i] = seen[pos[i]]
         seen[pos[i]] += 1
     return rank
+
+
+KERNELS = (
+    (pixel_ranks, "(int64[::1], int64)"),
+    (claim_faces, "(int32[:, ::1], int64[::1], int64[::1], int32[:, ::1], int64)"),
+    (_pixel_charts, "(int64[:, ::1], int64[::1], int64)"),
+    (_chart_corners, "(int64[:, ::1], int64[::1], int64[::1], int64[::1], int64)"),
+    (fill_charts, "(int32[:, :, ::1], uint8[:, ::1])"),
+)
+"""The kernels ``make`` runs here and the argument types it gives them, compiled ahead
+by :func:`photo3d.kernels.compile_kernels` (``tests/test_kernels.py`` checks ``make``
+gives no others)."""

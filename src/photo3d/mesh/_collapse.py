@@ -421,6 +421,13 @@ def _collapse(p, tri, remap, lock, limit, drift):
     for t in range(n_tri):
         a, b, c = remap[tri[t, 0]], remap[tri[t, 1]], remap[tri[t, 2]]
         if a != b and a != c and b != c:
-            tri[w] = tri[t]
+            tri[w, 0], tri[w, 1], tri[w, 2] = tri[t, 0], tri[t, 1], tri[t, 2]
             w += 1
     return tri[:w].copy()
+
+
+KERNELS = ((collapse_part, "(float64[:, ::1], int64[:, ::1], int64[::1], boolean[::1], float64, "
+                           "float64)"),)
+"""The kernels ``make`` runs here and the argument types it gives them, compiled ahead
+by :func:`photo3d.kernels.compile_kernels` (``tests/test_kernels.py`` checks ``make``
+gives no others)."""

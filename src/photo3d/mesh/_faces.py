@@ -46,11 +46,11 @@ def mesh_faces(links):
     """``(M, 3) int32`` faces of the LDI with ``links (N, 4)`` (left, right, up,
     down; -1 = none): T_a, T_d, T_b, T_c faces in that order, then stably sorted by
     their largest vertex index."""
-    n = 0
+    n = np.int64(0)  # not a literal 0: _emit would compile once more for its type
     for kind in range(4):
         n = _emit(links, None, kind, n)
     raw = np.empty((n, 3), np.int64)
-    m = 0
+    m = np.int64(0)
     for kind in range(4):
         m = _emit(links, raw, kind, m)
     start = np.zeros(len(links) + 1, np.int64)
@@ -61,6 +61,13 @@ def mesh_faces(links):
     out = np.empty((n, 3), np.int32)
     for f in range(n):
         key = max(raw[f, 0], raw[f, 1], raw[f, 2])
-        out[start[key]] = raw[f]
+        for c in range(3):  # not out[i] = raw[f]: its shape check compiles str()
+            out[start[key], c] = raw[f, c]
         start[key] += 1
     return out
+
+
+KERNELS = ((mesh_faces, "(int32[:, ::1],)"),)
+"""The kernels ``make`` runs here and the argument types it gives them, compiled ahead
+by :func:`photo3d.kernels.compile_kernels` (``tests/test_kernels.py`` checks ``make``
+gives no others)."""

@@ -161,7 +161,7 @@ def merged_faces(faces, face_layer, py, px, cnt, cols, blocks, images, sign):
     j = 0
     for f in range(len(faces)):
         if keep[f]:
-            out[j] = faces[f]
+            out[j, 0], out[j, 1], out[j, 2] = faces[f, 0], faces[f, 1], faces[f, 2]
             layer[j] = face_layer[f]
             j += 1
     for i in range(len(blocks)):
@@ -177,3 +177,15 @@ def merged_faces(faces, face_layer, py, px, cnt, cols, blocks, images, sign):
             layer[j] = k
             j += 1
     return out, layer
+
+
+KERNELS = (
+    (quad_counts, "(int32[:, ::1], int64[::1], int64[::1], int64[::1], int64, int64, int64)"),
+    (planar_blocks, "(uint8[:, ::1], int32[:, ::1], float64[::1], int64, int64, float64, int64, "
+                    "int64)"),
+    (merged_faces, "(int32[:, ::1], int64[::1], int64[::1], int64[::1], uint8[:, ::1], int64, "
+                   "int64[:, ::1], int32[:, ::1], int64)"),
+)
+"""The kernels ``make`` runs here and the argument types it gives them, compiled ahead
+by :func:`photo3d.kernels.compile_kernels` (``tests/test_kernels.py`` checks ``make``
+gives no others)."""

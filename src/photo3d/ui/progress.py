@@ -25,10 +25,11 @@ the UI's own ``depth``, ``zip`` and ``rezip`` (the zip again with the videos).""
 LABELS = {**STAGE_LABELS, "depth": "depth", "zip": "zip", "rezip": "zip"}
 """How the page names the stages."""
 
-_WEIGHTS = {"depth": 2, "load": 1, "preprocess": 4, "ldi": 1, "inpaint": 20, "mesh": 4,
-            "save": 10, "zip": 8, "video": 70, "rezip": 8}
+_WEIGHTS = {"depth": 2, "compile": 0, "load": 1, "preprocess": 4, "ldi": 1, "inpaint": 20,
+            "mesh": 4, "save": 10, "zip": 8, "video": 70, "rezip": 8}
 """A request's shares: the zips and the save of the folder weigh more than in
-:data:`photo3d.progress.STAGE_WEIGHTS` (measured on the page)."""
+:data:`photo3d.progress.STAGE_WEIGHTS` (measured on the page); ``compile`` is the
+warm-up's, never a request's."""
 
 
 class StageMeter:

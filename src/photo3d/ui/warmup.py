@@ -5,12 +5,13 @@ request arrives.
 photo3d's kernels are compiled on first use and cached on disk; on a cold cache
 that takes minutes, afterwards seconds. The warm-up runs the same path as a
 request on a 48x64 synthetic photo, in the order a request needs it: first
-:func:`photo3d.folder.make_folder` (the stages, the meshes, the GLB and the viewer:
-phase ``"make"``), then a two-frame video (the rasterizer and the encoder). A
-request waits for the phase it needs first (:meth:`Warmup.wait`) rather than
-compile the same kernels at the same time; its videos, later, find the video
-kernels compiled meanwhile (numba compiles one kernel at a time, so a kernel the
-warm-up is still compiling is simply waited for).
+:func:`photo3d.kernels.compile_kernels` (``make``'s kernels, shared with a helper
+process on a cold cache) and :func:`photo3d.folder.make_folder` (the stages, the
+meshes, the GLB and the viewer: phase ``"make"``), then a two-frame video (the
+rasterizer and the encoder). A request waits for the phase it needs first
+(:meth:`Warmup.wait`) rather than compile the same kernels at the same time; its
+videos, later, find the video kernels compiled meanwhile (numba compiles one kernel
+at a time, so a kernel the warm-up is still compiling is simply waited for).
 
 Example:
     >>> import tempfile
@@ -97,6 +98,9 @@ class Warmup:
     def _run(self) -> None:
         start = time.perf_counter()
         try:
+            from photo3d.kernels import compile_kernels
+
+            compile_kernels()
             out = self.folder / "warmup"
             photo = _tiny_make(out)
             self._made.set()

@@ -1,0 +1,135 @@
+"""The first run: ``photo3d demo --no-video`` with an empty numba cache against a warm one.
+
+numba compiles photo3d's kernels on first use and caches them on disk, so the very
+first run of an installation pays for compiling. This times that first run, whole
+process (``python -m photo3d demo --no-video -o TMP --overwrite -q``: start-up,
+compiling, the 3D photo, its files), against the same command with a warm cache, for
+two versions of the code in the same session:
+
+* ``now``: this working tree's ``src/`` (copied into a temporary folder first, so
+  edits made while the benchmark runs do not mix in);
+* ``ref``: ``--ref`` (default ``HEAD``), ``git archive``'d into a temporary folder.
+
+Each version runs with ``PYTHONPATH`` set to its own copy and its own
+``NUMBA_CACHE_DIR``: a new empty folder for every *cold* run, one folder warmed by an
+unmeasured run first for the *warm* runs (so the caches in ``src/**/__pycache__`` are
+never read nor written). The four kinds (ref cold, now cold, ref warm, now warm) are
+alternated ``--runs`` times; medians of wall seconds and of the child's CPU seconds
+(user + system, all threads). The cold/warm ratio of each version is the target
+(issue 35: at most 2x). Writes ``benchmarks/results/first_run.json``.
+
+Usage: python benchmarks/bench_first_run.py [--runs 3] [--ref HEAD]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import shutil
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).parent))
+from _machine import save_record  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+COMMAND = ["-m", "photo3d", "demo", "--no-video", "--overwrite", "-q"]
+
+
+def timed(src: Path, cache: Path, out: Path) -> tuple[float, float]:
+    """Run :data:`COMMAND` with ``src`` first on the path and numba's cache in
+    ``cache``; (wall seconds, CPU seconds) of the whole child process."""
+    env = dict(os.environ, PYTHONPATH=str(src), NUMBA_CACHE_DIR=str(cache))
+    start = time.perf_counter()
+    proc = subprocess.Popen([sys.executable, *COMMAND, "-o", str(out)], env=env,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    _, status, usage = os.wait4(proc.pid, 0)
+    wall = time.perf_counter() - start
+    err = proc.stderr.read().decode()
+    proc.stderr.close()
+    proc.returncode = os.waitstatus_to_exitcode(status)
+    if proc.returncode != 0:
+        raise SystemExit(f"{src}: exit {proc.returncode}\n{err}")
+    # the compile step's helper processes are children of the child: count them too
+    return wall, usage.ru_utime + usage.ru_stime
+
+
+def which_photo3d(src: Path) -> str:
+    """The file ``import photo3d`` finds with ``src`` on PYTHONPATH (a check that the
+    version under test is the one running, not the editable install)."""
+    out = subprocess.run([sys.executable, "-c", "import photo3d; print(photo3d.__file__)"],
+                         env=dict(os.environ, PYTHONPATH=str(src)), capture_output=True,
+                         text=True, check=True)
+    return out.stdout.strip()
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--runs", type=int, default=3)
+    parser.add_argument("--ref", default="HEAD", help="the reference commit")
+    parser.add_argument("--out", type=Path,
+                        default=Path(__file__).parent / "results" / "first_run.json")
+    args = parser.parse_args()
+    ref_commit = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", args.ref],
+                                capture_output=True, text=True, check=True).stdout.strip()
+    work = Path(tempfile.mkdtemp(prefix="bench_first_run."))
+    try:
+        srcs = {"ref": work / "ref", "now": work / "now"}
+        srcs["ref"].mkdir()
+        archive = subprocess.run(["git", "-C", str(ROOT), "archive", args.ref, "src"],
+                                 capture_output=True, check=True).stdout
+        subprocess.run(["tar", "-x", "-C", str(srcs["ref"])], input=archive, check=True)
+        shutil.copytree(ROOT / "src", srcs["now"] / "src",
+                        ignore=shutil.ignore_patterns("__pycache__", "*.egg-info"))
+        for version, folder in srcs.items():
+            srcs[version] = folder / "src"
+            found = which_photo3d(srcs[version])
+            if not found.startswith(str(srcs[version])):
+                raise SystemExit(f"{version}: photo3d imported from {found}")
+        times: dict[str, dict[str, list[float]]] = {}
+        for version, src in srcs.items():  # unmeasured: fills each version's warm cache
+            timed(src, work / f"cache-{version}-warm", work / "out")
+        for run in range(args.runs):
+            for mode in ("cold", "warm"):
+                for version, src in srcs.items():
+                    cache = work / (f"cache-{version}-cold{run}" if mode == "cold"
+                                    else f"cache-{version}-warm")
+                    wall, cpu = timed(src, cache, work / "out")
+                    if mode == "cold":
+                        shutil.rmtree(cache, ignore_errors=True)
+                    got = times.setdefault(f"{version} {mode}", {"wall_s": [], "cpu_s": []})
+                    got["wall_s"].append(wall)
+                    got["cpu_s"].append(cpu)
+                    print(f"run {run + 1}: {version} {mode}: {wall:.1f} s wall, {cpu:.1f} s CPU",
+                          flush=True)
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+    med = {k: {m: statistics.median(v[m]) for m in v} for k, v in times.items()}
+    ratio = {v: {m: med[f"{v} cold"][m] / med[f"{v} warm"][m] for m in ("wall_s", "cpu_s")}
+             for v in srcs}
+    rows = ["| version | cold (empty numba cache) | warm | cold / warm | cold / warm, CPU |",
+            "| --- | --- | --- | --- | --- |"]
+    for version, label in (("ref", f"before (`{ref_commit}`)"), ("now", "now")):
+        cold, warm = med[f"{version} cold"], med[f"{version} warm"]
+        rows.append(f"| {label} | {cold['wall_s']:.1f} s ({cold['cpu_s']:.1f} s CPU) | "
+                    f"{warm['wall_s']:.1f} s ({warm['cpu_s']:.1f} s CPU) | "
+                    f"{ratio[version]['wall_s']:.2f}x | {ratio[version]['cpu_s']:.2f}x |")
+    speed = {m: med[f"now {m}"]["wall_s"] / med[f"ref {m}"]["wall_s"] for m in ("cold", "warm")}
+    note = (f"\n`photo3d demo --no-video`, whole process, median of {args.runs} runs per "
+            "cell, the four kinds alternated; cold: a new empty `NUMBA_CACHE_DIR` per run. "
+            f"Now against before: cold {speed['cold']:.2f}x, warm {speed['warm']:.2f}x. The "
+            "machine (2 cores) may be shared with other jobs: compare the ratios (on a busy "
+            "machine the CPU seconds, which its load does not stretch).")
+    record = {"ref": ref_commit, "runs": args.runs, "timed": " ".join(["python", *COMMAND]),
+              "times": times, "median": med, "cold_over_warm": ratio,
+              "markdown": "\n".join(rows) + "\n" + note}
+    save_record(record, args.out, "first_run", "bench_first_run.py")
+    print("\n".join(rows) + "\n" + note)
+
+
+if __name__ == "__main__":
+    main()
