@@ -42,6 +42,9 @@ CHANGES = {
     "save.render_settings": ({"save": SaveOptions(videos=VIDEO,
                                                   render_settings=RenderSettings(ssaa=1))},
                              lambda m: m["save"]["render_settings"]["ssaa"] == 1),
+    "save.exports": ({"save": SaveOptions(exports=("splats.spz",))},
+                     lambda m: m["save"]["exports"] == ["splats.spz"]
+                     and m["written"] == ["splats.spz"]),
 }
 NOT_RECORDED = {
     "depth_model": "the model for photos without any depth: a depth array is used here "
@@ -63,7 +66,8 @@ def test_every_option_field_changes_what_config_json_records(tmp_path):
     make_folder(img, tmp_path / "base", depth=d, options=BASE)
     base = recorded(tmp_path / "base")
     assert base["save"] == {"ply": "binary", "glb": "light", "light_error": 0.5,
-                            "viewer": True, "videos": [], "render_settings": None}
+                            "viewer": True, "videos": [], "render_settings": None,
+                            "exports": []}
     for name, (change, shows) in CHANGES.items():
         out = tmp_path / name
         make_folder(img, out, depth=d, options=dataclasses.replace(BASE, **change))
@@ -122,9 +126,12 @@ def test_prepare_checks_memory_and_builds_the_inpainter(monkeypatch):
         prepare(MakeOptions())
 
 
-def test_output_bytes_grows_with_the_videos():
+def test_output_bytes_grows_with_the_videos_and_the_exports():
     none = output_bytes(Config(size=512))
-    assert output_bytes(Config(size=512), VIDEO) == none + int(0.02 * 2 * 32 * 24)
+    assert output_bytes(Config(size=512), SaveOptions(videos=VIDEO)) == none + int(
+        0.02 * 2 * 32 * 24)
+    splats = output_bytes(Config(size=512), SaveOptions(exports=("splats.ply", "quilt")))
+    assert splats == none + (55 + 12) * 512 * 512
 
 
 def test_the_photo_is_decoded_and_its_depth_prepared_once(tmp_path, monkeypatch):

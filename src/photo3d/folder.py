@@ -18,7 +18,7 @@ from __future__ import annotations
 import dataclasses
 import os
 import time
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -34,7 +34,6 @@ if TYPE_CHECKING:
     from photo3d.depth.sources import DepthEstimate
     from photo3d.inpaint.base import Inpainter
     from photo3d.photo import Photo3D
-    from photo3d.render.animate import VideoSpec
 
 PathLike = str | os.PathLike[str]
 OnDepth = Callable[["DepthEstimate", "np.ndarray"], None]
@@ -109,18 +108,29 @@ class MakeOptions:
         return None if weights is None else Path(weights)
 
 
-def output_bytes(config: Config, videos: Sequence[VideoSpec] = ()) -> int:
+EXPORT_BYTES = {"splats.ply": 55, "splats.spz": 6, "splats.glb": 60, "mesh.usdz": 2,
+                "quilt": 12}
+"""Bytes per squared working size each export adds at least (the bundled sample at
+1024 px: 81.4, 9.6, 87.2, 2.7 and 19.0 MB; a square photo has more pixels, a
+fragmented LDI more splats, so these round down)."""
+
+
+def output_bytes(config: Config, save: SaveOptions | None = None) -> int:
     """A low estimate of an output folder's size in bytes (a full disk is refused
-    before the work).
+    before the work): the LDI and meshes, and ``save``'s videos and exports.
 
     Example:
         >>> output_bytes(Config(size=1000)) / 1e6
         60.0
+        >>> output_bytes(Config(size=1000), SaveOptions(exports=("splats.spz",))) / 1e6
+        66.0
     """
+    save = save or SaveOptions()
     side = config.size or 1024
     frames = sum(v.frames * (v.size[0] * v.size[1] if v.size else side * side * 0.75)
-                 for v in videos)
-    return int(60 * side * side + 0.02 * frames)
+                 for v in save.videos)
+    exports = sum(EXPORT_BYTES[name] for name in save.exports)
+    return int((60 + exports) * side * side + 0.02 * frames)
 
 
 def prepare(options: MakeOptions) -> Inpainter:
@@ -209,7 +219,7 @@ def make_folder(image: np.ndarray | PathLike, out: PathLike, *,
     report = progress or (lambda stage, fraction: None)
     backend = inpainter or options.inpainter()
     inputs = _inputs(image, depth, right, depth_model, options)
-    need = (output_bytes(options.config, options.save.videos) if need_bytes is None
+    need = (output_bytes(options.config, options.save) if need_bytes is None
             else need_bytes)
     with stage_photo(out, overwrite=options.overwrite, inputs=inputs,
                      need_bytes=need) as staging:  # removed on any error unless committed

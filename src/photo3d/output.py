@@ -4,8 +4,9 @@ A 3D photo folder holds ``photo3d.npz`` (the LDI, lossless), ``mesh.ply``
 (binary by default, the authors' header; one vertex per LDI pixel), ``mesh.glb``
 (the light textured mesh of :mod:`photo3d.mesh.light`, or the full vertex-coloured mesh
 with ``full_glb``), ``viewer.html`` (interactive, self-contained) and ``config.json``
-(everything that changes the output, see :func:`photo_meta`), and videos in ``video/``
-(rendered from the light mesh, with either backend; see benchmarks/RESULTS.md).
+(everything that changes the output, see :func:`photo_meta`), videos in ``video/``
+(rendered from the light mesh, with either backend; see benchmarks/RESULTS.md) and
+the ``exports`` asked for (:mod:`photo3d.export`: splats, USDZ, a quilt).
 Everything is written into a temporary sibling folder first and moved into place at
 the end (:mod:`photo3d.files.staging`), so an interrupted or failed run never leaves a
 half-written output folder, and ``overwrite`` only ever replaces a folder holding
@@ -34,6 +35,7 @@ from photo3d.save_options import SaveOptions
 from photo3d.structures.ldi import LDI
 
 if TYPE_CHECKING:
+    from photo3d.export import Format
     from photo3d.render.animate import VideoSpec
     from photo3d.render.renderer import RenderSettings
     from photo3d.structures.mesh import Mesh, TexturedMesh
@@ -156,12 +158,21 @@ def _write_photo(photo: SavedPhoto, tmp: Path, *, title: str, options: SaveOptio
 
     The meshes are built in this thread; the files are written by two writer threads
     as soon as what they hold is ready (``photo3d.npz`` first, its deflate and the
-    writes release the GIL), so writing overlaps building the light mesh."""
+    writes release the GIL), so writing overlaps building the light mesh. The
+    ``exports`` are written by the same threads, from the meshes built here, before
+    the folder is committed: a failed export leaves no folder."""
     meta = photo_meta(photo, options)
+    if options.exports:
+        from photo3d.export import preload
+
+        preload([fmt for _, fmt in _export_targets(photo.ldi, options)])  # before threads
     with ThreadPoolExecutor(max_workers=2) as pool:
         jobs = [pool.submit(save_npz, photo.ldi, tmp / LDI_FILE, meta=meta)]
         (tmp / "config.json").write_text(json.dumps(meta, indent=2))
         mesh, light = _write_meshes(photo, tmp, pool, jobs, title=title, options=options)
+        if options.exports:
+            light = _write_exports(photo, tmp, pool, jobs, mesh=mesh, light=light,
+                                   options=options)
         for job in jobs:
             job.result()
     if progress:
@@ -179,7 +190,9 @@ def photo_meta(photo: SavedPhoto, options: SaveOptions | None = None) -> dict:
         ``{"config": the resolved Config, "inpainter": the backend's settings,
         "depth_source": one line or None, "save": {"ply", "glb": "light", "full" or
         None, "light_error", "viewer", "videos": [VideoSpec fields], "render_settings":
-        RenderSettings fields or None without videos}, "stats", "timings"}``, JSON-able.
+        RenderSettings fields or None without videos, "exports": [format names]},
+        "stats", "timings", "written": the videos' and the exports' file names}``,
+        JSON-able.
 
     Example:
         >>> import photo3d, numpy as np
@@ -190,14 +203,18 @@ def photo_meta(photo: SavedPhoto, options: SaveOptions | None = None) -> dict:
         ['config', 'inpainter', 'depth_source', 'save', 'stats', 'timings', 'written']
         >>> meta["save"]["glb"], meta["inpainter"]["name"]
         ('full', 'structured')
+        >>> photo_meta(photo, SaveOptions(exports=("quilt", "splats.spz")))["written"]
+        ['quilt_qs8x6a0.75.png', 'splats.spz']
     """
     options = options or SaveOptions()
     videos = options.videos
     save = {"ply": options.ply,
             "glb": ("full" if options.full_glb else "light") if options.glb else None,
             "light_error": light_error(options), "viewer": options.viewer,
-            "videos": [dataclasses.asdict(v) for v in videos], "render_settings": None}
-    written = sorted(f"video/{v.name}.{v.format}" for v in videos)
+            "videos": [dataclasses.asdict(v) for v in videos], "render_settings": None,
+            "exports": list(options.exports)}
+    written = sorted([f"video/{v.name}.{v.format}" for v in videos]
+                     + [path for path, _ in _export_targets(photo.ldi, options)])
     if videos:
         from photo3d.render.renderer import RenderSettings
 
@@ -239,6 +256,33 @@ def _write_meshes(photo: SavedPhoto, tmp: Path, pool: ThreadPoolExecutor, jobs: 
 
         write_viewer(light, tmp / "viewer.html", title=title)
     return mesh, light
+
+
+def _export_targets(ldi: LDI, options: SaveOptions) -> list[tuple[str, Format]]:
+    """``(file name, Format)`` of each of ``options.exports``
+    (:data:`photo3d.export.FORMATS`)."""
+    if not options.exports:
+        return []
+    from photo3d.export import check_formats
+
+    return [(fmt.filename(ldi), fmt) for fmt in check_formats(options.exports)]
+
+
+def _write_exports(photo: SavedPhoto, tmp: Path, pool: ThreadPoolExecutor, jobs: list, *,
+                   mesh: Mesh | None, light: TexturedMesh | None,
+                   options: SaveOptions) -> TexturedMesh | None:
+    """Have ``pool`` write ``options.exports`` into ``tmp`` (their futures added to
+    ``jobs``) with :func:`photo3d.export.submit_writers`, from the light mesh already
+    built (built here from ``mesh`` if a format takes it and it is not); returns the
+    light mesh, so that the videos are drawn from the same one."""
+    from photo3d.export import submit_writers
+
+    targets = _export_targets(photo.ldi, options)
+    if light is None and any("mesh" in fmt.options for _, fmt in targets):
+        light = build_light_mesh(photo.ldi, full=mesh, max_error=light_error(options))
+    jobs += submit_writers(pool, photo.ldi, [(fmt, tmp / name) for name, fmt in targets],
+                           mesh=light)
+    return light
 
 
 def write_videos(photo: SavedPhoto, mesh, folder: Path, videos: Sequence[VideoSpec], *,

@@ -20,6 +20,10 @@ if TYPE_CHECKING:
 PLY_KINDS = ("binary", "ascii", None)
 """What ``ply`` may be (None: no ``mesh.ply``)."""
 
+EXPORT_FORMATS = ("splats.ply", "splats.spz", "splats.glb", "mesh.usdz", "quilt")
+"""What ``exports`` may hold: the names of :data:`photo3d.export.FORMATS` (spelled out
+here so that this module stays light; a test checks they agree)."""
+
 
 @dataclass(frozen=True)
 class SaveOptions:
@@ -35,6 +39,9 @@ class SaveOptions:
         viewer: write ``viewer.html``.
         videos: the videos to render (:class:`~photo3d.render.animate.VideoSpec` s).
         render_settings: how videos are rendered (None: defaults).
+        exports: formats of :mod:`photo3d.export` written into the folder too
+            (:data:`EXPORT_FORMATS`: ``"splats.spz"``, ``"mesh.usdz"``, ...; repeats
+            are written once), as ``photo3d export`` writes them.
 
     Example:
         >>> options = SaveOptions(ply=None, viewer=False)
@@ -44,6 +51,12 @@ class SaveOptions:
         Traceback (most recent call last):
         ...
         photo3d.errors.ConfigError: ply must be 'binary', 'ascii' or None, got 'text'
+        >>> SaveOptions(exports=["splats.spz", "quilt", "splats.spz"]).exports
+        ('splats.spz', 'quilt')
+        >>> SaveOptions(exports=["splats.obj"])  # doctest: +ELLIPSIS
+        Traceback (most recent call last):
+        ...
+        photo3d.errors.ConfigError: unknown export format 'splats.obj'; choose from splats.ply, ...
     """
 
     ply: str | None = "binary"
@@ -53,11 +66,20 @@ class SaveOptions:
     viewer: bool = True
     videos: tuple[VideoSpec, ...] = ()
     render_settings: RenderSettings | None = None
+    exports: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "videos", tuple(self.videos))
         if self.ply not in PLY_KINDS:
             raise ConfigError(f"ply must be 'binary', 'ascii' or None, got {self.ply!r}")
+        exports = () if self.exports is None else self.exports
+        if isinstance(exports, str | bytes):
+            raise ConfigError(f"exports must be a list of format names, got {exports!r}")
+        unknown = [n for n in exports if not isinstance(n, str) or n not in EXPORT_FORMATS]
+        if unknown:
+            raise ConfigError(f"unknown export format {unknown[0]!r}; choose from "
+                              + ", ".join(EXPORT_FORMATS))
+        object.__setattr__(self, "exports", tuple(dict.fromkeys(exports)))
 
     def with_(self, **changes) -> SaveOptions:
         """A copy with fields replaced (:func:`dataclasses.replace`)."""

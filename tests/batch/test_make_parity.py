@@ -83,7 +83,8 @@ def test_every_make_option_is_a_batch_option_and_reaches_make_options(tmp_path, 
         assert made == batched, f"{argv}: make and batch read it differently"
         assert made != plain, f"{argv} does not change MakeOptions: batch would ignore it"
         checked.append(action.dest)
-    assert {"full_glb", "ply", "weights", "fast_nets", "stereo", "depth_kind"} <= set(checked)
+    assert {"full_glb", "ply", "weights", "fast_nets", "stereo", "depth_kind",
+            "exports"} <= set(checked)
 
 
 @pytest.fixture
@@ -127,9 +128,13 @@ def test_batch_makes_what_make_makes_with_every_output_option(photos):
                "--no-viewer", "--path", "circle", "--frames", "2", "--fps", "10",
                "--video-size", "32x24", "--format", "gif", "--ssaa", "1", "--no-crop",
                "--backend", "numba", "--stereo", "sbs", "--eye-separation", "0.02",
-               "--eye-order", "rl", "--depth-kind", "depth", "--overwrite"]
+               "--eye-order", "rl", "--depth-kind", "depth", "--overwrite",
+               "--export", "splats.spz", "--export", "splats.ply"]
     made, batched = make_and_batch(photos, options, "all")
     meta = same_output(made, batched)
+    assert meta["save"]["exports"] == ["splats.spz", "splats.ply"]
+    assert {"splats.spz", "splats.ply"} <= set(meta["written"])
+    assert (batched / "splats.ply").read_bytes() == (made / "splats.ply").read_bytes()
     assert (batched / "video" / "circle_RLF_cross.gif").is_file()  # --eye-order rl
     assert (batched / "mesh.ply").read_bytes().startswith(b"ply\nformat ascii 1.0\n")
     full = read_glb(batched / "mesh.glb")  # --full-glb: every LDI pixel a vertex

@@ -145,9 +145,9 @@ def test_registry_names_files_that_owned_knows(photo):
 
 
 def test_cli_export(folder, capsys, tmp_path):
-    from photo3d.cli import export as cli_export
+    from photo3d.save_options import EXPORT_FORMATS
 
-    assert cli_export._NAMES == tuple(FORMATS)
+    assert EXPORT_FORMATS == tuple(FORMATS)  # the names the CLI and SaveOptions take
     assert main(["export", str(folder), "splats.spz", "splats.ply", "--merge"]) == 0
     out = capsys.readouterr().out
     assert "exported 2 file(s)" in out and "splats.spz" in out and " splats" in out

@@ -20,6 +20,8 @@ from conftest import wait_for
 from PIL import Image
 from uikit import GRADIO_WARNINGS, check_glb, check_zip, png_bomb, running, write_sample
 
+from photo3d.io.spz import read_spz
+
 gradio_client = pytest.importorskip("gradio_client", reason="needs pip install 'photo3d[ui]'")
 httpx = pytest.importorskip("httpx")
 
@@ -55,10 +57,14 @@ def test_the_sample_and_its_depth_give_a_glb_a_zip_a_depth_map_and_a_video(
         server, sample, tmp_path):
     photo, depth = sample
     handle = gradio_client.handle_file
-    glb, bundle, preview, videos = client(server, tmp_path).predict(
+    glb, bundle, preview, videos = client(server, tmp_path).predict(  # four, as before
         photo=handle(photo), depth=handle(depth), size=256, paths=["swing"], api_name="/make")
     check_glb(glb, min_faces=1000)
     names = check_zip(bundle, videos=("swing",))
+    with zipfile.ZipFile(bundle) as z:  # the splats reach the API in the zip
+        splats = tmp_path / "splats.spz"
+        splats.write_bytes(z.read("splats.spz"))
+    assert len(read_spz(splats)) > 256 * 173  # every pixel, and the hidden layers'
     assert "mesh.ply" not in names  # off unless asked for
     with zipfile.ZipFile(bundle) as z:
         assert b'"size": 256' in z.read("config.json")

@@ -1,6 +1,6 @@
 """``photo3d ui`` in a real browser: headless Chromium (SwiftShader WebGL2) via
 Playwright uploads the bundled sample and its depth, waits for the 3D photo, checks
-that the viewer drew it and that the downloads are valid files; a hostile upload
+that the viewer drew it and that the downloads (GLB, splats, zip) are valid files; a hostile upload
 shows one line and the next upload works; two pages at once queue and each get
 their own result; nothing is loaded from another host.
 
@@ -20,6 +20,8 @@ import numpy as np
 import pytest
 from PIL import Image
 from uikit import GRADIO_WARNINGS, check_glb, check_zip, png_bomb, running, write_sample
+
+from photo3d.io.spz import read_spz
 
 CHROMIUM = os.environ.get("PHOTO3D_CHROMIUM", "/usr/bin/chromium")
 if not Path(CHROMIUM).is_file():
@@ -134,6 +136,8 @@ def test_the_sample_and_its_depth_become_a_3d_photo_in_the_page(page, server, sa
     assert drawn.shape[0] > 100 and drawn.std() > 10
     assert len(np.unique(drawn.reshape(-1, 3), axis=0)) > 500  # a photo, not a fill
     check_glb(download(page, "#photo3d-glb", tmp_path / "mesh.glb"), min_faces=1000)
+    splats = read_spz(download(page, "#photo3d-splats", tmp_path / "splats.spz"))
+    assert len(splats) > 512 * 345  # every pixel, and the hidden layers'
     check_zip(download(page, "#photo3d-zip", tmp_path / "photo.zip"))
     host = urlsplit(server.url).netloc
     assert {urlsplit(u).netloc for u in page.requests if u.startswith("http")} == {host}

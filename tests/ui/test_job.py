@@ -18,6 +18,8 @@ from PIL import Image
 from uikit import check_glb
 
 from photo3d.errors import ConfigError, InputError
+from photo3d.io.npz import load_npz
+from photo3d.io.spz import read_spz
 from photo3d.ui.job import JobCancelled, JobOptions, run_job
 from photo3d.ui.progress import StageMeter
 from photo3d.ui.runner import RequestError, Runner
@@ -75,7 +77,8 @@ def test_the_options_become_makes_options():
     make = JobOptions(size=0, fill="structured", videos=False, ply=True).make_options()
     save = make.save
     assert (make.config.size, make.config.inpainter, save.videos, save.ply, save.glb,
-            save.viewer) == (None, "structured", (), "binary", True, True)
+            save.viewer, save.exports) == (None, "structured", (), "binary", True, True,
+                                           ("splats.spz",))
     assert make.inpainter_options == ()  # no weights path a client could name
 
 
@@ -105,8 +108,12 @@ def test_a_request_yields_the_3d_photo_then_its_videos(upload, tmp_path):
     assert final.size == (96, 64) and final.zip.name == "two_planes-3d.zip"
     assert str(tmp_path) not in final.summary and "depth.png" in final.summary
     check_glb(final.glb)
+    assert first.splats == final.splats == folder / "out" / "splats.spz"
+    ldi, _ = load_npz(final.out / "photo3d.npz")
+    assert len(read_spz(final.splats)) == ldi.size  # one splat per LDI pixel
     with zipfile.ZipFile(final.zip) as z:
-        assert "video/swing.mp4" in z.namelist() and "depth_preview.png" in z.namelist()
+        assert {"video/swing.mp4", "depth_preview.png", "splats.spz"} <= set(z.namelist())
+        assert z.getinfo("splats.spz").compress_type == zipfile.ZIP_STORED  # gzip already
     with Image.open(final.depth_preview) as preview:
         assert preview.size == (96, 64) and preview.mode == "RGB"
     values = [f for f, _ in reports]

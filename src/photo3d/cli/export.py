@@ -8,8 +8,7 @@ import time
 from pathlib import Path
 
 from photo3d.cli.progress import count_bar
-
-_NAMES = ("splats.ply", "splats.spz", "splats.glb", "mesh.usdz", "quilt")  # export.FORMATS
+from photo3d.save_options import EXPORT_FORMATS
 
 
 def add_parser(sub) -> None:
@@ -22,8 +21,8 @@ def add_parser(sub) -> None:
                     "splats.spz (Niantic SPZ), splats.glb (glTF KHR_gaussian_splatting), "
                     "mesh.usdz (AR Quick Look), quilt (Looking Glass).")
     ex.add_argument("photo", type=Path, help="a 3D photo folder written by make")
-    ex.add_argument("formats", nargs="+", metavar="FORMAT", choices=_NAMES,
-                    help="one or more of: " + ", ".join(_NAMES))
+    ex.add_argument("formats", nargs="+", metavar="FORMAT", choices=EXPORT_FORMATS,
+                    help="one or more of: " + ", ".join(EXPORT_FORMATS))
     ex.add_argument("-o", "--output", type=Path, metavar="FILE",
                     help="write the one FORMAT given to FILE instead of into the folder")
     ex.add_argument("--overwrite", action="store_true",

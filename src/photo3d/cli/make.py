@@ -64,7 +64,7 @@ def run_make(args: argparse.Namespace, image, *, say_source: bool = True, **sour
                                 progress=bar, on_depth=on_depth,
                                 download_bar=download_bar(args.quiet),
                                 # by its name here, so a test can stand in another estimate
-                                need_bytes=output_bytes(options.config, options.save.videos),
+                                need_bytes=output_bytes(options.config, options.save),
                                 **sources)
     finally:
         bar.close()

@@ -16,6 +16,7 @@ from pathlib import Path
 from photo3d.cli.progress import download_bar
 from photo3d.config import PRESETS, Config
 from photo3d.errors import ConfigError
+from photo3d.save_options import EXPORT_FORMATS
 
 
 def add_depth_sources(p: argparse.ArgumentParser) -> None:
@@ -144,6 +145,10 @@ def add_make_options(p: argparse.ArgumentParser, *, out_required: bool,
     p.add_argument("--no-viewer", action="store_true", help="do not write viewer.html")
     p.add_argument("--no-video", action="store_true",
                    help="do not render the four standard videos")
+    p.add_argument("--export", dest="exports", action="append", choices=EXPORT_FORMATS,
+                   metavar="FORMAT",
+                   help="also write FORMAT into the folder, as photo3d export does "
+                        "(repeatable): " + ", ".join(EXPORT_FORMATS))
     p.add_argument("--overwrite", action="store_true", help=overwrite_help)
     add_video_options(p, command="make")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
@@ -275,10 +280,13 @@ def make_options(args: argparse.Namespace):
     Example:
         >>> from photo3d.cli import build_parser
         >>> args = build_parser().parse_args(["batch", "in", "-o", "o", "--full-glb",
-        ...                                   "--no-video", "--size", "512"])
+        ...                                   "--no-video", "--size", "512",
+        ...                                   "--export", "splats.spz"])
         >>> options = make_options(args)
         >>> options.save.full_glb, options.save.videos, options.config.size
         (True, (), 512)
+        >>> options.save.exports
+        ('splats.spz',)
     """
     from photo3d.folder import MakeOptions
     from photo3d.save_options import SaveOptions
@@ -292,7 +300,8 @@ def make_options(args: argparse.Namespace):
                            ply=None if args.ply == "none" else args.ply, glb=not args.no_glb,
                            full_glb=args.full_glb, viewer=not args.no_viewer,
                            videos=() if args.no_video else tuple(videos_from(args)),
-                           render_settings=render_settings_from(args)),
+                           render_settings=render_settings_from(args),
+                           exports=tuple(args.exports or ())),
                        overwrite=args.overwrite)
 
 

@@ -16,22 +16,30 @@ when asked for, so usd-core is needed only for ``mesh.usdz``. A writer is
 formats into the folder, recording each file in ``config.json``'s ``"written"`` list
 as ``render`` records videos (:mod:`photo3d.owned`), so ``make --overwrite`` and a
 later export replace them, and nothing else: a file of the same name that photo3d
-did not write is never replaced.
+did not write is never replaced. ``make --export`` writes them while it saves
+(:class:`~photo3d.save_options.SaveOptions` ``exports``); both go through
+:func:`submit_writers`, which builds what several formats share once: the splats,
+and the light textured mesh that ``mesh.usdz`` and the quilt are made of.
 """
 
 from __future__ import annotations
 
 import importlib
+import math
 from collections.abc import Callable, Sequence
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import Executor, Future, ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from photo3d.errors import ConfigError, InputError, OutputError
 from photo3d.io.npz import load_npz
 from photo3d.owned import LDI_FILE, claim_files, record_files
 from photo3d.progress import StageProgress
 from photo3d.structures.ldi import LDI
+
+if TYPE_CHECKING:
+    from photo3d.structures.mesh import TexturedMesh
 
 
 @dataclass(frozen=True)
@@ -45,8 +53,10 @@ class Format:
             writes ``path`` atomically.
         filename: ``filename(ldi) -> str``, the file's name in a 3D photo folder.
         options: the keyword options the writer takes (of :func:`export_folder`'s,
-            and ``splats``, the splats built once when several splat formats are
-            written).
+            ``splats``, the splats built once when several splat formats are
+            written, and ``mesh``, the light textured mesh, built once).
+        preload: modules the writer imports that must be imported before the
+            writer threads start (:func:`preload`).
 
     Example:
         >>> FORMATS["splats.spz"].filename(None)
@@ -58,6 +68,7 @@ class Format:
     writer: str
     filename: Callable[[LDI], str]
     options: tuple[str, ...] = ()
+    preload: tuple[str, ...] = ()
 
     def load(self) -> Callable[..., None]:
         """The writer function (imports its module)."""
@@ -79,16 +90,20 @@ def _named_by(module: str, attribute: str) -> Callable[[LDI], str]:
 
 _SPLATS = "photo3d.export.splats"
 _SPLAT_OPTIONS = ("merge", "splats")  # splats: built once for several splat formats
+_MESH_OPTIONS = ("mesh",)  # the light textured mesh, built once for all that take it
+_USD = ("pxr.Gf", "pxr.Kind", "pxr.Sdf", "pxr.Usd", "pxr.UsdGeom", "pxr.UsdShade",
+        "pxr.UsdUtils", "pxr.Vt")  # what write_usdz imports (usd-core)
 FORMATS: dict[str, Format] = {
     "splats.ply": Format("splats.ply", _SPLATS, "write_ply", _fixed("splats.ply"), _SPLAT_OPTIONS),
     "splats.spz": Format("splats.spz", _SPLATS, "write_spz", _fixed("splats.spz"), _SPLAT_OPTIONS),
     "splats.glb": Format("splats.glb", _SPLATS, "write_glb", _fixed("splats.glb"), _SPLAT_OPTIONS),
     "mesh.usdz": Format("mesh.usdz", "photo3d.export.usdz", "write_usdz",
-                        _named_by("photo3d.export.usdz", "USDZ_NAME")),
+                        _named_by("photo3d.export.usdz", "USDZ_NAME"), _MESH_OPTIONS, _USD),
     "quilt": Format("quilt", "photo3d.export.quilt", "write_quilt",
-                    _named_by("photo3d.export.quilt", "quilt_filename")),
+                    _named_by("photo3d.export.quilt", "quilt_filename"), _MESH_OPTIONS),
 }
-"""The export formats by name, in the order ``photo3d export --help`` lists them."""
+"""The export formats by name, in the order ``photo3d export --help`` lists them
+(:data:`photo3d.save_options.EXPORT_FORMATS` spells the same names)."""
 
 
 def export_folder(folder: str | Path, formats: Sequence[str], *,
@@ -142,20 +157,15 @@ def export_folder(folder: str | Path, formats: Sequence[str], *,
             raise OutputError(f"{output} exists; pass overwrite (--overwrite) to replace it")
     if not (folder / LDI_FILE).is_file():
         raise InputError(f"no 3D photo in {folder} (it has no {LDI_FILE})")
-    ldi, _ = load_npz(folder / LDI_FILE)
+    ldi, meta = load_npz(folder / LDI_FILE)
     targets = [output] if output is not None else [folder / f.filename(ldi) for f in chosen]
     if output is None:
         claim_files(folder, [t.name for t in targets])  # before writing anything
-    options: dict[str, object] = {"merge": merge}
-    if sum(f.module == _SPLATS for f in chosen) > 1:  # build the splats once
-        from photo3d.export.splats import build_splats
-
-        options["splats"] = build_splats(ldi, merge=merge)
+    preload(chosen)  # before the writer threads start
     written: list[Path] = []
     with ThreadPoolExecutor(max_workers=2) as pool:  # zlib, numpy and writes run on
-        jobs = [pool.submit(fmt.load(), ldi, target,  # both cores
-                            **{k: options[k] for k in fmt.options if k in options})
-                for fmt, target in zip(chosen, targets, strict=True)]
+        jobs = submit_writers(pool, ldi, list(zip(chosen, targets, strict=True)),  # both cores
+                              merge=merge, light_error=_light_error(meta))
         error = None
         for job, target in zip(jobs, targets, strict=True):
             try:
@@ -171,6 +181,99 @@ def export_folder(folder: str | Path, formats: Sequence[str], *,
     if error is not None:
         raise error
     return written
+
+
+def submit_writers(pool: Executor, ldi: LDI, targets: Sequence[tuple[Format, Path]], *,
+                   merge: bool = False, mesh: TexturedMesh | None = None,
+                   light_error: float | None = None) -> list[Future]:
+    """Have ``pool`` write each ``(format, path)`` of ``targets``; returns the writers'
+    futures, in the order of ``targets``.
+
+    What several formats share is made once: the splats (built here when more than
+    one splat format is asked for; 0.03 s on the bundled sample) and the light
+    textured mesh that ``mesh.usdz`` and the quilt are made of (``mesh`` if given, as
+    :func:`photo3d.output.save_photo` gives the one of ``mesh.glb``; else built by
+    the pool's first job while the splat files are written, with ``light_error``,
+    None: :data:`~photo3d.mesh.light.LIGHT_ERROR`). A writer waiting for the mesh
+    is submitted after the job building it, so a pool of any size reaches it.
+    Call :func:`preload` before the pool's threads (or any other) start.
+
+    Args:
+        pool: runs the jobs (two threads: the writes, zlib and numpy release the GIL).
+        ldi: the 3D photo's layered depth image.
+        targets: what to write where (:func:`check_formats`' formats, each once).
+        merge: splat formats: join flat, smooth areas into larger splats.
+        mesh: the light textured mesh of ``ldi`` if already built.
+        light_error: its error bound when it is built here (pixels).
+
+    Example:
+        >>> import numpy as np, pathlib, tempfile
+        >>> from photo3d.stages.ldi import from_image
+        >>> ldi = from_image(np.full((16, 16, 3), 0.5, np.float32), np.ones((16, 16), np.float32))
+        >>> out = pathlib.Path(tempfile.mkdtemp())
+        >>> with ThreadPoolExecutor(2) as pool:
+        ...     jobs = submit_writers(pool, ldi, [(FORMATS["splats.spz"], out / "a.spz"),
+        ...                                       (FORMATS["splats.ply"], out / "a.ply")])
+        ...     [job.result() for job in jobs]
+        [None, None]
+        >>> sorted(p.name for p in out.iterdir())
+        ['a.ply', 'a.spz']
+    """
+    options: dict[str, object] = {"merge": merge}
+    if sum(f.module == _SPLATS for f, _ in targets) > 1:  # build the splats once
+        from photo3d.export.splats import build_splats
+
+        options["splats"] = build_splats(ldi, merge=merge)
+    light: Future | None = None
+    if mesh is None and any("mesh" in f.options for f, _ in targets):
+        from photo3d.mesh.light import LIGHT_ERROR, build_light_mesh
+
+        light = pool.submit(build_light_mesh, ldi, max_error=(
+            LIGHT_ERROR if light_error is None else light_error))
+
+    def write(fmt: Format, path: Path) -> None:
+        given = {k: options[k] for k in fmt.options if k in options}
+        if "mesh" in fmt.options:
+            given["mesh"] = mesh if light is None else light.result()
+        fmt.load()(ldi, path, **given)
+
+    jobs = {i: pool.submit(write, fmt, path) for i, (fmt, path) in enumerate(targets)
+            if "mesh" not in fmt.options}  # the splat files first: they need nothing more
+    jobs |= {i: pool.submit(write, fmt, path) for i, (fmt, path) in enumerate(targets)
+             if "mesh" in fmt.options}
+    return [jobs[i] for i in range(len(targets))]
+
+
+def preload(formats: Sequence[Format]) -> None:
+    """Import the modules of ``formats`` that must not be imported while other
+    threads run; call it before the writer threads start.
+
+    usd-core's libraries, as they load, take the GIL back while the dynamic loader's
+    lock is held; a thread running numpy meanwhile holds the GIL and waits for that
+    lock (numpy calls ``dladdr`` to decide whether it may reuse a temporary array),
+    and both wait for ever (seen once in about eight runs of ``photo3d export`` with
+    all five formats, when ``mesh.usdz``'s writer thread imported usd-core while the
+    quilt's built its mesh). A missing package is left for the writer to report
+    (``MissingExtra``).
+
+    Example:
+        >>> preload([FORMATS["splats.spz"]])  # nothing to import
+    """
+    for fmt in formats:
+        for module in fmt.preload:
+            try:
+                importlib.import_module(module)
+            except ImportError:  # the writer raises MissingExtra naming the extra
+                break
+
+
+def _light_error(meta: dict) -> float | None:
+    """The light mesh's error bound a folder recorded (``save.light_error``), so the
+    exports are made of the mesh in its ``mesh.glb``; None if none is recorded."""
+    save = meta.get("save") if isinstance(meta, dict) else None
+    value = save.get("light_error") if isinstance(save, dict) else None
+    ok = isinstance(value, int | float) and not isinstance(value, bool)
+    return float(value) if ok and math.isfinite(value) and value >= 0 else None
 
 
 def check_formats(formats: Sequence[str], *, output: str | Path | None = None

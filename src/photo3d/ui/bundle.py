@@ -1,9 +1,10 @@
 """One zip of a 3D photo folder, for the page's download (and the API's result).
 
 Already compressed files (``photo3d.npz``, videos, ``mesh.glb`` with its JPEG
-texture, PNGs) are stored as they are; the others (``mesh.ply``, ``viewer.html``,
-``config.json``) are deflated. The zip is written under a temporary name and
-renamed into place (:func:`photo3d.files.atomic.atomic_write`).
+texture, PNGs, ``splats.spz``: gzip) are stored as they are; the others
+(``mesh.ply``, ``viewer.html``, ``config.json``) are deflated. The zip is written
+under a temporary name and renamed into place
+(:func:`photo3d.files.atomic.atomic_write`).
 
 Example:
     >>> import tempfile, zipfile
@@ -24,7 +25,7 @@ from pathlib import Path
 
 from photo3d.files.atomic import atomic_write
 
-STORED_SUFFIXES = (".npz", ".glb", ".png", ".jpg", ".mp4", ".webm", ".gif")
+STORED_SUFFIXES = (".npz", ".glb", ".png", ".jpg", ".mp4", ".webm", ".gif", ".spz")
 """Files zipped without compression (they hardly shrink)."""
 
 

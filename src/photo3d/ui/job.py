@@ -12,7 +12,8 @@ print (:mod:`photo3d.ui.notes`). Nothing here imports Gradio.
 A request's folder after :func:`run_job` (which yields the 3D photo first and,
 when videos are asked for, again once they are rendered)::
 
-    out/              the 3D photo folder (mesh.glb, viewer.html, photo3d.npz, video/, ...)
+    out/              the 3D photo folder (mesh.glb, splats.spz, viewer.html, photo3d.npz,
+                      video/, ...)
     depth.png         the normalised disparity the pipeline used (16-bit)
     depth_preview.png the same in colour (near = yellow)
     NAME-3d.zip       all of the above
@@ -53,6 +54,10 @@ memory check may refuse less)."""
 MAX_PATHS = 16
 """Longest list of camera paths a client may send (repeats are made once)."""
 
+SPLATS = "splats.spz"
+"""The splat file every request writes (:mod:`photo3d.export`: Niantic's SPZ, about a
+tenth of the PLY's size: 9.6 MB for the bundled sample at 1024 px)."""
+
 
 class JobCancelled(Exception):
     """The request was cancelled (or the server is stopping); its partial output
@@ -62,7 +67,8 @@ class JobCancelled(Exception):
 @dataclass(frozen=True)
 class JobOptions:
     """What a client chooses for one 3D photo (the defaults are ``photo3d make``'s,
-    except that the PLY is off and one video is made).
+    except that the PLY is off and one video is made; ``splats.spz`` is always
+    written, as ``photo3d make --export splats.spz`` writes it).
 
     Attributes:
         size: working size in pixels (longer side); 0 keeps the photo's size.
@@ -80,6 +86,8 @@ class JobOptions:
         >>> make = options.make_options()
         >>> make.config.size, [v.path for v in make.save.videos], make.save.ply
         (512, ['swing'], None)
+        >>> make.save.exports
+        ('splats.spz',)
         >>> JobOptions(paths=["swing", "circle", "swing"]).paths
         ('swing', 'circle')
         >>> JobOptions(paths=["/etc/passwd"])  # doctest: +ELLIPSIS
@@ -122,9 +130,9 @@ class JobOptions:
             raise ConfigError("videos are on but no camera path is chosen")
 
     def make_options(self, weights: Path | None = None) -> MakeOptions:
-        """The :class:`~photo3d.folder.MakeOptions` of this request (GLB and viewer
-        always; videos as ``photo3d make`` renders them; ``weights``: the learned
-        fill's weights folder)."""
+        """The :class:`~photo3d.folder.MakeOptions` of this request (GLB, viewer and
+        :data:`SPLATS` always; videos as ``photo3d make`` renders them; ``weights``:
+        the learned fill's weights folder)."""
         from photo3d.render.animate import VideoSpec
         from photo3d.render.renderer import video_settings
 
@@ -134,7 +142,8 @@ class JobOptions:
         return MakeOptions(config=config, depth_kind=self.depth_kind, inpainter_options=chosen,
                            save=SaveOptions(ply="binary" if self.ply else None, glb=True,
                                             viewer=True, videos=videos,
-                                            render_settings=video_settings()))
+                                            render_settings=video_settings(),
+                                            exports=(SPLATS,)))
 
 
 def _one_of(what: str, value: object, allowed: tuple[str, ...]) -> None:
@@ -149,6 +158,7 @@ class JobResult:
     Attributes:
         out: the 3D photo folder.
         glb: ``out/mesh.glb``.
+        splats: ``out/splats.spz``, the Gaussian splats (:data:`SPLATS`).
         viewer: ``out/viewer.html``.
         zip: the zip of everything.
         depth_preview: the colour depth map (``(H, W, 3)`` PNG, near = yellow).
@@ -163,6 +173,7 @@ class JobResult:
 
     out: Path
     glb: Path
+    splats: Path
     viewer: Path
     zip: Path
     depth_preview: Path
@@ -268,14 +279,15 @@ def _run_job(photo, folder, *, options, depth, right, name, progress, cancel,
     photo3d = make_folder(photo, out, options=still, depth=depth, right=right,
                           depth_model=depth_model, inpainter=inpainter, progress=report,
                           on_depth=on_depth,
-                          need_bytes=output_bytes(make.config, make.save.videos))
+                          need_bytes=output_bytes(make.config, make.save))
     bundle = folder / f"{safe_stem(name)}-3d.zip"
     zip_folder(out, bundle, extra=found["previews"], progress=lambda f: report("zip", f))
     uploads = [p for p in (photo, depth, right) if p is not None]
     estimate = found["estimate"]
     w, h = photo3d.stats["working_size"]
     said = [*estimate.warnings, *notes]
-    result = JobResult(out=out, glb=out / "mesh.glb", viewer=out / "viewer.html", zip=bundle,
+    result = JobResult(out=out, glb=out / "mesh.glb", splats=out / SPLATS,
+                       viewer=out / "viewer.html", zip=bundle,
                        depth_preview=found["previews"][1], videos=(), size=(w, h),
                        seconds=time.perf_counter() - start, summary="",
                        warnings=tuple(dict.fromkeys(redact(n, uploads) for n in said)),

@@ -3,16 +3,17 @@
 Inputs: the photo, an optional depth map, an optional right view and the options
 of :class:`~photo3d.ui.job.JobOptions`. Outputs: the 3D photo in photo3d's own
 viewer (``viewer.html`` in a sandboxed frame: scripts run, but without access to
-the page, its cookies or the network), the depth map, the videos, ``mesh.glb`` and a
-zip of the whole folder. The status box says what was made, then every warning
-``photo3d make`` would print, a line each; an error is one line there.
+the page, its cookies or the network), the depth map, the videos, ``mesh.glb``, the
+Gaussian splats (``splats.spz``) and a zip of the whole folder. The status box says
+what was made, then every warning ``photo3d make`` would print, a line each; an
+error is one line there.
 
 The same job is the API endpoint ``/make`` (parameters ``photo``, ``depth``,
 ``right``, ``size``, ``fill``, ``source``, ``depth_kind``, ``videos``, ``paths``,
-``ply``; every one but ``photo`` has a default), returning the GLB, the zip, the
-depth preview and the videos; an error is raised to the client as one line (the
-server logs no traceback for it). Page and API share one queue with ``workers``
-places.
+``ply``; every one but ``photo`` has a default), returning the GLB, the zip (which
+holds ``splats.spz`` too), the depth preview and the videos; an error is raised to
+the client as one line (the server logs no traceback for it). Page and API share
+one queue with ``workers`` places.
 
 Both take what the client sent as it is (Gradio's own conversions are off, so every
 value is checked once, by :class:`~photo3d.ui.job.JobOptions` and
@@ -62,8 +63,8 @@ CSS = """
 INTRO = """# photo3d
 Turn one photo into a 3D photo: a layered depth image whose hidden parts are filled in,
 shown below in photo3d's viewer (move the pointer over it), with its depth map, videos,
-`mesh.glb` and a zip of every file. Without a depth map, photo3d uses the one embedded
-in portrait photos, else estimates one."""
+`mesh.glb`, its Gaussian splats (`splats.spz`) and a zip of every file. Without a depth
+map, photo3d uses the one embedded in portrait photos, else estimates one."""
 
 
 def load_gradio():
@@ -143,6 +144,8 @@ def build_app(runner: Runner, warmup: Warmup, *, workers: int = 1,
                 viewer = gr.HTML(elem_id="photo3d-viewer", min_height=120)
                 with gr.Row():
                     glb = gr.File(label="mesh.glb", interactive=False, elem_id="photo3d-glb")
+                    splats = gr.File(label="splats.spz (Gaussian splats)", interactive=False,
+                                     elem_id="photo3d-splats")
                     bundle = gr.File(label="Every file (zip)", interactive=False,
                                      elem_id="photo3d-zip")
                 with gr.Row():
@@ -167,16 +170,17 @@ def build_app(runner: Runner, warmup: Warmup, *, workers: int = 1,
                                              ply)) as results:
                     async for result in results:
                         videos_out = served.gallery(result.videos)
-                        if shown:  # the videos' turn: the 3D photo, depth and GLB stay
-                            yield (gr.skip(), gr.skip(), videos_out, gr.skip(),
+                        if shown:  # the videos' turn: the 3D photo, depth, GLB, splats stay
+                            yield (gr.skip(), gr.skip(), videos_out, gr.skip(), gr.skip(),
                                    served.file(result.zip), result.status())
                         else:
                             yield (viewer_frame(result), served.file(result.depth_preview),
                                    videos_out, served.file(result.glb),
-                                   served.file(result.zip), result.status())
+                                   served.file(result.splats), served.file(result.zip),
+                                   result.status())
                         shown = True
             except RequestError as err:  # after the 3D photo (its videos): it stays
-                kept = (gr.skip(),) * 5 if shown else (None,) * 5
+                kept = (gr.skip(),) * 6 if shown else (None,) * 6
                 yield *kept, f"Error: {err}"
 
         async def make(photo, depth=None, right=None, size=DEFAULT.size, fill=DEFAULT.fill,
@@ -203,9 +207,11 @@ def build_app(runner: Runner, warmup: Warmup, *, workers: int = 1,
         queue = dict(concurrency_id="make", concurrency_limit=workers, preprocess=False,
                      postprocess=False)
         button.click(make_page, inputs,
-                     [viewer, depth_view, video_view, glb, bundle, status],
+                     [viewer, depth_view, video_view, glb, splats, bundle, status],
                      api_visibility="private", **queue)
         trigger = gr.Button(visible=False)
+        # the API's four outputs stay as they are (its clients unpack them): the
+        # splats reach it in the zip
         trigger.click(make, inputs, [glb, bundle, depth_view, video_files], api_name="make",
                       **queue)
 

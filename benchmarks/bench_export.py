@@ -1,0 +1,167 @@
+"""Benchmark ``photo3d export``: all five formats of the bundled sample's 3D photo.
+
+The 3D photo is ``photo3d demo --no-video`` (the Middlebury motorcycle at 1024 px),
+made once into ``--demo`` (default: a temporary folder). Each measured run exports
+``splats.ply splats.spz splats.glb mesh.usdz quilt`` into a fresh copy of its
+``photo3d.npz`` and ``config.json``, in a fresh process, two ways:
+
+* ``call``: :func:`photo3d.export.export_folder` timed inside the process (wall and
+  CPU seconds of the call, all threads: ``time.process_time``), imports excluded
+  but usd-core's first import, which happens inside the call, included;
+* ``command``: the whole ``python -m photo3d export FOLDER FORMATS -q`` process
+  (wall seconds, and CPU seconds of the process: ``os.wait4``'s user + system).
+
+Two versions of the code run in the same session, alternated: ``now``, this working
+tree's ``src/`` (copied into a temporary folder first, so edits made while the
+benchmark runs do not mix in), and, with ``--ref DIR``, another ``src/`` folder (e.g.
+``git archive HEAD src | tar -x -C /tmp/ref`` gives ``/tmp/ref/src``). One unmeasured
+run of each version first (numba's cache, beside the copied sources); then
+``--runs`` rounds; medians. The 1-minute load average is recorded before every run:
+the machine is shared, and its load shows in wall times, far less in CPU times.
+Issue 37's target: the call at most 5 s, the command at most 8 s, on 2 cores.
+Writes ``benchmarks/results/export.json``.
+
+Usage: python benchmarks/bench_export.py [--runs 3] [--demo DIR] [--ref SRC_DIR]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shutil
+import statistics
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).parent))
+from _machine import save_record  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+FORMATS = ["splats.ply", "splats.spz", "splats.glb", "mesh.usdz", "quilt"]
+TIMEOUT = 180
+"""Seconds after which a run is taken for hung."""
+CALL = """
+import json, sys, time
+from photo3d.export import export_folder
+wall, cpu = time.perf_counter(), time.process_time()
+written = export_folder(sys.argv[1], sys.argv[2:])
+print(json.dumps({"wall": time.perf_counter() - wall, "cpu": time.process_time() - cpu,
+                  "files": {p.name: p.stat().st_size for p in written}}))
+"""
+
+
+def run_measured(src: Path, argv: list[str]) -> tuple[float, float, str] | None:
+    """``python argv`` with ``src`` first on the path: (wall seconds, CPU seconds of
+    the whole process from ``os.wait4``, its stdout); None if it was still running
+    after :data:`TIMEOUT` seconds (a deadlock, not a slow run: it is killed)."""
+    env = dict(os.environ, PYTHONPATH=str(src))
+    with tempfile.TemporaryFile() as out, tempfile.TemporaryFile() as err:
+        start = time.perf_counter()
+        proc = subprocess.Popen([sys.executable, *argv], env=env, stdout=out, stderr=err)
+        killer = threading.Timer(TIMEOUT, proc.kill)
+        killer.start()
+        _, status, usage = os.wait4(proc.pid, 0)
+        killer.cancel()
+        wall = time.perf_counter() - start
+        if wall >= TIMEOUT:
+            return None
+        proc.returncode = os.waitstatus_to_exitcode(status)
+        out.seek(0)
+        err.seek(0)
+        if proc.returncode != 0:
+            raise SystemExit(f"{src}: exit {proc.returncode}\n{err.read().decode()}")
+        return wall, usage.ru_utime + usage.ru_stime, out.read().decode()
+
+
+def fresh(demo: Path, work: Path, name: str) -> Path:
+    """A new folder holding the demo's ``photo3d.npz`` and ``config.json``."""
+    folder = work / name
+    shutil.rmtree(folder, ignore_errors=True)
+    folder.mkdir()
+    for file in ("photo3d.npz", "config.json"):
+        shutil.copy2(demo / file, folder / file)
+    return folder
+
+
+def measure(src: Path, demo: Path, work: Path, kind: str) -> dict:
+    """One run of ``kind`` (``call`` or ``command``) with ``src``."""
+    folder = fresh(demo, work, "out")
+    load = os.getloadavg()[0]
+    argv = (["-c", CALL, str(folder), *FORMATS] if kind == "call"
+            else ["-m", "photo3d", "export", str(folder), *FORMATS, "-q"])
+    done = run_measured(src, argv)
+    if done is None:
+        return {"load": load, "hung": True}
+    wall, cpu, out = done
+    if kind == "call":
+        inside = json.loads(out.strip().splitlines()[-1])
+        return {"load": load, "wall": inside["wall"], "cpu": inside["cpu"],
+                "process_wall": wall, "process_cpu": cpu, "files": inside["files"]}
+    return {"load": load, "wall": wall, "cpu": cpu}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--runs", type=int, default=3)
+    parser.add_argument("--demo", type=Path, help="the demo's folder (made if missing)")
+    parser.add_argument("--ref", type=Path, help="a src/ folder of the reference version")
+    parser.add_argument("--out", type=Path, default=ROOT / "benchmarks/results/export.json")
+    args = parser.parse_args()
+    with tempfile.TemporaryDirectory(prefix="bench-export-") as tmp:
+        work = Path(tmp)
+        versions = {"now": work / "now" / "src"}
+        shutil.copytree(ROOT / "src", versions["now"],
+                        ignore=shutil.ignore_patterns("__pycache__", "*.egg-info"))
+        if args.ref is not None:
+            versions["ref"] = work / "ref" / "src"
+            shutil.copytree(args.ref, versions["ref"],
+                            ignore=shutil.ignore_patterns("__pycache__", "*.egg-info"))
+        demo = args.demo or work / "demo"
+        if not (demo / "photo3d.npz").is_file():
+            print(f"making the demo into {demo} ...", flush=True)
+            run_measured(versions["now"], ["-m", "photo3d", "demo", "--no-video", "-q",
+                                           "-o", str(demo)])
+        for src in versions.values():  # warm-up: numba's cache, the page cache
+            measure(src, demo, work, "call")
+        runs: dict[str, dict[str, list]] = {v: {"call": [], "command": []} for v in versions}
+        for i in range(args.runs):
+            for kind in ("call", "command"):
+                for name, src in versions.items():
+                    result = measure(src, demo, work, kind)
+                    runs[name][kind].append(result)
+                    if result.get("hung"):
+                        print(f"run {i + 1} {name:3s} {kind:7s} HUNG (killed after "
+                              f"{TIMEOUT} s)  load {result['load']:.2f}", flush=True)
+                        continue
+                    print(f"run {i + 1} {name:3s} {kind:7s} wall {result['wall']:6.2f} s  "
+                          f"cpu {result['cpu']:6.2f} s  load {result['load']:.2f}", flush=True)
+    medians = {name: {kind: {key: statistics.median(r[key] for r in results if "wall" in r)
+                             for key in ("wall", "cpu", "load")}
+                      | {"hung": sum("hung" in r for r in results)}
+                      for kind, results in kinds.items()}
+               for name, kinds in runs.items()}
+    print(f"\nmedians of {args.runs} (1-minute load average before each run):")
+    for name, kinds in medians.items():
+        for kind, m in kinds.items():
+            print(f"  {name:3s} {kind:7s} wall {m['wall']:6.2f} s  cpu {m['cpu']:6.2f} s  "
+                  f"load {m['load']:.2f}" + (f"  ({m['hung']} hung)" if m["hung"] else ""))
+    if "ref" in medians:
+        for kind in ("call", "command"):
+            ratio = {k: medians["now"][kind][k] / medians["ref"][kind][k] for k in ("wall", "cpu")}
+            print(f"  now/ref {kind:7s} wall {ratio['wall']:.2f}  cpu {ratio['cpu']:.2f}")
+    files = next(r["files"] for r in runs["now"]["call"] if "files" in r)
+    record = {"formats": FORMATS, "runs": runs, "medians": medians,
+              "files_mb": {k: round(v / 1e6, 2) for k, v in files.items()},
+              "target": {"call_wall_s": 5.0, "command_wall_s": 8.0},
+              "ref": str(args.ref) if args.ref else None}
+    save_record(record, args.out, "export", "bench_export.py")
+    print(f"wrote {args.out}")
+
+
+if __name__ == "__main__":
+    main()
