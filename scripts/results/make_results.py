@@ -21,6 +21,7 @@ import numpy as np
 HERE = Path(__file__).parent
 sys.path.insert(0, str(HERE))
 from results_light import section_light  # noqa: E402
+from results_speed import section_export, section_hard_depth, section_videos  # noqa: E402
 
 REPO = HERE.parents[1]
 BENCHMARKS_DIR = REPO / "benchmarks"
@@ -874,6 +875,11 @@ def main() -> None:
                      "(issue 27, item 4)", "python benchmarks/bench_contexts.py"),
         section_training(),
         section_light(load, machine_line, missing),
+        section_hard_depth(load, machine_line, missing),
+        section_videos(load, machine_line, missing),
+        section_json("first_run.json", "The first run: an empty numba cache against a warm one "
+                     "(issue 35)", "python benchmarks/bench_first_run.py"),
+        section_export(load, machine_line, missing),
         (BENCHMARKS_DIR / "history.md").read_text(),  # measurement history, written by hand
     ]
     (BENCHMARKS_DIR / "RESULTS.md").write_text("\n".join(parts).rstrip() + "\n")
