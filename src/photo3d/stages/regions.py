@@ -24,6 +24,9 @@ For every depth edge (a set of background silhouette pixels, links already cut):
 
 from __future__ import annotations
 
+import queue
+from collections import deque
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numba
@@ -31,6 +34,8 @@ import numpy as np
 
 from photo3d.stages._lattice import step
 from photo3d.structures.ldi import LDI
+
+_THREADS = 2  # groups of edges grown at once (the machines photo3d is timed on have 2 cores)
 
 
 @dataclass(frozen=True)
@@ -169,12 +174,13 @@ def _surround(e, thin, s0, ns, pos, disp, links, starts, order, rows, cols, stam
     return ctx, ctx_step, nc, syn, syn_seed
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _regions(pos, disp, links, starts, order, rows, cols, edge_ptr, edge_pix,
-             n_syn, n_ctx, margin, extend, around, n_ext):  # pragma: no cover - jit
+             n_syn, n_ctx, margin, extend, around, n_ext, stamp, seen,
+             base):  # pragma: no cover - jit
+    # stamp, seen: (rows * cols,) int64 scratch, never holding a value >= base (edge
+    # e is marked base + e), so one pair serves every group of a pass
     n_edges = edge_ptr.shape[0] - 1
-    stamp = np.full(rows * cols, -1, np.int64)
-    seen = np.full(rows * cols if extend > 0 or around else 1, -1, np.int64)
     ctx = np.empty(1024, np.int64)
     ctx_step = np.empty(1024, np.int32)
     syn = np.empty(1024, np.int64)
@@ -185,9 +191,10 @@ def _regions(pos, disp, links, starts, order, rows, cols, edge_ptr, edge_pix,
     # once more for the type Literal[int](0)
     nc = np.int64(0)
     ns = np.int64(0)
-    for e in range(n_edges):
+    for e_local in range(n_edges):
+        e = base + e_local
         c0 = nc
-        for k in range(edge_ptr[e], edge_ptr[e + 1]):
+        for k in range(edge_ptr[e_local], edge_ptr[e_local + 1]):
             p = edge_pix[k]
             if stamp[pos[p]] == e:
                 continue
@@ -198,7 +205,7 @@ def _regions(pos, disp, links, starts, order, rows, cols, edge_ptr, edge_pix,
             ctx_step[nc] = 0
             nc += 1
         s0 = ns
-        for k in range(edge_ptr[e], edge_ptr[e + 1]):
+        for k in range(edge_ptr[e_local], edge_ptr[e_local + 1]):
             p = edge_pix[k]
             for d in range(4):
                 if links[p, d] >= 0:
@@ -241,14 +248,14 @@ def _regions(pos, disp, links, starts, order, rows, cols, edge_ptr, edge_pix,
             ctx, ctx_step, nc, syn, syn_seed = _surround(
                 e, thin, s0, ns, pos, disp, links, starts, order, rows, cols, stamp, seen,
                 ctx, ctx_step, nc, syn, syn_seed, n_syn, n_ctx, margin, n_ext)
-        ctx_ptr[e + 1] = nc
-        syn_ptr[e + 1] = ns
+        ctx_ptr[e_local + 1] = nc
+        syn_ptr[e_local + 1] = ns
     return ctx_ptr, ctx[:nc].copy(), ctx_step[:nc].copy(), syn_ptr, syn[:ns].copy()
 
 
 KERNELS = ((_regions, "(int64[::1], float32[::1], int32[:, ::1], int64[::1], int64[::1], int64, "
                       "int64, int64[::1], int64[::1], int64, int64, float32, float32, boolean, "
-                      "int64)"),)
+                      "int64, int64[::1], int64[::1], int64)"),)
 """The kernels ``make`` runs here and the argument types it gives them, compiled ahead
 by :func:`photo3d.kernels.compile_kernels` (``tests/test_kernels.py`` checks ``make``
 gives no others)."""
@@ -344,24 +351,48 @@ def find_regions(
     edge_pixels = np.asarray(edge_pixels, np.int64)
     n_edges = edge_ptr.size - 1
     group = n_edges if limit is None else max(1, -(-n_edges // 16))
+    starts_of = range(0, max(n_edges, 1), max(group, 1))
+    extra = sizes.thin_context > 0 or sizes.context_around
+    scratch: queue.SimpleQueue = queue.SimpleQueue()  # one pair per thread at a time
+    for _ in range(min(_THREADS, len(starts_of))):
+        scratch.put((np.full(rows * cols, -1, np.int64),
+                     np.full(rows * cols if extra else 1, -1, np.int64)))
+
+    def grow(a: int) -> tuple:
+        b = min(n_edges, a + group)
+        stamp, seen = scratch.get()
+        try:
+            return _regions(
+                pos, ldi.disparity, ldi.links, starts, order, rows, cols,
+                edge_ptr[a:b + 1] - edge_ptr[a], edge_pixels[edge_ptr[a]:edge_ptr[b]],
+                max(1, sizes.synthesis_iterations), max(1, sizes.context_iterations),
+                np.float32(sizes.threshold / 2), np.float32(sizes.thin_context),
+                bool(sizes.context_around), max(1, sizes.thin_context_iterations),
+                stamp, seen, a)
+        finally:
+            scratch.put((stamp, seen))
+
     parts = []
     used = np.zeros(3, np.int64)  # context, synthesis, area
-    for a in range(0, max(n_edges, 1), max(group, 1)):
-        b = min(n_edges, a + group)
-        part = _regions(
-            pos, ldi.disparity, ldi.links, starts, order, rows, cols,
-            edge_ptr[a:b + 1] - edge_ptr[a], edge_pixels[edge_ptr[a]:edge_ptr[b]],
-            max(1, sizes.synthesis_iterations), max(1, sizes.context_iterations),
-            np.float32(sizes.threshold / 2), np.float32(sizes.thin_context),
-            bool(sizes.context_around), max(1, sizes.thin_context_iterations),
-        )
-        parts.append(part)
-        if limit is not None:
-            ctx_ptr, ctx, _, syn_ptr, syn = part
-            used += (ctx.size, syn.size,
-                     _box_areas(ctx_ptr, pos[ctx], syn_ptr, syn, cols).sum())
-            if (used > (limit.context, limit.synthesis, limit.area)).any():
-                break
+    # groups grown by two threads (the kernel runs without the GIL), taken in order;
+    # the result does not depend on the threads
+    with ThreadPoolExecutor(max_workers=_THREADS) as pool:
+        ahead = deque(pool.submit(grow, a) for a in starts_of[:_THREADS])
+        following = iter(starts_of[_THREADS:])
+        while ahead:
+            part = ahead.popleft().result()
+            parts.append(part)
+            if limit is not None:
+                ctx_ptr, ctx, _, syn_ptr, syn = part
+                used += (ctx.size, syn.size,
+                         _box_areas(ctx_ptr, pos[ctx], syn_ptr, syn, cols).sum())
+                if (used > (limit.context, limit.synthesis, limit.area)).any():
+                    for job in ahead:
+                        job.cancel()
+                    break
+            a = next(following, None)
+            if a is not None:
+                ahead.append(pool.submit(grow, a))
     ctx_ptr, syn_ptr = _join_ptr([p[0] for p in parts]), _join_ptr([p[3] for p in parts])
     syn = np.concatenate([p[4] for p in parts])
     return Regions(
