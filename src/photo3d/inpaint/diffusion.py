@@ -94,9 +94,10 @@ def diffuse_in_place(values, context, synthesis, iterations, tolerance, omega): 
     # Successive over-relaxation on the reached synthesis pixels, with each pixel's
     # valid neighbours (context or synthesis) precomputed as flat indices.
     flat = values.reshape(h * w, c)
-    unknown = np.empty(h * w, np.int64)
-    nbr = np.empty((h * w, 4), np.int64)
-    cnt = np.empty(h * w, np.int64)
+    # int32: half the index bytes each sweep streams (a patch is far below 2**31 pixels)
+    unknown = np.empty(h * w, np.int32)
+    nbr = np.empty((h * w, 4), np.int32)
+    cnt = np.empty(h * w, np.int32)
     m = 0
     for y in range(h):
         for x in range(w):
@@ -138,6 +139,22 @@ def diffuse_in_place(values, context, synthesis, iterations, tolerance, omega): 
                 flat[u, 2] += d2
                 flat[u, 3] += d3
                 worst = max(worst, abs(d0), abs(d1), abs(d2), abs(d3))
+            if worst < tolerance:
+                break
+        return known
+    if c == 1:  # the texture weight's detail
+        for _ in range(iterations):
+            worst = 0.0
+            for i in range(m):
+                u = unknown[i]
+                n = cnt[i]
+                inv = 1.0 / n
+                a0 = 0.0 + flat[nbr[i, 0], 0]
+                for k in range(1, n):
+                    a0 += flat[nbr[i, k], 0]
+                d0 = omega * (a0 * inv - flat[u, 0])
+                flat[u, 0] += d0
+                worst = max(worst, abs(d0))
             if worst < tolerance:
                 break
         return known
