@@ -82,11 +82,14 @@ class Regions:
 
 
 @numba.njit(cache=True)
-def _grow(arr, n):  # pragma: no cover - jit
-    if n < arr.shape[0]:
+def _reserve(arr, n):  # pragma: no cover - jit
+    """``arr``, or a copy with room for at least ``n`` items: called once per ring, so
+    that the ring's appends need no check (a call per append cost a third of the
+    regions' time)."""
+    if n <= arr.shape[0]:
         return arr
-    out = np.empty(max(2 * arr.shape[0], 16), arr.dtype)
-    for i in range(arr.shape[0]):  # not out[:k] = arr: its shape check compiles str()
+    out = np.empty(max(2 * arr.shape[0], n, 16), arr.dtype)
+    for i in range(arr.shape[0]):
         out[i] = arr[i]
     return out
 
@@ -106,14 +109,14 @@ def _link_ring(e, lo, hi, links, pos, stamp, ctx, ctx_step, nc, value):  # pragm
     """Grow context ``ctx[lo:hi]`` of edge ``e`` one step along the LDI links: every
     linked pixel whose position is not yet stamped ``e`` joins with step ``value``.
     Returns ``(ctx, ctx_step, nc)``."""
+    ctx = _reserve(ctx, nc + 4 * (hi - lo))
+    ctx_step = _reserve(ctx_step, nc + 4 * (hi - lo))
     for k in range(lo, hi):
         p = ctx[k]
         for d in range(4):
             q = links[p, d]
             if q >= 0 and stamp[pos[q]] != e:
                 stamp[pos[q]] = e
-                ctx = _grow(ctx, nc)
-                ctx_step = _grow(ctx_step, nc)
                 ctx[nc] = q
                 ctx_step[nc] = value
                 nc += 1
@@ -136,6 +139,10 @@ def _surround(e, thin, s0, ns, pos, disp, links, starts, order, rows, cols, stam
     nq = ns    # tail beyond ns (with their seeds), which the next edge overwrites
     for _ring in range(n_syn if thin else 1):
         q_hi = nq
+        ctx = _reserve(ctx, nc + 4 * (q_hi - q_lo))
+        ctx_step = _reserve(ctx_step, nc + 4 * (q_hi - q_lo))
+        syn = _reserve(syn, nq + 4 * (q_hi - q_lo))
+        syn_seed = _reserve(syn_seed, nq + 4 * (q_hi - q_lo))
         for k in range(q_lo, q_hi):
             a = syn[k]
             seed = syn_seed[k]
@@ -152,14 +159,10 @@ def _surround(e, thin, s0, ns, pos, disp, links, starts, order, rows, cols, stam
                         best = q
                 if best >= 0:
                     stamp[b] = e
-                    ctx = _grow(ctx, nc)
-                    ctx_step = _grow(ctx_step, nc)
                     ctx[nc] = best
                     ctx_step[nc] = n_ctx
                     nc += 1
                 else:
-                    syn = _grow(syn, nq)
-                    syn_seed = _grow(syn_seed, nq)
                     syn[nq] = b
                     syn_seed[nq] = seed
                     nq += 1
@@ -194,13 +197,16 @@ def _regions(pos, disp, links, starts, order, rows, cols, edge_ptr, edge_pix,
     for e_local in range(n_edges):
         e = base + e_local
         c0 = nc
+        n_pix = edge_ptr[e_local + 1] - edge_ptr[e_local]
+        ctx = _reserve(ctx, nc + n_pix)
+        ctx_step = _reserve(ctx_step, nc + n_pix)
+        syn = _reserve(syn, ns + 4 * n_pix)
+        syn_seed = _reserve(syn_seed, ns + 4 * n_pix)
         for k in range(edge_ptr[e_local], edge_ptr[e_local + 1]):
             p = edge_pix[k]
             if stamp[pos[p]] == e:
                 continue
             stamp[pos[p]] = e
-            ctx = _grow(ctx, nc)
-            ctx_step = _grow(ctx_step, nc)
             ctx[nc] = p
             ctx_step[nc] = 0
             nc += 1
@@ -215,8 +221,6 @@ def _regions(pos, disp, links, starts, order, rows, cols, edge_ptr, edge_pix,
                     continue
                 if _admissible(b, disp[p], disp, starts, order, margin):
                     stamp[b] = e
-                    syn = _grow(syn, ns)
-                    syn_seed = _grow(syn_seed, ns)
                     syn[ns] = b
                     syn_seed[ns] = disp[p]
                     ns += 1
@@ -228,6 +232,8 @@ def _regions(pos, disp, links, starts, order, rows, cols, edge_ptr, edge_pix,
                                                ctx_step, nc, it + 1)
                 c_lo, c_hi = c_hi, nc
             if it < n_syn - 1:
+                syn = _reserve(syn, ns + 4 * (s_hi - s_lo))
+                syn_seed = _reserve(syn_seed, ns + 4 * (s_hi - s_lo))
                 for k in range(s_lo, s_hi):
                     a = syn[k]
                     seed = syn_seed[k]
@@ -237,8 +243,6 @@ def _regions(pos, disp, links, starts, order, rows, cols, edge_ptr, edge_pix,
                             continue
                         if _admissible(b, seed, disp, starts, order, margin):
                             stamp[b] = e
-                            syn = _grow(syn, ns)
-                            syn_seed = _grow(syn_seed, ns)
                             syn[ns] = b
                             syn_seed[ns] = seed
                             ns += 1
