@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import time
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import replace
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -108,36 +110,48 @@ def make(
         mapping = DepthMapping.from_inverse_depth(lo, hi)
     state = start(pre, config=config, intrinsics=intrinsics, mapping=mapping)
     scale = max(w / img.shape[1], h / img.shape[0])
-    if reg.border_fill != "replicate":
-        state = replace(state, ldi=fill_border(
-            state.ldi, _border_fill(reg.border_fill, backend, scale),
-            context=config.spatial(reg.border_context, pre.working_size)))
-    done("ldi")
+    patchwise = getattr(backend, "patchwise", False)
+    framing = None  # the frame's colours, filled in another thread meanwhile
+    with ThreadPoolExecutor(max_workers=1) as frame_pool:
+        if reg.border_fill != "replicate":
+            border = partial(fill_border, state.ldi,
+                             _border_fill(reg.border_fill, backend, scale),
+                             context=config.spatial(reg.border_context, pre.working_size))
+            if patchwise and state.edge_pixels.size:
+                # the first pass fills the patches that do not read the frame meanwhile
+                # (the same result; about 0.6 s less on 2 cores for the sample)
+                framing = frame_pool.submit(border)
+            else:
+                state = replace(state, ldi=border())
+        done("ldi")  # without the frame when it is filled meanwhile (it then counts
+        # in "inpaint")
 
-    edges_per_pass, added_per_pass = [], []
-    # a backend that fills each patch on its own gets them in batches (bounded memory)
-    rows, cols = state.ldi.lattice_shape
-    batch = rows * cols if getattr(backend, "patchwise", False) else None
-    for k in range(reg.max_passes):
-        if state.edge_pixels.size == 0:
-            break
+        edges_per_pass, added_per_pass = [], []
+        # a backend that fills each patch on its own gets them in batches (bounded memory)
+        rows, cols = state.ldi.lattice_shape
+        batch = rows * cols if patchwise else None
+        for k in range(reg.max_passes):
+            if state.edge_pixels.size == 0:
+                break
 
-        def fill(patches, progress, k: int = k):
-            return backend.inpaint(patches, progress=progress, pass_index=k)
+            def fill(patches, progress, k: int = k):
+                return backend.inpaint(patches, progress=progress, pass_index=k)
 
-        def on_patch(i: int, n: int, k: int = k) -> None:
-            report("inpaint", (k + i / max(n, 1)) / reg.max_passes)
+            def on_patch(i: int, n: int, k: int = k) -> None:
+                report("inpaint", (k + i / max(n, 1)) / reg.max_passes)
 
-        # a backend may want thinner contexts after the first pass (learned: the authors'),
-        # or the paper's contexts only (learned: its nets were trained on those)
-        merged = fill_pass(state, fill, config=config, working_size=pre.working_size,
-                           margin=backend.margin, scale=scale, pass_index=k,
-                           later_context=getattr(backend, "later_context", 1.0),
-                           paper_context=getattr(backend, "paper_context", False),
-                           batch_area=batch, progress=on_patch)
-        edges_per_pass.append(state.edges)
-        added_per_pass.append(merged.added)
-        state = PassInput(merged.ldi, merged.edge_ptr, merged.edge_pixels)
+            # a backend may want thinner contexts after the first pass (learned: the
+            # authors'), or the paper's contexts only (learned: its nets were trained
+            # on those)
+            merged = fill_pass(state, fill, config=config, working_size=pre.working_size,
+                               margin=backend.margin, scale=scale, pass_index=k,
+                               later_context=getattr(backend, "later_context", 1.0),
+                               paper_context=getattr(backend, "paper_context", False),
+                               batch_area=batch, progress=on_patch,
+                               final=framing.result if framing is not None and k == 0 else None)
+            edges_per_pass.append(state.edges)
+            added_per_pass.append(merged.added)
+            state = PassInput(merged.ldi, merged.edge_ptr, merged.edge_pixels)
     done("inpaint")
 
     return Photo3D(

@@ -195,3 +195,30 @@ def test_npz_loader_refuses_foreign_and_pickled_files(tmp_path):
         load_npz(tmp_path / "evil.npz")
     with pytest.raises(InputError, match="not found"):
         load_npz(tmp_path / "missing.npz")
+
+
+def test_regions_grown_in_groups_by_two_threads_are_those_of_one_group():
+    """``find_regions`` with a limit grows 1/16 of the edges at a time, two groups at
+    once, each thread with its own marks: the same regions as all edges in one go."""
+    from photo3d.config import Config
+    from photo3d.sample import motorcycle
+    from photo3d.stages.passes import region_sizes, start
+    from photo3d.stages.preprocess import preprocess
+    from photo3d.stages.regions import RegionLimit
+
+    config = Config(size=160)
+    d = np.nan_to_num(np.asarray(motorcycle().disparity), posinf=0.0)
+    first = start(preprocess(motorcycle().left, d, config=config), config=config)
+    assert first.edges >= 32  # several edges per group
+    sizes = region_sizes(config, 160)
+    whole = find_regions(first.ldi, first.edge_ptr, first.edge_pixels, sizes)
+    big = 10**12
+    grouped = find_regions(first.ldi, first.edge_ptr, first.edge_pixels, sizes,
+                           limit=RegionLimit(context=big, synthesis=big, area=big))
+    for name in ("context_ptr", "context", "context_step", "synthesis_ptr", "synthesis_y",
+                 "synthesis_x"):
+        assert np.array_equal(getattr(whole, name), getattr(grouped, name)), name
+    cut_short = find_regions(first.ldi, first.edge_ptr, first.edge_pixels, sizes,
+                             limit=RegionLimit(context=1, synthesis=big, area=big))
+    assert cut_short.count == -(-first.edges // 16)  # stopped after the first group
+    assert np.array_equal(cut_short.context, whole.context[:cut_short.context.size])

@@ -133,3 +133,40 @@ def test_later_passes_find_no_more_edges_than_the_first_on_a_raw_disparity():
     photo = photo3d.make(motorcycle().left, depth=d, config=Config(size=384))
     edges = photo.stats["edges"]
     assert len(edges) == 3 and all(b <= a for a, b in zip(edges, edges[1:], strict=False))
+
+
+def test_a_first_pass_filled_while_the_frame_is_filled_gives_the_same_result():
+    """``fill_pass(final=...)``: the patches that read no border pixel are filled from
+    the LDI whose frame is not filled yet, the others from ``final()``'s; the fills
+    are merged in edge order, so the result is the one of the framed LDI."""
+    from photo3d.stages.border import fill_border
+    from photo3d.stages.passes import fill_pass, start
+    from photo3d.stages.preprocess import preprocess
+
+    config = Config(size=128)
+    sample = motorcycle()
+    pre = preprocess(sample.left, np.nan_to_num(scene(), posinf=0.0), config=config)
+    first = start(pre, config=config)
+    # a frame fill that tells the framed LDI apart: colours by position
+    framed = fill_border(first.ldi, lambda color, disparity, context, synthesis: np.stack(
+        np.broadcast_arrays(*np.mgrid[0:1:synthesis.shape[0] * 1j,
+                                      0:1:synthesis.shape[1] * 1j], 0.5), -1), context=8)
+    seen = []
+
+    def mean_colour(patches, progress):
+        seen.extend(p.context.sum() for p in patches)
+        return [InpaintResult(np.broadcast_to(p.color[p.context].mean(axis=0), (*p.shape, 3))
+                              .astype(np.float32), p.disparity, np.zeros(p.shape, np.float32))
+                for p in patches]
+
+    kw = dict(config=config, working_size=128, margin=1, batch_area=4000)
+    direct = fill_pass(replace(first, ldi=framed), mean_colour, **kw)
+    seen.clear()
+    waited = []
+    later = fill_pass(first, mean_colour, **kw,
+                      final=lambda: waited.append(len(seen)) or framed)
+    assert waited and 0 < waited[0] < len(seen)  # some patches were filled before
+    for name in ("color", "disparity", "links", "y", "x", "label"):
+        assert np.array_equal(getattr(direct.ldi, name), getattr(later.ldi, name)), name
+    assert np.array_equal(direct.edge_pixels, later.edge_pixels)
+    assert not np.array_equal(direct.ldi.color, fill_pass(first, mean_colour, **kw).ldi.color)

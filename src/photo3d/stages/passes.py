@@ -48,7 +48,7 @@ from photo3d.stages.merge import Merged, merge_fills, take
 from photo3d.stages.patches import PatchJob, extract_patches, iter_patches
 from photo3d.stages.preprocess import Preprocessed
 from photo3d.stages.regions import RegionLimit, Regions, RegionSizes, find_regions
-from photo3d.structures.ldi import LDI
+from photo3d.structures.ldi import LABEL_BORDER, LDI
 from photo3d.structures.patch import InpaintResult, Patch
 
 CONTEXT_LIMIT = 6.0
@@ -243,6 +243,20 @@ def pass_regions(state: PassInput, sizes: RegionSizes, *,
         sizes = smaller
 
 
+def _border_readers(ldi: LDI, regions: Regions, split: bool) -> tuple[list[int], list[int]]:
+    """The edges of ``regions`` whose context holds no border pixel (label
+    :data:`~photo3d.structures.ldi.LABEL_BORDER`), and those whose context does, in
+    order; without ``split``, every edge and none."""
+    every = list(range(regions.count))
+    if not split or not regions.count:
+        return every, []
+    border = ldi.label[regions.context] == LABEL_BORDER
+    ptr = regions.context_ptr
+    seen = np.concatenate([[0], np.cumsum(border)])
+    reads = seen[ptr[1:]] > seen[ptr[:-1]]
+    return ([e for e in every if not reads[e]], [e for e in every if reads[e]])
+
+
 def _shrunk(sizes: RegionSizes, factor: float) -> RegionSizes:
     """``sizes`` with every flood fill ``factor`` as deep, and at least one step less
     (but never below one step)."""
@@ -291,7 +305,8 @@ def fill_pass(state: PassInput, fill: PassFill, *, config: Config, working_size:
               margin: int, scale: float = 1.0, pass_index: int = 0,
               later_context: float = 1.0, paper_context: bool = False,
               batch_area: int | None = None,
-              progress: CountProgress | None = None) -> Merged:
+              progress: CountProgress | None = None,
+              final: Callable[[], LDI] | None = None) -> Merged:
     """One inpainting pass of ``make``: :func:`pass_patches`' patches filled by ``fill``
     and merged into the LDI with the next pass's edges
     (:func:`~photo3d.stages.merge.merge_fills`; at most as many as this pass's, the
@@ -306,6 +321,13 @@ def fill_pass(state: PassInput, fill: PassFill, *, config: Config, working_size:
             pixels (for a backend that fills each patch on its own: a pass then holds
             one batch of patches at a time); None: all at once.
         progress: ``progress(done, total)`` over the pass's patches.
+        final: when ``state.ldi``'s border colours are not final yet (the frame is
+            still being filled, in another thread): ``final()`` waits for and returns
+            the LDI with them (the same pixels and links). The patches whose context
+            reads no border pixel are filled first, meanwhile; the others are
+            extracted from ``final()``, which the pass is merged into. The result is
+            the same as without (each patch is filled on its own; the fills are merged
+            in edge order). Regions never read colours.
 
     Returns:
         :class:`~photo3d.stages.merge.Merged`: the LDI with the new pixels (label 2 in
@@ -331,6 +353,7 @@ def fill_pass(state: PassInput, fill: PassFill, *, config: Config, working_size:
     regions = pass_regions(state, sizes, index=index)
     total, done = regions.count, 0
     fills, batch, area = [], [], 0
+    ldi = state.ldi
 
     def run() -> None:
         nonlocal done, area
@@ -340,21 +363,29 @@ def fill_pass(state: PassInput, fill: PassFill, *, config: Config, working_size:
                 progress(min(done + i, total), total)
 
         results = fill([job.patch for job in batch], report)
-        fills.extend(take(state.ldi, job, res) for job, res in zip(batch, results, strict=True))
+        fills.extend((job.edge, take(ldi, job, res))
+                     for job, res in zip(batch, results, strict=True))
         done += len(batch)
         batch.clear()
         area = 0
 
-    for job in iter_patches(state.ldi, regions, state.edge_pixels, margin=margin,
-                            scale=scale):
-        batch.append(job)
-        area += job.patch.shape[0] * job.patch.shape[1]
-        if batch_area is not None and area >= batch_area:
+    first, later = _border_readers(state.ldi, regions, final is not None)
+    for group in (first, later):
+        if group is later and final is not None:
+            ldi = final()
+        for job in iter_patches(ldi, regions, state.edge_pixels, margin=margin,
+                                scale=scale, edges=group):
+            batch.append(job)
+            area += job.patch.shape[0] * job.patch.shape[1]
+            if batch_area is not None and area >= batch_area:
+                run()
+        if batch:
             run()
-    if batch:
-        run()
+    if final is not None and not later:
+        ldi = final()
+    fills.sort(key=lambda pair: pair[0])  # edge order, as one group gives them
     pre = config.preprocess
-    return merge_fills(state.ldi, fills, label=min(pass_index + 2, 3),
+    return merge_fills(ldi, [f for _, f in fills], label=min(pass_index + 2, 3),
                        threshold=pre.discontinuity,
                        min_edge_length=config.spatial(pre.min_edge_length, working_size),
                        overwrite_band=config.regions.overwrite_dilation,

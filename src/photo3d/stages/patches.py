@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 
 import numpy as np
@@ -20,12 +20,14 @@ class PatchJob:
         patch: the inpainter input.
         new_y, new_x: ``(S,) int32`` lattice positions of new pixels.
         band: ``(B,) int64`` existing LDI pixels re-synthesised in place (dilation).
+        edge: the index of the edge whose regions these are (-1: not given).
     """
 
     patch: Patch
     new_y: np.ndarray
     new_x: np.ndarray
     band: np.ndarray
+    edge: int = -1
 
 
 def extract_patches(ldi: LDI, regions: Regions, edge_pixels: np.ndarray, *,
@@ -63,9 +65,11 @@ def extract_patches(ldi: LDI, regions: Regions, edge_pixels: np.ndarray, *,
 
 
 def iter_patches(ldi: LDI, regions: Regions, edge_pixels: np.ndarray, *,
-                 margin: int, scale: float = 1.0) -> Iterator[PatchJob]:
+                 margin: int, scale: float = 1.0,
+                 edges: Iterable[int] | None = None) -> Iterator[PatchJob]:
     """:func:`extract_patches` one job at a time, in edge order, so that a pass need
-    not hold all of its patches at once (same arguments).
+    not hold all of its patches at once (same arguments; ``edges``: only these edges'
+    jobs, in this order; None: every edge).
 
     Example:
         >>> from photo3d.stages.regions import Regions
@@ -79,7 +83,7 @@ def iter_patches(ldi: LDI, regions: Regions, edge_pixels: np.ndarray, *,
     """
     is_edge = np.zeros(ldi.size, bool)
     is_edge[edge_pixels] = True
-    for e in range(regions.count):
+    for e in range(regions.count) if edges is None else edges:
         c0, c1 = regions.context_ptr[e], regions.context_ptr[e + 1]
         s0, s1 = regions.synthesis_ptr[e], regions.synthesis_ptr[e + 1]
         ctx, steps = regions.context[c0:c1], regions.context_step[c0:c1]
@@ -107,4 +111,4 @@ def iter_patches(ldi: LDI, regions: Regions, edge_pixels: np.ndarray, *,
         synthesis[sy - y0, sx - x0] = True
         synthesis[ldi.y[band] - y0, ldi.x[band] - x0] = True
         patch = Patch(color, disparity, edges, context, synthesis, (y0, x0), scale)
-        yield PatchJob(patch=patch, new_y=sy, new_x=sx, band=band)
+        yield PatchJob(patch=patch, new_y=sy, new_x=sx, band=band, edge=int(e))

@@ -24,6 +24,9 @@ For every depth edge (a set of background silhouette pixels, links already cut):
 
 from __future__ import annotations
 
+import queue
+from collections import deque
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numba
@@ -31,6 +34,8 @@ import numpy as np
 
 from photo3d.stages._lattice import step
 from photo3d.structures.ldi import LDI
+
+_THREADS = 2  # groups of edges grown at once (the machines photo3d is timed on have 2 cores)
 
 
 @dataclass(frozen=True)
@@ -77,11 +82,14 @@ class Regions:
 
 
 @numba.njit(cache=True)
-def _grow(arr, n):  # pragma: no cover - jit
-    if n < arr.shape[0]:
+def _reserve(arr, n):  # pragma: no cover - jit
+    """``arr``, or a copy with room for at least ``n`` items: called once per ring, so
+    that the ring's appends need no check (a call per append cost a third of the
+    regions' time)."""
+    if n <= arr.shape[0]:
         return arr
-    out = np.empty(max(2 * arr.shape[0], 16), arr.dtype)
-    for i in range(arr.shape[0]):  # not out[:k] = arr: its shape check compiles str()
+    out = np.empty(max(2 * arr.shape[0], n, 16), arr.dtype)
+    for i in range(arr.shape[0]):
         out[i] = arr[i]
     return out
 
@@ -101,14 +109,14 @@ def _link_ring(e, lo, hi, links, pos, stamp, ctx, ctx_step, nc, value):  # pragm
     """Grow context ``ctx[lo:hi]`` of edge ``e`` one step along the LDI links: every
     linked pixel whose position is not yet stamped ``e`` joins with step ``value``.
     Returns ``(ctx, ctx_step, nc)``."""
+    ctx = _reserve(ctx, nc + 4 * (hi - lo))
+    ctx_step = _reserve(ctx_step, nc + 4 * (hi - lo))
     for k in range(lo, hi):
         p = ctx[k]
         for d in range(4):
             q = links[p, d]
             if q >= 0 and stamp[pos[q]] != e:
                 stamp[pos[q]] = e
-                ctx = _grow(ctx, nc)
-                ctx_step = _grow(ctx_step, nc)
                 ctx[nc] = q
                 ctx_step[nc] = value
                 nc += 1
@@ -131,6 +139,10 @@ def _surround(e, thin, s0, ns, pos, disp, links, starts, order, rows, cols, stam
     nq = ns    # tail beyond ns (with their seeds), which the next edge overwrites
     for _ring in range(n_syn if thin else 1):
         q_hi = nq
+        ctx = _reserve(ctx, nc + 4 * (q_hi - q_lo))
+        ctx_step = _reserve(ctx_step, nc + 4 * (q_hi - q_lo))
+        syn = _reserve(syn, nq + 4 * (q_hi - q_lo))
+        syn_seed = _reserve(syn_seed, nq + 4 * (q_hi - q_lo))
         for k in range(q_lo, q_hi):
             a = syn[k]
             seed = syn_seed[k]
@@ -147,14 +159,10 @@ def _surround(e, thin, s0, ns, pos, disp, links, starts, order, rows, cols, stam
                         best = q
                 if best >= 0:
                     stamp[b] = e
-                    ctx = _grow(ctx, nc)
-                    ctx_step = _grow(ctx_step, nc)
                     ctx[nc] = best
                     ctx_step[nc] = n_ctx
                     nc += 1
                 else:
-                    syn = _grow(syn, nq)
-                    syn_seed = _grow(syn_seed, nq)
                     syn[nq] = b
                     syn_seed[nq] = seed
                     nq += 1
@@ -169,12 +177,13 @@ def _surround(e, thin, s0, ns, pos, disp, links, starts, order, rows, cols, stam
     return ctx, ctx_step, nc, syn, syn_seed
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _regions(pos, disp, links, starts, order, rows, cols, edge_ptr, edge_pix,
-             n_syn, n_ctx, margin, extend, around, n_ext):  # pragma: no cover - jit
+             n_syn, n_ctx, margin, extend, around, n_ext, stamp, seen,
+             base):  # pragma: no cover - jit
+    # stamp, seen: (rows * cols,) int64 scratch, never holding a value >= base (edge
+    # e is marked base + e), so one pair serves every group of a pass
     n_edges = edge_ptr.shape[0] - 1
-    stamp = np.full(rows * cols, -1, np.int64)
-    seen = np.full(rows * cols if extend > 0 or around else 1, -1, np.int64)
     ctx = np.empty(1024, np.int64)
     ctx_step = np.empty(1024, np.int32)
     syn = np.empty(1024, np.int64)
@@ -185,20 +194,24 @@ def _regions(pos, disp, links, starts, order, rows, cols, edge_ptr, edge_pix,
     # once more for the type Literal[int](0)
     nc = np.int64(0)
     ns = np.int64(0)
-    for e in range(n_edges):
+    for e_local in range(n_edges):
+        e = base + e_local
         c0 = nc
-        for k in range(edge_ptr[e], edge_ptr[e + 1]):
+        n_pix = edge_ptr[e_local + 1] - edge_ptr[e_local]
+        ctx = _reserve(ctx, nc + n_pix)
+        ctx_step = _reserve(ctx_step, nc + n_pix)
+        syn = _reserve(syn, ns + 4 * n_pix)
+        syn_seed = _reserve(syn_seed, ns + 4 * n_pix)
+        for k in range(edge_ptr[e_local], edge_ptr[e_local + 1]):
             p = edge_pix[k]
             if stamp[pos[p]] == e:
                 continue
             stamp[pos[p]] = e
-            ctx = _grow(ctx, nc)
-            ctx_step = _grow(ctx_step, nc)
             ctx[nc] = p
             ctx_step[nc] = 0
             nc += 1
         s0 = ns
-        for k in range(edge_ptr[e], edge_ptr[e + 1]):
+        for k in range(edge_ptr[e_local], edge_ptr[e_local + 1]):
             p = edge_pix[k]
             for d in range(4):
                 if links[p, d] >= 0:
@@ -208,8 +221,6 @@ def _regions(pos, disp, links, starts, order, rows, cols, edge_ptr, edge_pix,
                     continue
                 if _admissible(b, disp[p], disp, starts, order, margin):
                     stamp[b] = e
-                    syn = _grow(syn, ns)
-                    syn_seed = _grow(syn_seed, ns)
                     syn[ns] = b
                     syn_seed[ns] = disp[p]
                     ns += 1
@@ -221,6 +232,8 @@ def _regions(pos, disp, links, starts, order, rows, cols, edge_ptr, edge_pix,
                                                ctx_step, nc, it + 1)
                 c_lo, c_hi = c_hi, nc
             if it < n_syn - 1:
+                syn = _reserve(syn, ns + 4 * (s_hi - s_lo))
+                syn_seed = _reserve(syn_seed, ns + 4 * (s_hi - s_lo))
                 for k in range(s_lo, s_hi):
                     a = syn[k]
                     seed = syn_seed[k]
@@ -230,8 +243,6 @@ def _regions(pos, disp, links, starts, order, rows, cols, edge_ptr, edge_pix,
                             continue
                         if _admissible(b, seed, disp, starts, order, margin):
                             stamp[b] = e
-                            syn = _grow(syn, ns)
-                            syn_seed = _grow(syn_seed, ns)
                             syn[ns] = b
                             syn_seed[ns] = seed
                             ns += 1
@@ -241,14 +252,14 @@ def _regions(pos, disp, links, starts, order, rows, cols, edge_ptr, edge_pix,
             ctx, ctx_step, nc, syn, syn_seed = _surround(
                 e, thin, s0, ns, pos, disp, links, starts, order, rows, cols, stamp, seen,
                 ctx, ctx_step, nc, syn, syn_seed, n_syn, n_ctx, margin, n_ext)
-        ctx_ptr[e + 1] = nc
-        syn_ptr[e + 1] = ns
+        ctx_ptr[e_local + 1] = nc
+        syn_ptr[e_local + 1] = ns
     return ctx_ptr, ctx[:nc].copy(), ctx_step[:nc].copy(), syn_ptr, syn[:ns].copy()
 
 
 KERNELS = ((_regions, "(int64[::1], float32[::1], int32[:, ::1], int64[::1], int64[::1], int64, "
                       "int64, int64[::1], int64[::1], int64, int64, float32, float32, boolean, "
-                      "int64)"),)
+                      "int64, int64[::1], int64[::1], int64)"),)
 """The kernels ``make`` runs here and the argument types it gives them, compiled ahead
 by :func:`photo3d.kernels.compile_kernels` (``tests/test_kernels.py`` checks ``make``
 gives no others)."""
@@ -344,24 +355,48 @@ def find_regions(
     edge_pixels = np.asarray(edge_pixels, np.int64)
     n_edges = edge_ptr.size - 1
     group = n_edges if limit is None else max(1, -(-n_edges // 16))
+    starts_of = range(0, max(n_edges, 1), max(group, 1))
+    extra = sizes.thin_context > 0 or sizes.context_around
+    scratch: queue.SimpleQueue = queue.SimpleQueue()  # one pair per thread at a time
+    for _ in range(min(_THREADS, len(starts_of))):
+        scratch.put((np.full(rows * cols, -1, np.int64),
+                     np.full(rows * cols if extra else 1, -1, np.int64)))
+
+    def grow(a: int) -> tuple:
+        b = min(n_edges, a + group)
+        stamp, seen = scratch.get()
+        try:
+            return _regions(
+                pos, ldi.disparity, ldi.links, starts, order, rows, cols,
+                edge_ptr[a:b + 1] - edge_ptr[a], edge_pixels[edge_ptr[a]:edge_ptr[b]],
+                max(1, sizes.synthesis_iterations), max(1, sizes.context_iterations),
+                np.float32(sizes.threshold / 2), np.float32(sizes.thin_context),
+                bool(sizes.context_around), max(1, sizes.thin_context_iterations),
+                stamp, seen, a)
+        finally:
+            scratch.put((stamp, seen))
+
     parts = []
     used = np.zeros(3, np.int64)  # context, synthesis, area
-    for a in range(0, max(n_edges, 1), max(group, 1)):
-        b = min(n_edges, a + group)
-        part = _regions(
-            pos, ldi.disparity, ldi.links, starts, order, rows, cols,
-            edge_ptr[a:b + 1] - edge_ptr[a], edge_pixels[edge_ptr[a]:edge_ptr[b]],
-            max(1, sizes.synthesis_iterations), max(1, sizes.context_iterations),
-            np.float32(sizes.threshold / 2), np.float32(sizes.thin_context),
-            bool(sizes.context_around), max(1, sizes.thin_context_iterations),
-        )
-        parts.append(part)
-        if limit is not None:
-            ctx_ptr, ctx, _, syn_ptr, syn = part
-            used += (ctx.size, syn.size,
-                     _box_areas(ctx_ptr, pos[ctx], syn_ptr, syn, cols).sum())
-            if (used > (limit.context, limit.synthesis, limit.area)).any():
-                break
+    # groups grown by two threads (the kernel runs without the GIL), taken in order;
+    # the result does not depend on the threads
+    with ThreadPoolExecutor(max_workers=_THREADS) as pool:
+        ahead = deque(pool.submit(grow, a) for a in starts_of[:_THREADS])
+        following = iter(starts_of[_THREADS:])
+        while ahead:
+            part = ahead.popleft().result()
+            parts.append(part)
+            if limit is not None:
+                ctx_ptr, ctx, _, syn_ptr, syn = part
+                used += (ctx.size, syn.size,
+                         _box_areas(ctx_ptr, pos[ctx], syn_ptr, syn, cols).sum())
+                if (used > (limit.context, limit.synthesis, limit.area)).any():
+                    for job in ahead:
+                        job.cancel()
+                    break
+            a = next(following, None)
+            if a is not None:
+                ahead.append(pool.submit(grow, a))
     ctx_ptr, syn_ptr = _join_ptr([p[0] for p in parts]), _join_ptr([p[3] for p in parts])
     syn = np.concatenate([p[4] for p in parts])
     return Regions(
