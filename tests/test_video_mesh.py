@@ -83,3 +83,17 @@ def test_a_folder_without_its_own_light_glb_builds_it(tmp_path, monkeypatch, cas
     monkeypatch.setattr("photo3d.output.build_light_mesh", build)
     chosen = _video_mesh(photo, None, None, NUMBA, folder=out)
     assert isinstance(chosen, TexturedMesh) and built == [0.5]
+
+
+def test_a_read_back_mesh_draws_with_the_kernels_a_built_one_compiled(tmp_path):
+    """The texture read back is writeable like the built one: no second compilation
+    of the rasterizer for a read-only texture."""
+    from photo3d.render._kernels import raster_frame
+    from photo3d.render.renderer import Renderer, video_settings
+
+    photo, out = _saved(tmp_path)
+    camera = photo3d.camera.Camera(photo.ldi.intrinsics, np.eye(4))
+    Renderer(photo.light_mesh(), video_settings()).render(camera)
+    before = list(raster_frame.signatures)
+    Renderer(_video_mesh(photo, None, None, NUMBA, folder=out), video_settings()).render(camera)
+    assert raster_frame.signatures == before

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import math
 import os
+from dataclasses import replace
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -81,7 +82,9 @@ def read_light_glb(path: PathLike, *, intrinsics: Intrinsics,
     if mesh.texture.shape[0] < rows or mesh.texture.shape[1] < cols:
         raise InputError(f"{path} has a {mesh.texture.shape[1]}x{mesh.texture.shape[0]} "
                          f"texture, smaller than the photo's {cols}x{rows} lattice")
-    return _with_n_input(mesh, rows, cols)
+    # a writeable copy: the rasterizer's kernels are compiled for the built mesh's
+    # writeable texture; the decoded JPEG's read-only one would compile them again
+    return replace(_with_n_input(mesh, rows, cols), texture=np.array(mesh.texture))
 
 
 def _with_n_input(mesh: TexturedMesh, rows: int, cols: int) -> TexturedMesh:
@@ -97,8 +100,6 @@ def _with_n_input(mesh: TexturedMesh, rows: int, cols: int) -> TexturedMesh:
         >>> _with_n_input(m, 5, 5).n_input
         1
     """
-    from dataclasses import replace
-
     t_h, t_w = mesh.texture.shape[:2]
     inside = ((mesh.uv[:, 0] * t_w - 0.5 < cols - 0.5)
               & (mesh.uv[:, 1] * t_h - 0.5 < rows - 0.5))
