@@ -129,7 +129,12 @@ def _tiny_make(out: Path):
 
 
 def _tiny_video(photo, out: Path) -> None:
-    """Two frames of the circle path, rendered as a request's videos are."""
+    """Two frames of the circle path, rendered as a request's videos are: from the
+    folder's ``mesh.glb`` read back (:func:`photo3d.output.write_videos` with no mesh),
+    textured, one sample per pixel antialiased at depth edges, hole filling, YUV
+    conversion and x264. The kernels are compiled for argument types, not sizes: after
+    this, a 1024 px request's video compiles nothing (checked on the sample: no new
+    signature on any photo3d kernel during the video, benchmarks/results/ui.json)."""
     from photo3d.output import write_videos
     from photo3d.render.animate import VideoSpec
     from photo3d.render.renderer import video_settings
