@@ -21,7 +21,12 @@ import numpy as np
 HERE = Path(__file__).parent
 sys.path.insert(0, str(HERE))
 from results_light import section_light  # noqa: E402
-from results_speed import section_export, section_hard_depth, section_videos  # noqa: E402
+from results_speed import (  # noqa: E402
+    section_export,
+    section_hard_depth,
+    section_ui,
+    section_videos,
+)
 
 REPO = HERE.parents[1]
 BENCHMARKS_DIR = REPO / "benchmarks"
@@ -879,6 +884,7 @@ def main() -> None:
         section_videos(load, machine_line, missing),
         section_json("first_run.json", "The first run: an empty numba cache against a warm one "
                      "(issue 35)", "python benchmarks/bench_first_run.py"),
+        section_ui(load, machine_line, missing),
         section_export(load, machine_line, missing),
         (BENCHMARKS_DIR / "history.md").read_text(),  # measurement history, written by hand
     ]

@@ -37,28 +37,64 @@ def section_hard_depth(load, machine_line, missing) -> str:
     return "\n".join(out + [""])
 
 
+VIDEO_RUNS = ("video_vs_cdd3384_second.json", "video_vs_cdd3384.json", "video_render.json",
+              "video.json")
+"""The runs of ``bench_video.py`` shown, each against its own reference."""
+
+
 def section_videos(load, machine_line, missing) -> str:
-    """``video.json``: render and demo against a reference, and the frames' PSNR to it."""
-    rec = load("video.json")
-    out = _head("Videos: render and demo against the previous commit (issue 35)", rec,
-                "python benchmarks/bench_video.py --runs 3", machine_line, missing)
+    """``video*.json``: render (and demo) against a reference, the frames' PSNR to it."""
+    out = ["## Videos: render and demo against earlier commits (issue 35)", ""]
+    found = False
+    for name in VIDEO_RUNS:
+        rec = load(name)
+        if rec is None:
+            continue
+        found = True
+        med = rec["median"]
+        loads = [x for runs in rec.get("runs", {}).values() for r in runs
+                 for x in r.get("load_1min", [])]
+        load_text = f", 1-minute load {min(loads):.1f}-{max(loads):.1f}" if loads else ""
+        out += [f"### `{name}`: against `{rec.get('ref')}`", "",
+                f"Command: `{rec.get('command')}`. Machine: {machine_line(rec)}{load_text}. "
+                "Medians, wall (CPU) seconds, whole process, the two versions alternated.", "",
+                "| | reference | now | ratio |", "| --- | --- | --- | --- |"]
+        for what in ("render", "demo"):
+            ref, now = med.get(f"{what}_ref"), med.get(f"{what}_now")
+            if ref and now:
+                out.append(f"| {what} | {ref['wall_s']:.1f} s ({ref['cpu_s']:.1f}) | "
+                           f"{now['wall_s']:.1f} s ({now['cpu_s']:.1f}) | "
+                           f"{now['wall_s'] / ref['wall_s']:.2f} |")
+        psnr = rec.get("psnr_now_vs_ref", {})
+        if psnr:
+            out += ["", "Frames against the reference's (PSNR, dB): " + ", ".join(
+                f"{path} mean {v['mean_db']:.1f} (min {v['min_db']:.1f}, {v['frames']} frames)"
+                for path, v in psnr.items()) + "."]
+        out.append("")
+    if not found:
+        return "\n".join(out) + "\n" + missing("python benchmarks/bench_video.py --runs 3")
+    return "\n".join(out)
+
+
+def section_ui(load, machine_line, missing) -> str:
+    """``ui.json``: one request of photo3d ui after the warm-up."""
+    rec = load("ui.json")
+    out = _head("One request of photo3d ui (issue 35)", rec,
+                "python benchmarks/bench_ui.py --runs 3", machine_line, missing)
     if isinstance(out, str):
         return out
-    med = rec["median"]
-    out += [f"Reference: `{rec.get('ref')}`, alternated with this tree; medians, wall (CPU) "
-            "seconds, whole process.", "", "| | reference | now | ratio |",
-            "| --- | --- | --- | --- |"]
-    for what in ("render", "demo"):
-        ref, now = med.get(f"{what}_ref"), med.get(f"{what}_now")
-        if ref and now:
-            out.append(f"| {what} | {ref['wall_s']:.1f} s ({ref['cpu_s']:.1f}) | "
-                       f"{now['wall_s']:.1f} s ({now['cpu_s']:.1f}) | "
-                       f"{now['wall_s'] / ref['wall_s']:.2f} |")
-    psnr = rec.get("psnr_now_vs_ref", {})
-    if psnr:
-        out += ["", "Frames against the reference's (PSNR, dB): " + ", ".join(
-            f"{path} mean {v['mean_db']:.1f} (min {v['min_db']:.1f}, {v['frames']} frames)"
-            for path, v in psnr.items()) + "."]
+    out += ["The bundled sample's photo and depth at 1024 px, one `circle` video, after the "
+            "warm-up; medians, the two versions alternated.", "",
+            "| | request (s) | CPU (s) | 3D photo shown after (s) |", "| --- | --- | --- | --- |"]
+    for who in ("ref", "now"):
+        m = rec["median"][who]
+        label = f"reference (`{rec.get('ref')}`)" if who == "ref" else "now"
+        out.append(f"| {label} | {m['wall_s']:.2f} | {m['cpu_s']:.1f} | "
+                   f"{m['first_result_s']:.2f} |")
+    stages = rec.get("median_stages_s", {}).get("now", {})
+    if stages:
+        out += ["", "Stages now (s): " + ", ".join(f"{k} {v:.2f}" for k, v in stages.items())
+                + "."]
     return "\n".join(out + [""])
 
 
