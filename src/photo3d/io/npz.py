@@ -244,6 +244,6 @@ def _checked_ldi(arrays: dict[str, np.ndarray], header: dict) -> LDI:
               border=border)
     try:
         ldi.check()
-    except AssertionError as err:
+    except ValueError as err:
         raise InputError(f"inconsistent links ({err})") from None
     return ldi

@@ -95,11 +95,36 @@ class LDI:
         return self.mapping.depth(self.disparity)
 
     def check(self) -> None:
-        """Raise ``AssertionError`` if links are not symmetric 4-neighbour links."""
-        src, d = np.nonzero(self.links >= 0)
-        dst = self.links[src, d]
-        assert np.all(self.links[dst, d ^ 1] == src), "links are not symmetric"
-        dy = np.array([0, 0, -1, 1])[d]
-        dx = np.array([-1, 1, 0, 0])[d]
-        assert np.all(self.y[dst] == self.y[src] + dy), "link joins wrong rows"
-        assert np.all(self.x[dst] == self.x[src] + dx), "link joins wrong columns"
+        """Raise ``ValueError`` if links are not symmetric 4-neighbour links (an
+        explicit check, not ``assert``: it guards files read from disk, also under
+        ``python -O``).
+
+        One direction at a time (a tenth of the time of all four at once through
+        ``np.nonzero`` of the whole table: 0.06 s instead of 0.65 s for the sample's
+        1.45M pixels, which every read of a ``photo3d.npz`` pays).
+
+        Example:
+            >>> ldi = LDI(y=np.array([0, 0], np.int32), x=np.array([0, 1], np.int32),
+            ...           color=np.zeros((2, 3), np.float32), disparity=np.ones(2, np.float32),
+            ...           links=np.array([[-1, 1, -1, -1], [0, -1, -1, -1]], np.int32),
+            ...           label=np.zeros(2, np.uint8), intrinsics=Intrinsics.default(2, 1),
+            ...           mapping=DepthMapping.from_inverse_depth(0.0, 1.0))
+            >>> ldi.check()
+            >>> ldi.links[1, 0] = -1  # pixel 0 links to 1, 1 not back to 0
+            >>> try:
+            ...     ldi.check()
+            ... except ValueError as err:
+            ...     print(err)
+            links are not symmetric
+        """
+        links, y, x = self.links, self.y, self.x
+        for d, (dy, dx) in enumerate(((0, -1), (0, 1), (-1, 0), (1, 0))):
+            column = links[:, d]
+            src = np.flatnonzero(column >= 0)
+            dst = column[src]
+            if not np.array_equal(links[dst, d ^ 1], src):
+                raise ValueError("links are not symmetric")
+            if not np.array_equal(y[dst], y[src] + dy):
+                raise ValueError("link joins wrong rows")
+            if not np.array_equal(x[dst], x[src] + dx):
+                raise ValueError("link joins wrong columns")
