@@ -113,3 +113,48 @@ def test_a_kernel_compiled_on_first_use_shows_in_the_bar():
         bar("video", 0.5)
         assert numba.njit(lambda x: x * 2)(3) == 6
     assert labels == ["video", "compiling, once", "video"]
+
+
+def test_preloading_stops_at_the_first_kernel_the_cache_lacks(monkeypatch):
+    fakes = [FakeKernel(cold=False) for _ in range(5)]
+    monkeypatch.setattr(ahead, "kernels", lambda: [(k, ("(int64,)",)) for k in fakes])
+    monkeypatch.setattr(ahead, "_cached", lambda kernel, sig: kernel is not fakes[2])
+    ahead.preload_kernels().join()
+    assert [k.calls for k in fakes] == [1, 1, 0, 0, 0]
+
+
+def test_preloading_leaves_an_error_to_compile_kernels(monkeypatch):
+    def broken():
+        raise RuntimeError("no kernels")
+
+    monkeypatch.setattr(ahead, "kernels", broken)
+    ahead.preload_kernels().join()  # nothing raised in the thread
+    with pytest.raises(RuntimeError, match="no kernels"):
+        ahead.compile_kernels(helper=False)
+
+
+# compile_kernels while the background thread is still loading (as make does when its
+# photo is read quickly), in a fresh process: every kernel loaded or compiled once.
+PRELOAD_CHILD = """
+import json
+from numba.core.sigutils import normalize_signature
+from photo3d.kernels import compile_kernels, kernels, preload_kernels
+
+thread = preload_kernels()
+compile_kernels(helper=False)
+thread.join()
+twice = {}
+for kernel, sigs in kernels():
+    for sig in sigs:
+        args = tuple(normalize_signature(sig)[0])
+        times = kernel.stats.cache_hits[args] + kernel.stats.cache_misses[args]
+        if times != 1:
+            twice[f"{kernel.py_func.__qualname__}{sig}"] = times
+print(json.dumps(twice))
+"""
+
+
+def test_kernels_preloaded_on_a_thread_are_not_loaded_twice():
+    out = subprocess.run([sys.executable, "-c", PRELOAD_CHILD], capture_output=True,
+                         text=True, check=True)
+    assert json.loads(out.stdout.strip().splitlines()[-1]) == {}
