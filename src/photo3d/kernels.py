@@ -27,7 +27,6 @@ import shutil
 import subprocess
 import sys
 import tempfile
-import threading
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -110,57 +109,6 @@ def compile_kernels(progress: Callable[[float], None] | None = None, *,
         if claims is not None:
             shutil.rmtree(claims, ignore_errors=True)
     return compiled
-
-
-def preload_kernels() -> threading.Thread:
-    """Start loading :func:`kernels` from numba's cache on a background thread, while
-    the photo and depth are read (about 0.3 s of a warm run), and return the thread;
-    :func:`compile_kernels` is to be called after joining it.
-
-    The thread stops at the first kernel the cache does not have (a first run), leaving
-    it and the rest to :func:`compile_kernels` with its progress and helper process. A
-    kernel called while the thread loads it waits for it (numba's compiler lock) and is
-    not compiled twice; an error in the thread is left for :func:`compile_kernels`.
-
-    Example:
-        >>> thread = preload_kernels()
-        >>> thread.join()
-        >>> compile_kernels()              # loaded already: nothing to do
-        0
-    """
-    def load() -> None:
-        try:
-            todo = kernels()
-            if not todo or not hasattr(todo[0][0], "compile"):  # NUMBA_DISABLE_JIT
-                return
-            for kernel, signatures in todo:
-                if not all(_cached(kernel, signature) for signature in signatures):
-                    return
-                _compile(kernel, signatures)
-        except Exception:  # noqa: BLE001 - compile_kernels raises it in the main thread
-            return
-
-    thread = threading.Thread(target=load, name="photo3d-preload-kernels", daemon=True)
-    thread.start()
-    return thread
-
-
-def _cached(kernel, signature: str) -> bool:
-    """Whether ``kernel`` is loaded for ``signature`` or numba's cache index lists it
-    (a cheap look at the index: a stale entry is found when it loads, which then
-    compiles it, as a call would)."""
-    from numba.core.sigutils import normalize_signature
-
-    args = tuple(normalize_signature(signature)[0])
-    if args in kernel.overloads:
-        return True
-    cache = getattr(kernel, "_cache", None)
-    impl = getattr(cache, "_impl", None)
-    locator = getattr(impl, "locator", None)
-    if locator is None:
-        return False
-    key = cache._index_key(args, kernel.targetctx.codegen())
-    return key in cache._cache_file._load_index()
 
 
 @contextmanager

@@ -38,8 +38,7 @@ def run_make(args: argparse.Namespace, image, *, say_source: bool = True, **sour
     """Check every option first, then make ``image`` into ``args.out`` with a progress
     bar (:func:`photo3d.folder.make_folder`) and print a summary. Once the depth is
     known, numba's kernels are compiled (:func:`photo3d.kernels.compile_kernels`: the
-    first run's "compiling, once" step; loaded from the cache afterwards, on a
-    background thread from the start: :func:`photo3d.kernels.preload_kernels`); a kernel
+    first run's "compiling, once" step; loaded from the cache afterwards); a kernel
     still compiled on first use (the renderer's) shows as "compiling, once" too.
 
     ``sources``: ``depth``, ``right`` or ``depth_model`` of the photo (none: its
@@ -47,22 +46,16 @@ def run_make(args: argparse.Namespace, image, *, say_source: bool = True, **sour
     from (its warnings are printed anyway).
     """
     from photo3d.folder import make_folder, prepare
-    from photo3d.kernels import compile_kernels, preload_kernels, watch_compiles
+    from photo3d.kernels import compile_kernels, watch_compiles
 
-    preloading = preload_kernels()  # from the cache, while the photo and depth are read
-    try:
-        options = make_options(args)
-        inpainter = prepare(options)
-    except BaseException:
-        preloading.join()
-        raise
+    options = make_options(args)
+    inpainter = prepare(options)
     bar = _LateBar(args.quiet)
 
     def on_depth(est, photo) -> None:
         say_depth(est, quiet=args.quiet, source=say_source)
         if not args.quiet:
             _say_if_upscaled(photo.shape[:2], options.config)
-        preloading.join()
         compile_kernels(lambda fraction: bar("compile", fraction))
 
     try:
@@ -74,7 +67,6 @@ def run_make(args: argparse.Namespace, image, *, say_source: bool = True, **sour
                                 need_bytes=output_bytes(options.config, options.save),
                                 **sources)
     finally:
-        preloading.join()
         bar.close()
     if not args.quiet:
         summary(photo, args.out)
