@@ -71,3 +71,26 @@ def test_missing_scikit_image_names_the_extra(monkeypatch):
         match=r"^the bundled sample needs scikit-image: pip install 'photo3d\[sample\]'$",
     ):
         motorcycle()
+
+
+def test_the_files_read_directly_are_scikit_images_arrays():
+    import skimage
+    from skimage.data import stereo_motorcycle
+
+    from photo3d.sample import _bundled_files
+
+    files = _bundled_files(skimage)
+    assert files is not None
+    for ours, theirs in zip(files, stereo_motorcycle(), strict=True):
+        assert ours.dtype == theirs.dtype and ours.shape == theirs.shape
+        assert ours.tobytes() == theirs.tobytes()
+
+
+def test_loading_does_not_import_skimage_io():
+    import subprocess
+
+    code = ("import sys; from photo3d.sample import motorcycle; motorcycle(); "
+            "print('skimage.io' in sys.modules)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True)
+    assert out.stdout.strip() == "False"
