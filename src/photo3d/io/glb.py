@@ -45,17 +45,8 @@ def write_glb_file(path: PathLike, mesh, vertices: np.ndarray, labels: np.ndarra
         (strided_labels, "SCALAR", ARRAY_BUFFER, 4),
         (indices, "SCALAR", ELEMENT_ARRAY_BUFFER, None),
     ]
-    views, accessors, chunks, offset = [], [], [], 0
-    for index, (data, kind, target, stride) in enumerate(arrays):
-        raw = data.tobytes()
-        view = {"buffer": 0, "byteOffset": offset, "byteLength": len(raw), "target": target}
-        views.append(view | ({"byteStride": stride} if stride else {}))
-        code = CODES[data.dtype.type]
-        accessors.append(
-            {"bufferView": index, "componentType": code, "count": len(data), "type": kind}
-        )
-        chunks.append(raw + bytes(-len(raw) % 4))
-        offset += len(chunks[-1])
+    views, accessors, chunks = pack_arrays(arrays)
+    offset = sum(len(chunk) for chunk in chunks)
     accessors[0].update(min=positions.min(axis=0).tolist(), max=positions.max(axis=0).tolist())
     document = {
         "asset": {"version": "2.0", "generator": "photo3d"},
@@ -78,19 +69,63 @@ def write_glb_file(path: PathLike, mesh, vertices: np.ndarray, labels: np.ndarra
         document["textures"] = [{"sampler": 0, "source": 0}]
     document["buffers"] = [{"byteLength": offset}]
     if mesh.vfov > 0 and mesh.width > 0 and mesh.height > 0:
-        aspect = mesh.width / mesh.height
-        perspective = {"yfov": float(mesh.vfov), "aspectRatio": aspect, "znear": 0.01}
-        document["cameras"] = [{"type": "perspective", "perspective": perspective}]
-        document["nodes"].append({"name": "input view", "camera": 0})
-        document["scenes"][0]["nodes"].append(1)
+        add_camera(document, float(mesh.vfov), mesh.width / mesh.height)
+    write_container(path, document, chunks)
+
+
+def pack_arrays(arrays: list) -> tuple[list[dict], list[dict], list[bytes]]:
+    """Buffer views, accessors and binary chunks (each padded to 4 bytes) of
+    ``arrays``, one view and one accessor per array, in order.
+
+    ``arrays``: ``(data, accessor type, bufferView target, byteStride or None)``
+    tuples, optionally with a fifth item, ``normalized``.
+
+    Example:
+        >>> views, accessors, chunks = pack_arrays(
+        ...     [(np.zeros((2, 3), np.float32), "VEC3", ARRAY_BUFFER, None),
+        ...      (np.zeros(3, np.uint8), "SCALAR", ARRAY_BUFFER, None, True)])
+        >>> [v["byteOffset"] for v in views], [len(c) for c in chunks]
+        ([0, 24], [24, 4])
+        >>> accessors[1]
+        {'bufferView': 1, 'componentType': 5121, 'count': 3, 'type': 'SCALAR', 'normalized': True}
+    """
+    views, accessors, chunks, offset = [], [], [], 0
+    for index, (data, kind, target, stride, *normalized) in enumerate(arrays):
+        raw = np.ascontiguousarray(data).tobytes()
+        view = {"buffer": 0, "byteOffset": offset, "byteLength": len(raw), "target": target}
+        views.append(view | ({"byteStride": stride} if stride else {}))
+        accessors.append({"bufferView": index, "componentType": CODES[data.dtype.type],
+                          "count": len(data), "type": kind}
+                         | ({"normalized": True} if any(normalized) else {}))
+        chunks.append(raw + bytes(-len(raw) % 4))
+        offset += len(chunks[-1])
+    return views, accessors, chunks
+
+
+def add_camera(document: dict, yfov: float, aspect: float) -> None:
+    """Add the input view to ``document`` as a perspective camera on a second node of
+    the scene (vertical field of view ``yfov`` in radians)."""
+    perspective = {"yfov": yfov, "aspectRatio": aspect, "znear": 0.01}
+    document["cameras"] = [{"type": "perspective", "perspective": perspective}]
+    document["nodes"].append({"name": "input view", "camera": 0})
+    document["scenes"][0]["nodes"].append(1)
+
+
+def write_container(path: PathLike, document: dict, chunks: list[bytes]) -> None:
+    """Write the GLB of ``document`` (JSON) and ``chunks`` (its binary buffer, each
+    chunk already padded to 4 bytes) to ``path``.
+
+    Raises:
+        OutputError: ``path`` cannot be written.
+    """
     text = json.dumps(document, separators=(",", ":"), allow_nan=False).encode("utf-8")
     text += b" " * (-len(text) % 4)
-    total = 12 + 8 + len(text) + 8 + offset
+    length = sum(len(chunk) for chunk in chunks)
     try:
         with open(path, "wb") as file:
-            file.write(struct.pack("<III", MAGIC, 2, total))
+            file.write(struct.pack("<III", MAGIC, 2, 12 + 8 + len(text) + 8 + length))
             file.write(struct.pack("<II", len(text), JSON_CHUNK) + text)
-            file.write(struct.pack("<II", offset, BIN_CHUNK))
+            file.write(struct.pack("<II", length, BIN_CHUNK))
             for chunk in chunks:
                 file.write(chunk)
     except OSError as err:

@@ -26,23 +26,20 @@ size and field of view.
 
 from __future__ import annotations
 
-import json
 import os
-import struct
 
 import numpy as np
 
 from photo3d.camera import Intrinsics
-from photo3d.errors import InputError, OutputError
+from photo3d.errors import InputError
 from photo3d.io.glb import (
     ARRAY_BUFFER,
-    BIN_CHUNK,
-    CODES,
-    JSON_CHUNK,
-    MAGIC,
     TO_GLTF,
     accessor,
+    add_camera,
+    pack_arrays,
     read_chunks,
+    write_container,
 )
 from photo3d.structures.splats import SH_C0, Splats
 
@@ -93,16 +90,9 @@ def write_splat_glb(path: PathLike, splats: Splats, *,
         SH_DC: (((colors - 0.5) / SH_C0).astype(np.float32), "VEC3", False),
         "COLOR_0": (rgba, "VEC4", True),
     }
-    views, accessors, chunks, offset = [], [], [], 0
-    for index, (data, kind, normalized) in enumerate(arrays.values()):
-        raw = np.ascontiguousarray(data).tobytes()
-        views.append({"buffer": 0, "byteOffset": offset, "byteLength": len(raw),
-                      "target": ARRAY_BUFFER})
-        accessors.append({"bufferView": index, "componentType": CODES[data.dtype.type],
-                          "count": len(data), "type": kind}
-                         | ({"normalized": True} if normalized else {}))
-        chunks.append(raw + bytes(-len(raw) % 4))
-        offset += len(chunks[-1])
+    views, accessors, chunks = pack_arrays(
+        [(data, kind, ARRAY_BUFFER, None, normalized)
+         for data, kind, normalized in arrays.values()])
     accessors[0].update(min=gl_positions.min(axis=0).tolist(),
                         max=gl_positions.max(axis=0).tolist())
     primitive = {"mode": POINTS, "attributes": {name: i for i, name in enumerate(arrays)},
@@ -118,27 +108,14 @@ def write_splat_glb(path: PathLike, splats: Splats, *,
         "meshes": [mesh],
         "accessors": accessors,
         "bufferViews": views,
-        "buffers": [{"byteLength": offset}],
+        "buffers": [{"byteLength": sum(len(chunk) for chunk in chunks)}],
     }
     if intrinsics is not None:
         width, height = intrinsics.width, intrinsics.height
         hfov, vfov = intrinsics.fov
         mesh["extras"] = {"width": width, "height": height, "hfov": hfov, "vfov": vfov}
-        perspective = {"yfov": vfov, "aspectRatio": width / height, "znear": 0.01}
-        document["cameras"] = [{"type": "perspective", "perspective": perspective}]
-        document["nodes"].append({"name": "input view", "camera": 0})
-        document["scenes"][0]["nodes"].append(1)
-    text = json.dumps(document, separators=(",", ":"), allow_nan=False).encode("utf-8")
-    text += b" " * (-len(text) % 4)
-    try:
-        with open(path, "wb") as file:
-            file.write(struct.pack("<III", MAGIC, 2, 12 + 8 + len(text) + 8 + offset))
-            file.write(struct.pack("<II", len(text), JSON_CHUNK) + text)
-            file.write(struct.pack("<II", offset, BIN_CHUNK))
-            for chunk in chunks:
-                file.write(chunk)
-    except OSError as err:
-        raise OutputError(f"cannot write glTF {path}: {err.strerror or err}") from err
+        add_camera(document, vfov, width / height)
+    write_container(path, document, chunks)
 
 
 def read_splat_glb(path: PathLike) -> Splats:
