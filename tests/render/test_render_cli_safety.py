@@ -10,11 +10,9 @@ from __future__ import annotations
 import shutil
 from pathlib import Path
 
-import numpy as np
 import pytest
-from conftest import two_planes
 from filetree import tree
-from PIL import Image
+from renderkit import small_photo
 
 from photo3d.cli import main
 
@@ -24,14 +22,7 @@ LINK_MESSAGE = "is a symbolic link; photo3d does not write through links"
 @pytest.fixture(scope="module")
 def made(tmp_path_factory) -> Path:
     """A small 3D photo folder without videos (made once)."""
-    root = tmp_path_factory.mktemp("made")
-    img, disparity = two_planes(48, 64, 32)
-    Image.fromarray((img * 255).astype(np.uint8)).save(root / "a.png")
-    np.save(root / "a.npy", disparity)
-    out = root / "out"
-    assert main(["make", str(root / "a.png"), "--depth", str(root / "a.npy"), "-o", str(out),
-                 "--size", "48", "--no-video", "--no-glb", "--no-viewer", "-q"]) == 0
-    return out
+    return small_photo(tmp_path_factory.mktemp("made"))
 
 
 @pytest.fixture

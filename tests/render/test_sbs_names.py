@@ -9,10 +9,8 @@ import json
 import shutil
 from pathlib import Path
 
-import numpy as np
 import pytest
-from conftest import two_planes
-from PIL import Image
+from renderkit import small_photo
 
 from photo3d.cli import main
 from photo3d.owned import owned_photo, recorded_files
@@ -33,14 +31,7 @@ def test_video_names(stereo, order, name):
 @pytest.fixture(scope="module")
 def made(tmp_path_factory) -> Path:
     """A small 3D photo folder without videos (made once)."""
-    root = tmp_path_factory.mktemp("made")
-    img, disparity = two_planes(48, 64, 32)
-    Image.fromarray((img * 255).astype(np.uint8)).save(root / "a.png")
-    np.save(root / "a.npy", disparity)
-    out = root / "out"
-    assert main(["make", str(root / "a.png"), "--depth", str(root / "a.npy"), "-o", str(out),
-                 "--size", "48", "--no-video", "--no-glb", "--no-viewer", "-q"]) == 0
-    return out
+    return small_photo(tmp_path_factory.mktemp("made"))
 
 
 @pytest.fixture
