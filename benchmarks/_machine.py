@@ -91,3 +91,57 @@ def save_record(record: dict, out, benchmark: str, script: str) -> dict:
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(record, indent=2))
     return record
+
+
+def timed_python(argv: list[str], *, src: Path, cache: Path | None = None,
+                 timeout: float | None = None) -> dict | None:
+    """Run ``python argv`` with ``src`` first on ``PYTHONPATH`` (and numba's cache in
+    ``cache``, if given) and measure the whole child process: ``{"wall_s", "cpu_s"
+    (user + system of the child and its own children, ``os.wait4``), "peak_rss_mb",
+    "load_1min": [before, after], "stdout"}``. A failed child ends the benchmark with
+    its stderr; a child still running after ``timeout`` seconds is killed (a deadlock,
+    not a slow run) and gives None."""
+    import subprocess
+    import sys
+    import tempfile
+    import threading
+    import time
+
+    env = dict(os.environ, PYTHONPATH=str(src))
+    if cache is not None:
+        env["NUMBA_CACHE_DIR"] = str(cache)
+    load = os.getloadavg()[0]
+    with tempfile.TemporaryFile() as out, tempfile.TemporaryFile() as err:
+        start = time.perf_counter()
+        proc = subprocess.Popen([sys.executable, *argv], env=env, stdout=out, stderr=err)
+        killer = threading.Timer(timeout, proc.kill) if timeout else None
+        if killer is not None:
+            killer.start()
+        _, status, usage = os.wait4(proc.pid, 0)
+        wall = time.perf_counter() - start
+        if killer is not None:
+            killer.cancel()
+            if wall >= timeout:
+                return None
+        proc.returncode = os.waitstatus_to_exitcode(status)
+        out.seek(0)
+        err.seek(0)
+        if proc.returncode != 0:
+            raise SystemExit(f"{src}: {' '.join(argv)}: exit {proc.returncode}\n"
+                             f"{err.read().decode()}")
+        return {"wall_s": wall, "cpu_s": usage.ru_utime + usage.ru_stime,
+                "peak_rss_mb": usage.ru_maxrss / 1024,
+                "load_1min": [load, os.getloadavg()[0]], "stdout": out.read().decode()}
+
+
+def git_src(ref: str, dest: Path) -> Path:
+    """``src/`` of commit ``ref`` of this repository, extracted into ``dest`` (made if
+    needed); returns ``dest / "src"``."""
+    import subprocess
+
+    root = Path(__file__).resolve().parents[1]
+    dest.mkdir(parents=True, exist_ok=True)
+    archive = subprocess.run(["git", "-C", str(root), "archive", ref, "src"],
+                             capture_output=True, check=True).stdout
+    subprocess.run(["tar", "-x", "-C", str(dest)], input=archive, check=True)
+    return dest / "src"

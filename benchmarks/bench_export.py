@@ -31,15 +31,12 @@ import json
 import os
 import shutil
 import statistics
-import subprocess
 import sys
 import tempfile
-import threading
-import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).parent))
-from _machine import save_record  # noqa: E402
+from _machine import save_record, timed_python  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 FORMATS = ["splats.ply", "splats.spz", "splats.glb", "mesh.usdz", "quilt"]
@@ -59,23 +56,8 @@ def run_measured(src: Path, argv: list[str]) -> tuple[float, float, str] | None:
     """``python argv`` with ``src`` first on the path: (wall seconds, CPU seconds of
     the whole process from ``os.wait4``, its stdout); None if it was still running
     after :data:`TIMEOUT` seconds (a deadlock, not a slow run: it is killed)."""
-    env = dict(os.environ, PYTHONPATH=str(src))
-    with tempfile.TemporaryFile() as out, tempfile.TemporaryFile() as err:
-        start = time.perf_counter()
-        proc = subprocess.Popen([sys.executable, *argv], env=env, stdout=out, stderr=err)
-        killer = threading.Timer(TIMEOUT, proc.kill)
-        killer.start()
-        _, status, usage = os.wait4(proc.pid, 0)
-        killer.cancel()
-        wall = time.perf_counter() - start
-        if wall >= TIMEOUT:
-            return None
-        proc.returncode = os.waitstatus_to_exitcode(status)
-        out.seek(0)
-        err.seek(0)
-        if proc.returncode != 0:
-            raise SystemExit(f"{src}: exit {proc.returncode}\n{err.read().decode()}")
-        return wall, usage.ru_utime + usage.ru_stime, out.read().decode()
+    run = timed_python(argv, src=src, timeout=TIMEOUT)
+    return None if run is None else (run["wall_s"], run["cpu_s"], run["stdout"])
 
 
 def fresh(demo: Path, work: Path, name: str) -> Path:

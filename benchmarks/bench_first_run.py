@@ -30,11 +30,10 @@ import statistics
 import subprocess
 import sys
 import tempfile
-import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).parent))
-from _machine import save_record  # noqa: E402
+from _machine import git_src, save_record, timed_python  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 COMMAND = ["-m", "photo3d", "demo", "--no-video", "--overwrite", "-q"]
@@ -43,19 +42,9 @@ COMMAND = ["-m", "photo3d", "demo", "--no-video", "--overwrite", "-q"]
 def timed(src: Path, cache: Path, out: Path) -> tuple[float, float]:
     """Run :data:`COMMAND` with ``src`` first on the path and numba's cache in
     ``cache``; (wall seconds, CPU seconds) of the whole child process."""
-    env = dict(os.environ, PYTHONPATH=str(src), NUMBA_CACHE_DIR=str(cache))
-    start = time.perf_counter()
-    proc = subprocess.Popen([sys.executable, *COMMAND, "-o", str(out)], env=env,
-                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
-    _, status, usage = os.wait4(proc.pid, 0)
-    wall = time.perf_counter() - start
-    err = proc.stderr.read().decode()
-    proc.stderr.close()
-    proc.returncode = os.waitstatus_to_exitcode(status)
-    if proc.returncode != 0:
-        raise SystemExit(f"{src}: exit {proc.returncode}\n{err}")
-    # the compile step's helper processes are children of the child: count them too
-    return wall, usage.ru_utime + usage.ru_stime
+    # the compile step's helper processes are children of the child: counted too
+    result = timed_python([*COMMAND, "-o", str(out)], src=src, cache=cache)
+    return result["wall_s"], result["cpu_s"]
 
 
 def which_photo3d(src: Path) -> str:
@@ -79,10 +68,7 @@ def main() -> None:
     work = Path(tempfile.mkdtemp(prefix="bench_first_run."))
     try:
         srcs = {"ref": work / "ref", "now": work / "now"}
-        srcs["ref"].mkdir()
-        archive = subprocess.run(["git", "-C", str(ROOT), "archive", args.ref, "src"],
-                                 capture_output=True, check=True).stdout
-        subprocess.run(["tar", "-x", "-C", str(srcs["ref"])], input=archive, check=True)
+        git_src(args.ref, srcs["ref"])
         shutil.copytree(ROOT / "src", srcs["now"] / "src",
                         ignore=shutil.ignore_patterns("__pycache__", "*.egg-info"))
         for version, folder in srcs.items():

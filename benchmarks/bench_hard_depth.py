@@ -27,17 +27,14 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import re
 import statistics
-import subprocess
 import sys
 import tempfile
-import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).parent))
-from _machine import save_record  # noqa: E402
+from _machine import git_src, save_record, timed_python  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 INPUTS = ("sample", "raw")
@@ -76,25 +73,12 @@ def write_inputs(folder: Path) -> dict[str, tuple[Path, Path]]:
 def run_make(src: Path, image: Path, depth: Path, out: Path) -> dict:
     """One whole ``photo3d make`` process from the tree ``src``: wall seconds, peak
     resident memory, the stats and timings of its ``config.json``, its save time."""
-    env = dict(os.environ, PYTHONPATH=str(src))
-    cmd = [sys.executable, "-c", "import sys; from photo3d.cli import main; sys.exit(main())",
-           "make", str(image), "--depth", str(depth), "--no-video", "-o", str(out),
-           "--overwrite"]
-    with tempfile.TemporaryFile("w+") as out_f, tempfile.TemporaryFile("w+") as err_f:
-        t = time.perf_counter()
-        proc = subprocess.Popen(cmd, env=env, stdout=out_f, stderr=err_f)
-        _, status, usage = os.wait4(proc.pid, 0)
-        wall = time.perf_counter() - t
-        proc.returncode = os.waitstatus_to_exitcode(status)
-        out_f.seek(0)
-        err_f.seek(0)
-        stdout, stderr = out_f.read(), err_f.read()
-    if proc.returncode != 0:
-        raise RuntimeError(f"{' '.join(cmd)} failed:\n{stderr}")
+    run = timed_python(["-c", "import sys; from photo3d.cli import main; sys.exit(main())",
+                        "make", str(image), "--depth", str(depth), "--no-video", "-o", str(out),
+                        "--overwrite"], src=src)
     record = json.loads((out / "config.json").read_text())
-    save = re.search(r"^time: .*\bsave ([0-9.]+)s", stdout, re.MULTILINE)
-    return {"wall_s": wall, "cpu_s": usage.ru_utime + usage.ru_stime,
-            "peak_rss_mb": usage.ru_maxrss / 1024,
+    save = re.search(r"^time: .*\bsave ([0-9.]+)s", run["stdout"], re.MULTILINE)
+    return {"wall_s": run["wall_s"], "cpu_s": run["cpu_s"], "peak_rss_mb": run["peak_rss_mb"],
             "save_s": float(save.group(1)) if save else None,
             "stages": record["timings"], "edges": record["stats"]["edges"],
             "pixels_added": record["stats"]["pixels_added"]}
@@ -124,12 +108,7 @@ def main() -> None:
 
     with tempfile.TemporaryDirectory(prefix="bench_hard_depth_") as tmp:
         tmp = Path(tmp)
-        ref = tmp / "ref"
-        ref.mkdir()
-        archive = subprocess.run(["git", "-C", str(ROOT), "archive", args.ref, "src"],
-                                 check=True, capture_output=True).stdout
-        subprocess.run(["tar", "-x", "-C", str(ref)], input=archive, check=True)
-        trees = {"previous": ref / "src", "now": ROOT / "src"}
+        trees = {"previous": git_src(args.ref, tmp / "ref"), "now": ROOT / "src"}
         inputs = write_inputs(tmp)
         cases = list(INPUTS) + (list(HOSTILE) if args.hostile else [])
         for name in trees:  # warm-up: numba's cache of each tree, page cache

@@ -36,13 +36,12 @@ import statistics
 import subprocess
 import sys
 import tempfile
-import time
 from pathlib import Path
 
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).parent))
-from _machine import save_record  # noqa: E402
+from _machine import git_src, save_record, timed_python  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 PATHS = ("circle", "swing", "zoom-in", "dolly-zoom-in")
@@ -78,21 +77,10 @@ print(json.dumps({"photo3d": photo3d.__file__}))
 
 def run(src: Path, cache: Path, argv: list[str]) -> dict:
     """``python argv`` with ``src`` first on the path and numba's cache in ``cache``:
-    wall and CPU seconds of the whole child process, the load average around it."""
-    env = dict(os.environ, PYTHONPATH=str(src), NUMBA_CACHE_DIR=str(cache))
-    load = os.getloadavg()[0]
-    start = time.perf_counter()
-    proc = subprocess.Popen([sys.executable, *argv], env=env, stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE)
-    _, status, usage = os.wait4(proc.pid, 0)
-    wall = time.perf_counter() - start
-    out, err = proc.stdout.read().decode(), proc.stderr.read().decode()
-    proc.stdout.close()
-    proc.stderr.close()
-    if os.waitstatus_to_exitcode(status) != 0:
-        raise SystemExit(f"{src}: {' '.join(argv)} failed\n{err}")
-    return {"wall_s": wall, "cpu_s": usage.ru_utime + usage.ru_stime,
-            "load_1min": [load, os.getloadavg()[0]], "stdout": out}
+    wall and CPU seconds of the whole child process, the load average around it
+    (:func:`_machine.timed_python`)."""
+    result = timed_python(argv, src=src, cache=cache)
+    return {k: result[k] for k in ("wall_s", "cpu_s", "load_1min", "stdout")}
 
 
 def copy_sources(tmp: Path, ref: str) -> dict[str, Path]:
@@ -100,10 +88,7 @@ def copy_sources(tmp: Path, ref: str) -> dict[str, Path]:
     finds each copy."""
     srcs = {"now": tmp / "now" / "src", "ref": tmp / "ref" / "src"}
     shutil.copytree(ROOT / "src", srcs["now"], ignore=shutil.ignore_patterns("__pycache__"))
-    archive = subprocess.run(["git", "-C", str(ROOT), "archive", ref, "src"],
-                             capture_output=True, check=True).stdout
-    srcs["ref"].parent.mkdir()
-    subprocess.run(["tar", "-x", "-C", str(srcs["ref"].parent)], input=archive, check=True)
+    git_src(ref, srcs["ref"].parent)
     for src in srcs.values():
         found = subprocess.run([sys.executable, "-c", "import photo3d; print(photo3d.__file__)"],
                                env=dict(os.environ, PYTHONPATH=str(src)), check=True,
