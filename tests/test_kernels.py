@@ -4,9 +4,11 @@ argument types, the helper takes the list from its end, a warm cache shows no st
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 from collections import Counter
+from pathlib import Path
 from types import SimpleNamespace
 
 import pytest
@@ -113,3 +115,28 @@ def test_a_kernel_compiled_on_first_use_shows_in_the_bar():
         bar("video", 0.5)
         assert numba.njit(lambda x: x * 2)(3) == 6
     assert labels == ["video", "compiling, once", "video"]
+
+
+@pytest.mark.parametrize(("idle", "spare"), [(2.0, True), (1.8, True), (1.2, False),
+                                             (0.3, False)])
+def test_the_helper_starts_only_with_a_core_idle_now(monkeypatch, idle, spare):
+    # this process sleeps while the idle time is measured: its own core counts as idle
+    monkeypatch.setattr(ahead.os, "sched_getaffinity", lambda pid: {0, 1}, raising=False)
+    monkeypatch.setattr(ahead, "_idle_cores", lambda interval: idle)
+    monkeypatch.setattr(ahead.os, "getloadavg", lambda: (9.0, 9.0, 9.0))  # not read
+    assert ahead.spare_core() is spare
+
+
+def test_without_proc_stat_the_load_average_decides(monkeypatch):
+    monkeypatch.setattr(ahead.os, "sched_getaffinity", lambda pid: {0, 1}, raising=False)
+    monkeypatch.setattr(ahead, "_idle_cores", lambda interval: None)
+    monkeypatch.setattr(ahead.os, "getloadavg", lambda: (0.4, 1.0, 1.0))
+    assert ahead.spare_core()
+    monkeypatch.setattr(ahead.os, "getloadavg", lambda: (1.4, 1.0, 1.0))
+    assert not ahead.spare_core()
+
+
+@pytest.mark.skipif(not Path("/proc/stat").exists(), reason="no /proc/stat")
+def test_the_idle_cores_are_measured_from_proc_stat():
+    idle = ahead._idle_cores(0.05)
+    assert idle is not None and 0.0 <= idle <= (os.cpu_count() or 1) + 1e-6

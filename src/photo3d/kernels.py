@@ -148,18 +148,66 @@ def watch_compiles(busy: Callable[[bool], None]) -> Iterator[None]:
         event.unregister("numba:compile", listener)
 
 
-def spare_core() -> bool:
+def spare_core(interval: float = 0.1) -> bool:
     """Whether a second core is idle for the helper process: more than one core, and
-    a load average (1 minute) below ``cores - 1``. On a busy machine the helper would
-    only add its start-up and the numba internals each process compiles for itself
-    (about 3.5 s of CPU) to a run that gets no more CPU time for it."""
+    over the next ``interval`` seconds the machine leaves idle this process's core
+    (it sleeps meanwhile) and at least ``0.75`` of another. On a busy machine the
+    helper would only add its start-up and the numba internals each process compiles
+    for itself (about 3.5 s of CPU) to a run that gets no more CPU time for it.
+
+    The idle time is measured now (``/proc/stat`` on Linux), not read from the load
+    average, which trails by a minute: right after another run the load average
+    still says busy on an idle machine. Where ``/proc/stat`` is missing, the
+    1-minute load average below ``cores - 1`` decides.
+
+    Example:
+        >>> spare_core() in (True, False)
+        True
+    """
     cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (
         os.cpu_count() or 1)
+    if cores < 2:
+        return False
+    idle = _idle_cores(interval)
+    if idle is not None:
+        return idle >= 1.75
     try:
         load = os.getloadavg()[0]
     except (AttributeError, OSError):  # no load average (Windows)
         load = 0.0
-    return cores > 1 and load < cores - 1
+    return load < cores - 1
+
+
+def _idle_cores(interval: float) -> float | None:
+    """How many of the cores this process may run on (its affinity) the machine left
+    idle, on average, over ``interval`` seconds, from ``/proc/stat``'s idle and iowait
+    time of each; None where it cannot tell."""
+    allowed = os.sched_getaffinity(0) if hasattr(os, "sched_getaffinity") else None
+
+    def times() -> tuple[int, int]:
+        idle = total = 0
+        with open("/proc/stat", encoding="ascii") as f:
+            for line in f:
+                name, *values = line.split()
+                if not name.startswith("cpu") or name == "cpu":
+                    continue
+                if allowed is not None and int(name[3:]) not in allowed:
+                    continue
+                fields = [int(v) for v in values[:8]]  # user .. steal; guest is in user
+                idle += fields[3] + fields[4]
+                total += sum(fields)
+        return idle, total
+
+    try:
+        idle0, total0 = times()
+        time.sleep(interval)
+        idle1, total1 = times()
+    except (OSError, ValueError, IndexError):
+        return None
+    cores = len(allowed) if allowed is not None else (os.cpu_count() or 1)
+    if total1 <= total0:
+        return None
+    return cores * (idle1 - idle0) / (total1 - total0)
 
 
 def compile_from_end(folder: str | Path) -> None:
