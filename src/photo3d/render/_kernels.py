@@ -15,6 +15,11 @@ import math
 import numpy as np
 from numba import njit, prange
 
+FASTMATH = {"contract", "arcp", "nsz", "afn"}
+"""LLVM's fast-math flags of the per-pixel kernels: fused multiply-adds, reciprocals
+and no signed zeros, but not ``nnan`` / ``ninf`` (empty pixels hold ``inf`` depth and
+the kernels test for it). A textured frame: 5 % less CPU, colours within 2e-5."""
+
 
 @njit(cache=True, error_model="numpy", inline="always")
 def _edge(sv, p, q):
@@ -141,12 +146,19 @@ def _draw(sv, col, scale, i0, i1, i2, y_lo, y_hi, width, color, depth, count, uv
     r0c, g0c, b0c = col[i0, 0] * scale, col[i0, 1] * scale, col[i0, 2] * scale
     r1c, g1c, b1c = col[i1, 0] * scale, col[i1, 1] * scale, col[i1, 2] * scale
     r2c, g2c, b2c = col[i2, 0] * scale, col[i2, 1] * scale, col[i2, 2] * scale
+    s0, s1, s2 = dy0 * 256, dy1 * 256, dy2 * 256
+    # a_k = w_k / z_k and its colour-weighted sums are linear along a row: stepped by
+    # adding, like the edge values (only the pixels a triangle wins divide)
+    fs0, fs1, fs2 = np.float64(s0) * iz0, np.float64(s1) * iz1, np.float64(s2) * iz2
+    da = -(fs0 + fs1 + fs2)
+    dr = -(fs0 * r0c + fs1 * r1c + fs2 * r2c)
+    dg = -(fs0 * g0c + fs1 * g1c + fs2 * g2c)
+    db = -(fs0 * b0c + fs1 * b1c + fs2 * b2c)
     for y in range(r0, r1 + 1):
         py = np.int64(y) * 256 + 128
         w0 = dx0 * (py - Y1) - dy0 * (px0 - X1)
         w1 = dx1 * (py - Y2) - dy1 * (px0 - X2)
         w2 = dx2 * (py - Y0) - dy2 * (px0 - X0)
-        s0, s1, s2 = dy0 * 256, dy1 * 256, dy2 * 256
         x0, x1 = c0, c1
         if c1 - c0 >= _SPAN_MIN:  # only the columns all three edges can cover
             x0, x1 = _span(w0, s0, c0, x0, x1)
@@ -155,6 +167,13 @@ def _draw(sv, col, scale, i0, i1, i2, y_lo, y_hi, width, color, depth, count, uv
             w0 -= s0 * (x0 - c0)
             w1 -= s1 * (x0 - c0)
             w2 -= s2 * (x0 - c0)
+        if x0 > x1:
+            continue
+        a0, a1, a2 = w0 * iz0, w1 * iz1, w2 * iz2
+        sa = a0 + a1 + a2
+        sr = a0 * r0c + a1 * r1c + a2 * r2c
+        sg = a0 * g0c + a1 * g1c + a2 * g2c
+        sb = a0 * b0c + a1 * b1c + a2 * b2c
         for x in range(x0, x1 + 1):
             if w0 >= 0 and w1 >= 0 and w2 >= 0:
                 ok = True
@@ -164,24 +183,24 @@ def _draw(sv, col, scale, i0, i1, i2, y_lo, y_hi, width, color, depth, count, uv
                 if ok:
                     if counting:
                         count[y, x] += 1
-                    a0, a1, a2 = w0 * iz0, w1 * iz1, w2 * iz2
-                    inv = 1.0 / (a0 + a1 + a2)
-                    z = np.float32(farea * inv)
-                    if z < depth[y, x]:
-                        depth[y, x] = z
-                        r = (a0 * r0c + a1 * r1c + a2 * r2c) * inv
-                        g = (a0 * g0c + a1 * g1c + a2 * g2c) * inv
+                    # z = area / sa, nearer than the depth buffer (no division)
+                    if farea < depth[y, x] * sa:
+                        inv = 1.0 / sa
+                        depth[y, x] = np.float32(farea * inv)
                         if uv:  # texture coordinates: the texture lookup clamps them
-                            color[y, x, 0] = r
-                            color[y, x, 1] = g
+                            color[y, x, 0] = sr * inv
+                            color[y, x, 1] = sg * inv
                         else:
-                            b = (a0 * b0c + a1 * b1c + a2 * b2c) * inv
-                            color[y, x, 0] = min(max(r, 0.0), 1.0)
-                            color[y, x, 1] = min(max(g, 0.0), 1.0)
-                            color[y, x, 2] = min(max(b, 0.0), 1.0)
+                            color[y, x, 0] = min(max(sr * inv, 0.0), 1.0)
+                            color[y, x, 1] = min(max(sg * inv, 0.0), 1.0)
+                            color[y, x, 2] = min(max(sb * inv, 0.0), 1.0)
             w0 -= s0
             w1 -= s1
             w2 -= s2
+            sa += da
+            sr += dr
+            sg += dg
+            sb += db
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
@@ -245,7 +264,7 @@ def block_vertices(faces, block):
     return offsets, ids
 
 
-@njit(parallel=True, cache=True, error_model="numpy", nogil=True)
+@njit(cache=True, error_model="numpy", nogil=True)  # serial: 0.2 ms, less than a fork
 def block_bounds(sv, offsets, ids):
     """Per block of faces, its screen bounding box and nearest depth, for culling.
 
@@ -267,7 +286,7 @@ def block_bounds(sv, offsets, ids):
     """
     nb = offsets.shape[0] - 1
     out = np.empty((nb, 5), np.float64)
-    for b in prange(nb):
+    for b in range(nb):
         y0, y1, x0, x1, izmax = np.inf, -np.inf, np.inf, -np.inf, 0.0
         behind = False
         for k in range(offsets[b], offsets[b + 1]):
@@ -354,7 +373,7 @@ def resolve(color, depth, factor):
     return out_color, out_cov, out_depth
 
 
-@njit(cache=True, error_model="numpy", nogil=True)
+@njit(cache=True, error_model="numpy", nogil=True, fastmath=FASTMATH)
 def _texture_rows(color, depth, texture, y_lo, y_hi):
     """Deferred texturing of rows ``y_lo..y_hi-1``: every covered sample's colour
     holds ``(u, v, 0)`` texture coordinates (glTF convention: texel ``(row, col)``
@@ -391,7 +410,7 @@ surface beyond an edge that lies anywhere between the two pixel centres (half it
 samples when the edge is within a quarter pixel of it, none otherwise)."""
 
 
-@njit(cache=True, error_model="numpy", nogil=True)
+@njit(cache=True, error_model="numpy", nogil=True, fastmath=FASTMATH)
 def _finish_rows(color, depth, smooth, r0, r1, out_color, out_cov, out_depth):
     """One sample per pixel, rows ``r0..r1-1``: the resolve of :func:`_resolve_rows`
     with ``factor = 1``, and with ``smooth > 0`` a covered pixel whose 4-neighbour is
@@ -442,7 +461,22 @@ def apply_texture(color, depth, texture):
     return color
 
 
-@njit(parallel=True, cache=True, error_model="numpy", nogil=True)
+@njit(cache=True, error_model="numpy", inline="always")
+def _band_rows(band, bands, height, unit):
+    """Rows ``[y_lo, y_hi)`` of band ``band`` of ``bands``, bounds on multiples of ``unit``."""
+    y_lo = band * (height // unit) // bands * unit
+    y_hi = (band + 1) * (height // unit) // bands * unit if band < bands - 1 else height
+    return y_lo, y_hi
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _inner_rows(y_lo, y_hi, height):
+    """Rows ``[lo, hi)`` of the band ``[y_lo, y_hi)`` whose row neighbours lie in the band
+    or outside the image (``lo >= hi``: none)."""
+    return (y_lo if y_lo == 0 else y_lo + 1), (y_hi if y_hi == height else y_hi - 1)
+
+
+@njit(parallel=True, cache=True, error_model="numpy", nogil=True, fastmath=FASTMATH)
 def raster_frame(sv, col, scale, faces, n_first, bounds, block, xsv, xcol, xfaces, height,
                  width, bands, background, count, color, depth, mask, factor, out_color, out_cov,
                  out_depth, texture, smooth):
@@ -459,8 +493,9 @@ def raster_frame(sv, col, scale, faces, n_first, bounds, block, xsv, xcol, xface
     band is resolved as it finishes (:func:`_resolve_rows`, bands aligned to
     ``factor``) into ``out_color``, ``out_cov`` and ``out_depth`` at ``1 / factor``
     the size, while the samples are still in cache, and ``mask`` and the background
-    are left unwritten; ``factor = 1`` copies them there once every band is drawn,
-    with ``smooth > 0`` blending colours across depth edges (:func:`_finish_rows`);
+    are left unwritten; ``factor = 1`` copies them there, with ``smooth > 0``
+    blending colours across depth edges (:func:`_finish_rows`): each band its rows
+    whose neighbours it drew, the first and last row of each band once all are drawn;
     ``factor = 0``: no resolve. ``texture``: ``(T, U, 3) uint8`` when ``col`` holds
     texture coordinates (deferred texturing per band, see :func:`_texture_rows`),
     ``(0, 0, 3)`` for vertex colours.
@@ -498,8 +533,7 @@ def raster_frame(sv, col, scale, faces, n_first, bounds, block, xsv, xcol, xface
         # interleave so each thread gets bands from all over the image (prange hands
         # out contiguous index ranges; scenes are often busier at the top or bottom)
         band = (i % 2) * ((bands + 1) // 2) + i // 2
-        y_lo = band * (height // unit) // bands * unit
-        y_hi = (band + 1) * (height // unit) // bands * unit if band < bands - 1 else height
+        y_lo, y_hi = _band_rows(band, bands, height, unit)
         for y in range(y_lo, y_hi):
             for x in range(width):
                 depth[y, x] = np.inf
@@ -532,8 +566,9 @@ def raster_frame(sv, col, scale, faces, n_first, bounds, block, xsv, xcol, xface
             _draw_clipped(xsv, xcol, i0, i1, i2, y_lo, y_hi, width, color, depth, count, uv)
         if texture.shape[0] > 0:
             _texture_rows(color, depth, texture, y_lo, y_hi)
-        if factor == 1:
-            pass  # resolved below, once every band is drawn
+        if factor == 1:  # the rows whose neighbours are all in this band
+            lo, hi = _inner_rows(y_lo, y_hi, height)
+            _finish_rows(color, depth, smooth, lo, hi, out_color, out_cov, out_depth)
         elif factor > 1:
             _resolve_rows(color, depth, factor, y_lo // factor, y_hi // factor, out_color,
                           out_cov, out_depth)
@@ -545,11 +580,12 @@ def raster_frame(sv, col, scale, faces, n_first, bounds, block, xsv, xcol, xface
                     if not hit:  # colour is only written where a triangle wins
                         for ch in range(3):
                             color[y, x, ch] = background[ch]
-    if factor == 1:
-        rows = 16
-        for i in prange((height + rows - 1) // rows):
-            _finish_rows(color, depth, smooth, i * rows, min(height, (i + 1) * rows), out_color,
-                         out_cov, out_depth)
+    if factor == 1:  # the first and last row of each band, once every band is drawn
+        for band in range(bands):
+            y_lo, y_hi = _band_rows(band, bands, height, unit)
+            lo, hi = _inner_rows(y_lo, y_hi, height)
+            _finish_rows(color, depth, smooth, y_lo, lo, out_color, out_cov, out_depth)
+            _finish_rows(color, depth, smooth, max(hi, lo), y_hi, out_color, out_cov, out_depth)
     return color, depth, mask
 
 
