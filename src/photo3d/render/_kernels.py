@@ -411,14 +411,18 @@ samples when the edge is within a quarter pixel of it, none otherwise)."""
 
 
 @njit(cache=True, error_model="numpy", nogil=True, fastmath=FASTMATH)
-def _finish_rows(color, depth, smooth, r0, r1, out_color, out_cov, out_depth):
+def _finish_rows(color, depth, smooth, r0, r1, out_color, out_cov, out_depth, out_rgb):
     """One sample per pixel, rows ``r0..r1-1``: the resolve of :func:`_resolve_rows`
     with ``factor = 1``, and with ``smooth > 0`` a covered pixel whose 4-neighbour is
     covered but more than ``smooth`` (relative) nearer or farther mixes in
     :data:`EDGE_BLEND` of that neighbour's colour, an edge antialiasing for one
-    sample per pixel. Needs the whole frame drawn (it reads the rows next to its own)."""
+    sample per pixel. Needs the rows next to its own drawn. ``out_rgb``: ``(H, W, 3)
+    uint8`` receives the colours in 8 bits as well (as
+    :func:`photo3d.render._resolve.to_rgb8`; black where nothing is covered), or
+    ``(0, 0, 3)`` for none."""
     h, w = depth.shape
     grow = 1.0 + smooth
+    rgb8 = out_rgb.shape[0] > 0
     for y in range(r0, r1):
         for x in range(w):
             z = depth[y, x]
@@ -426,29 +430,37 @@ def _finish_rows(color, depth, smooth, r0, r1, out_color, out_cov, out_depth):
             if z == np.inf:
                 out_cov[y, x] = 0.0
                 out_color[y, x, 0], out_color[y, x, 1], out_color[y, x, 2] = 0.0, 0.0, 0.0
+                if rgb8:
+                    out_rgb[y, x, 0], out_rgb[y, x, 1], out_rgb[y, x, 2] = 0, 0, 0
                 continue
             out_cov[y, x] = 1.0
             r, g, b = color[y, x, 0], color[y, x, 1], color[y, x, 2]
-            out_color[y, x, 0], out_color[y, x, 1], out_color[y, x, 2] = r, g, b
-            if smooth <= 0.0:
-                continue
+            mr, mg, mb = r, g, b
             # quick test: the 4-neighbours (clamped at the border) within range
             za, zb = depth[max(y - 1, 0), x], depth[min(y + 1, h - 1), x]
             zc, zd = depth[y, max(x - 1, 0)], depth[y, min(x + 1, w - 1)]
-            if max(za, zb, zc, zd) <= z * grow and z <= min(za, zb, zc, zd) * grow:
-                continue
-            mr, mg, mb = r, g, b
-            for k in range(4):
-                yy = y + (k == 1) - (k == 3)
-                xx = x + (k == 0) - (k == 2)
-                if yy < 0 or yy >= h or xx < 0 or xx >= w:
-                    continue
-                zn = depth[yy, xx]
-                if zn < np.inf and abs(zn - z) > smooth * min(z, zn):
-                    mr += EDGE_BLEND * (color[yy, xx, 0] - r)
-                    mg += EDGE_BLEND * (color[yy, xx, 1] - g)
-                    mb += EDGE_BLEND * (color[yy, xx, 2] - b)
+            if smooth > 0.0 and not (max(za, zb, zc, zd) <= z * grow
+                                     and z <= min(za, zb, zc, zd) * grow):
+                for k in range(4):
+                    yy = y + (k == 1) - (k == 3)
+                    xx = x + (k == 0) - (k == 2)
+                    if yy < 0 or yy >= h or xx < 0 or xx >= w:
+                        continue
+                    zn = depth[yy, xx]
+                    if zn < np.inf and abs(zn - z) > smooth * min(z, zn):
+                        mr += EDGE_BLEND * (color[yy, xx, 0] - r)
+                        mg += EDGE_BLEND * (color[yy, xx, 1] - g)
+                        mb += EDGE_BLEND * (color[yy, xx, 2] - b)
             out_color[y, x, 0], out_color[y, x, 1], out_color[y, x, 2] = mr, mg, mb
+            if rgb8:
+                out_rgb[y, x, 0], out_rgb[y, x, 1] = _to_8bit(mr), _to_8bit(mg)
+                out_rgb[y, x, 2] = _to_8bit(mb)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _to_8bit(v):
+    """A colour in [0, 1] (clipped) -> ``uint8``, rounded half up (as ``to_rgb8``)."""
+    return np.uint8(min(max(np.float64(v), 0.0), 1.0) * 255.0 + 0.5)
 
 
 @njit(parallel=True, cache=True, error_model="numpy", nogil=True)
@@ -479,7 +491,7 @@ def _inner_rows(y_lo, y_hi, height):
 @njit(parallel=True, cache=True, error_model="numpy", nogil=True, fastmath=FASTMATH)
 def raster_frame(sv, col, scale, faces, n_first, bounds, block, xsv, xcol, xfaces, height,
                  width, bands, background, count, color, depth, mask, factor, out_color, out_cov,
-                 out_depth, texture, smooth):
+                 out_depth, texture, smooth, rgb):
     """Z-buffer render of ``faces`` over ``sv`` and ``xfaces`` over ``xsv``, in
     ``bands`` horizontal bands rendered in parallel; returns ``(color, depth, mask)``.
 
@@ -498,7 +510,9 @@ def raster_frame(sv, col, scale, faces, n_first, bounds, block, xsv, xcol, xface
     whose neighbours it drew, the first and last row of each band once all are drawn;
     ``factor = 0``: no resolve. ``texture``: ``(T, U, 3) uint8`` when ``col`` holds
     texture coordinates (deferred texturing per band, see :func:`_texture_rows`),
-    ``(0, 0, 3)`` for vertex colours.
+    ``(0, 0, 3)`` for vertex colours. ``rgb``: with ``factor = 1``, an ``(H, W, 3)
+    uint8`` array that receives the colours in 8 bits too (one pass less for a
+    video frame), or ``(0, 0, 3)``.
 
     ``faces[:n_first]`` are drawn first; later faces and blocks (``bounds`` from
     :func:`block_bounds`) are skipped when they lie behind the farthest depth drawn
@@ -516,7 +530,7 @@ def raster_frame(sv, col, scale, faces, n_first, bounds, block, xsv, xcol, xface
         ...     np.zeros((0, 3), np.float32), np.zeros((0, 3), np.float32), empty, 4, 4, 2,
         ...     np.zeros(3, np.float32), np.zeros((0, 0), np.int32), color, depth, mask, 0,
         ...     np.zeros((0, 0, 3), np.float32), none, none, np.zeros((0, 0, 3), np.uint8),
-        ...     0.0)
+        ...     0.0, np.zeros((0, 0, 3), np.uint8))
         >>> mask.astype(int)
         array([[1, 1, 1, 0],
                [1, 1, 0, 0],
@@ -568,7 +582,7 @@ def raster_frame(sv, col, scale, faces, n_first, bounds, block, xsv, xcol, xface
             _texture_rows(color, depth, texture, y_lo, y_hi)
         if factor == 1:  # the rows whose neighbours are all in this band
             lo, hi = _inner_rows(y_lo, y_hi, height)
-            _finish_rows(color, depth, smooth, lo, hi, out_color, out_cov, out_depth)
+            _finish_rows(color, depth, smooth, lo, hi, out_color, out_cov, out_depth, rgb)
         elif factor > 1:
             _resolve_rows(color, depth, factor, y_lo // factor, y_hi // factor, out_color,
                           out_cov, out_depth)
@@ -584,8 +598,9 @@ def raster_frame(sv, col, scale, faces, n_first, bounds, block, xsv, xcol, xface
         for band in range(bands):
             y_lo, y_hi = _band_rows(band, bands, height, unit)
             lo, hi = _inner_rows(y_lo, y_hi, height)
-            _finish_rows(color, depth, smooth, y_lo, lo, out_color, out_cov, out_depth)
-            _finish_rows(color, depth, smooth, max(hi, lo), y_hi, out_color, out_cov, out_depth)
+            _finish_rows(color, depth, smooth, y_lo, lo, out_color, out_cov, out_depth, rgb)
+            _finish_rows(color, depth, smooth, max(hi, lo), y_hi, out_color, out_cov, out_depth,
+                         rgb)
     return color, depth, mask
 
 

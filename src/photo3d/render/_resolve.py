@@ -189,3 +189,19 @@ def to_rgb8(color):  # pragma: no cover - jit
                 v = min(max(color[y, x, ch], 0.0), 1.0)
                 out[y, x, ch] = np.uint8(v * 255.0 + 0.5)
     return out
+
+
+@numba.njit(cache=True, nogil=True)
+def holes_to_rgb8(color, coverage, rgb):  # pragma: no cover - jit
+    """Write the pixels with ``coverage < 1`` of ``(H, W, 3)`` float ``color`` into the
+    ``(H, W, 3) uint8`` ``rgb`` as :func:`to_rgb8` would (the other pixels are left:
+    a frame whose covered pixels were converted with the rasterizer's pass, whose
+    holes were filled since)."""
+    h, w = coverage.shape
+    for y in range(h):
+        for x in range(w):
+            if coverage[y, x] < 1.0:
+                for ch in range(3):
+                    v = min(max(color[y, x, ch], 0.0), 1.0)
+                    rgb[y, x, ch] = np.uint8(v * 255.0 + 0.5)
+    return rgb

@@ -231,13 +231,14 @@ class _Buffers:
 
 def _render(vertices, colors, scale, faces, rot, trans, k, near, height, width, bands, bg, count,
             n_first=None, buffers: _Buffers | None = None, blocks=None, factor: int = 0,
-            texture: np.ndarray = _NO_TEXTURE, smooth: float = 0.0):
+            texture: np.ndarray = _NO_TEXTURE, smooth: float = 0.0, rgb8: bool = False):
     """Vertex stage, clipping and rasterization on validated inputs (``blocks``:
     :func:`block_vertices` of ``faces``, computed when None). ``factor > 0``: return
     the supersampling resolve ``(color, coverage, depth)`` at ``1 / factor`` the size
     (fresh arrays) instead of the samples; ``smooth``: the depth-edge blend of
-    :meth:`CPURasterizer.render_edges` (``factor`` 1). ``texture``: ``(T, U, 3)
-    uint8`` when ``colors`` are texture coordinates ``(u, v, 0)``."""
+    :meth:`CPURasterizer.render_edges` (``factor`` 1), which with ``rgb8`` also returns
+    the colours in 8 bits (a fresh ``(H, W, 3) uint8``, fourth). ``texture``: ``(T, U,
+    3) uint8`` when ``colors`` are texture coordinates ``(u, v, 0)``."""
     n_first = len(faces) if n_first is None else n_first
     blocks = block_vertices(faces, BLOCK) if blocks is None else blocks
     buffers = buffers or _Buffers()
@@ -258,8 +259,11 @@ def _render(vertices, colors, scale, faces, rot, trans, k, near, height, width, 
     small = (height // factor, width // factor) if factor else (0, 0)
     resolved = (np.empty((*small, 3), np.float32), np.empty(small, np.float32),
                 np.empty(small, np.float32))
+    rgb = np.empty((height, width, 3) if rgb8 and factor == 1 else (0, 0, 3), np.uint8)
     frame = raster_frame(sv, colors, scale, faces, n_first, bounds, BLOCK, xsv, xcol, xfaces,
-                         *image, *out, factor, *resolved, texture, float(smooth))
+                         *image, *out, factor, *resolved, texture, float(smooth), rgb)
+    if rgb.size:
+        return (*resolved, rgb)
     return resolved if factor else frame
 
 
@@ -339,7 +343,7 @@ class CPURasterizer:
         )
 
     def render_edges(self, intrinsics: Intrinsics, *, pose=None, near: float = 1e-3,
-                     tolerance: float = 0.03) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                     tolerance: float = 0.03, rgb8: bool = False) -> tuple[np.ndarray, ...]:
         """One sample per pixel, antialiased at depth edges: :meth:`render_resolved`
         with ``factor = 1``, except that a pixel with a 4-neighbour more than
         ``tolerance`` (relative) nearer or farther mixes in
@@ -348,7 +352,9 @@ class CPURasterizer:
 
         Returns:
             ``(color (H, W, 3), coverage (H, W), depth (H, W))`` float32 at the size
-            of ``intrinsics``; coverage is 0 or 1.
+            of ``intrinsics``; coverage is 0 or 1. With ``rgb8``, a fourth array: the
+            colours as ``(H, W, 3) uint8`` (black where coverage is 0), made in the
+            same pass.
 
         Example:
             >>> v = np.array([[-9, -9, 1], [9, -9, 2], [0, 9, 1]], np.float32)
@@ -361,7 +367,7 @@ class CPURasterizer:
         return _render(
             *self._prepared, *view, min(default_bands(), view[-2]), np.zeros(3, np.float32),
             _NO_COUNT, n_first=self._first, buffers=self._buffers, blocks=self._blocks,
-            factor=1, texture=self._texture, smooth=max(float(tolerance), 0.0),
+            factor=1, texture=self._texture, smooth=max(float(tolerance), 0.0), rgb8=rgb8,
         )
 
     def release(self) -> None:
