@@ -81,18 +81,31 @@ def _draw_float(sv, col, scale, i0, i1, i2, r0, r1, c0, c1, color, depth, count)
                     color[y, x, ch] = min(max(v, 0.0), 1.0)
 
 
-_SPAN_MIN = 8
-"""Boxes at least this many columns wide scan only the columns a row can cover."""
+_SPAN_MIN = 1
+"""Boxes at least this many columns wide scan only the columns a row can cover (the
+spans cost a multiply each since their quotients come from a reciprocal, so every box
+but a one-column one: the triangles of a light mesh are mostly small)."""
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _span(w, s, c0, lo, hi):
+def _span(w, s, inv, c0, lo, hi):
     """Narrow columns ``lo..hi`` of a row to those where the edge value ``w - s (x -
-    c0)`` (``w`` at column ``c0``, integers) is >= 0; ``lo > hi`` when none is."""
+    c0)`` (``w`` at column ``c0``, integers) is >= 0; ``lo > hi`` when none is.
+    ``inv``: ``1 / |s|`` (a float estimate of the quotient, corrected exactly)."""
     if s > 0:
-        hi = min(hi, c0 + w // s)
+        q = np.int64(math.floor(w * inv))
+        if w - s * q < 0:
+            q -= 1
+        elif w - s * (q + 1) >= 0:
+            q += 1
+        hi = min(hi, c0 + q)
     elif s < 0:
-        lo = max(lo, c0 - w // -s)
+        q = np.int64(math.floor(w * inv))
+        if w + s * q < 0:
+            q -= 1
+        elif w + s * (q + 1) >= 0:
+            q += 1
+        lo = max(lo, c0 - q)
     elif w < 0:
         hi = lo - 1
     return lo, hi
@@ -147,6 +160,9 @@ def _draw(sv, col, scale, i0, i1, i2, y_lo, y_hi, width, color, depth, count, uv
     r1c, g1c, b1c = col[i1, 0] * scale, col[i1, 1] * scale, col[i1, 2] * scale
     r2c, g2c, b2c = col[i2, 0] * scale, col[i2, 1] * scale, col[i2, 2] * scale
     s0, s1, s2 = dy0 * 256, dy1 * 256, dy2 * 256
+    inv0 = 1.0 / abs(s0) if s0 != 0 else 0.0
+    inv1 = 1.0 / abs(s1) if s1 != 0 else 0.0
+    inv2 = 1.0 / abs(s2) if s2 != 0 else 0.0
     # a_k = w_k / z_k and its colour-weighted sums are linear along a row: stepped by
     # adding, like the edge values (only the pixels a triangle wins divide)
     fs0, fs1, fs2 = np.float64(s0) * iz0, np.float64(s1) * iz1, np.float64(s2) * iz2
@@ -161,9 +177,9 @@ def _draw(sv, col, scale, i0, i1, i2, y_lo, y_hi, width, color, depth, count, uv
         w2 = dx2 * (py - Y0) - dy2 * (px0 - X0)
         x0, x1 = c0, c1
         if c1 - c0 >= _SPAN_MIN:  # only the columns all three edges can cover
-            x0, x1 = _span(w0, s0, c0, x0, x1)
-            x0, x1 = _span(w1, s1, c0, x0, x1)
-            x0, x1 = _span(w2, s2, c0, x0, x1)
+            x0, x1 = _span(w0, s0, inv0, c0, x0, x1)
+            x0, x1 = _span(w1, s1, inv1, c0, x0, x1)
+            x0, x1 = _span(w2, s2, inv2, c0, x0, x1)
             w0 -= s0 * (x0 - c0)
             w1 -= s1 * (x0 - c0)
             w2 -= s2 * (x0 - c0)
