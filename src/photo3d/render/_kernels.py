@@ -412,7 +412,8 @@ def _texture_rows(color, depth, texture, y_lo, y_hi):
     fxs = np.empty(width, np.float32)
     fys = np.empty(width, np.float32)
     for y in range(y_lo, y_hi):
-        for x in range(width):  # all pixels (no branch); empty ones are not written
+        for x in range(width):  # all pixels, no branch: an empty pixel's index and
+            # weights (from whatever its colour holds) are never used
             fx = min(max(color[y, x, 0] * ftw - half, zero), xmax)
             fy = min(max(color[y, x, 1] * fth - half, zero), ymax)
             x0 = max(min(np.int64(fx), tw - 2), 0)  # clamped: a valid index whatever fx
