@@ -171,3 +171,28 @@ def test_video_path_agrees_with_the_full_mesh_supersampled():
             pose[:3, 3] = t
             a, b = fast.render(Camera(k, pose)).color, slow.render(Camera(k, pose)).color
             assert psnr(a, b) > 30
+
+
+@pytest.mark.parametrize("fill", [True, False])
+def test_video_frames_in_8_bits_are_the_render_in_8_bits(fill):
+    """``render_rgb8`` (8-bit colours written by the rasterizer, holes converted after
+    the fill) gives the frame ``to_rgb8(render().color)`` gives, holes included."""
+    from photo3d.render._resolve import to_rgb8
+
+    img = texture(60, 80, seed=5)
+    depth = np.ones((60, 80), np.float32)
+    depth[15:45, 25:55] = 2.5
+    photo = photo3d.make(img, depth=depth, config=exact_config(border=6))
+    settings = video_settings(backend="numba", fill_holes=fill)
+    with Renderer(photo.light_mesh(), settings) as renderer:
+        for t in ((0.0, 0.0, 0.0), (0.06, -0.03, 0.05)):
+            pose = np.eye(4)
+            pose[:3, 3] = t
+            camera = Camera(photo.ldi.intrinsics, pose)
+            rgb = renderer.render_rgb8(camera)
+            view = renderer.render(camera)
+            assert rgb.dtype == np.uint8 and rgb.shape == view.color.shape
+            diff = np.abs(rgb.astype(int) - to_rgb8(view.color))
+            assert diff.max() <= 1 and np.mean(diff > 0) < 1e-3
+            if t[0]:
+                assert not view.mask.all()  # holes were filled (or shown) in both

@@ -11,7 +11,7 @@ the near plane has ``1/z > 0``; one behind it is flagged with ``1/z = -1``.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 SUBPIXEL = 256.0
 """Screen coordinates are multiples of ``1 / SUBPIXEL`` pixel (as GPUs do)."""
@@ -46,7 +46,7 @@ def _emit(out, j, x, y, z, k):
     out[j, 2] = iz
 
 
-@njit(parallel=True, cache=True, error_model="numpy", nogil=True)
+@njit(cache=True, error_model="numpy", nogil=True)  # serial: 0.4 ms, less than a fork
 def project_vertices(vertices, rot, trans, k, near, sv):
     """Screen vertices of all world vertices.
 
@@ -64,7 +64,7 @@ def project_vertices(vertices, rot, trans, k, near, sv):
     n = vertices.shape[0]
     n_behind = 0
     n_bad = 0
-    for i in prange(n):
+    for i in range(n):
         x, y, z = _camera(vertices, i, rot, trans)
         finite = abs(x) < np.inf and abs(y) < np.inf and abs(z) < np.inf
         if finite and z >= near:

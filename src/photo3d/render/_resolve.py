@@ -70,7 +70,13 @@ def grow_fill(color, coverage, iterations):  # pragma: no cover - jit
 
 
 @numba.njit(cache=True, nogil=True)
-def _far_mean(color, known, ring, z, y, x, r, src, tolerance, out):  # pragma: no cover
+def _depth_at(depth, filled, ring, y, x):  # pragma: no cover - jit
+    """Depth of a known pixel: its own (ring 0) or the source depth it was filled with."""
+    return filled[y, x] if ring[y, x] > 0 else depth[y, x]
+
+
+@numba.njit(cache=True, nogil=True)
+def _far_mean(color, known, ring, depth, filled, y, x, r, src, tolerance, out):  # pragma: no cover
     """Mean colour of ``(y, x)``'s 8-neighbours filled before ring ``r`` whose depth
     is within ``tolerance`` of ``src`` or farther; returns how many there were."""
     h, w = known.shape
@@ -82,7 +88,7 @@ def _far_mean(color, known, ring, z, y, x, r, src, tolerance, out):  # pragma: n
         for dx in range(-1, 2):
             yy, xx = y + dy, x + dx
             if (0 <= yy < h and 0 <= xx < w and known[yy, xx] and ring[yy, xx] < r
-                    and z[yy, xx] >= src * (1.0 - tolerance)):
+                    and _depth_at(depth, filled, ring, yy, xx) >= src * (1.0 - tolerance)):
                 n += 1
                 for ch in range(3):
                     out[ch] += color[yy, xx, ch]
@@ -90,7 +96,7 @@ def _far_mean(color, known, ring, z, y, x, r, src, tolerance, out):  # pragma: n
 
 
 @numba.njit(cache=True, nogil=True)
-def _farthest(known, ring, z, y, x, before):  # pragma: no cover - jit
+def _farthest(known, ring, depth, filled, y, x, before):  # pragma: no cover - jit
     """Depth and ring of ``(y, x)``'s farthest 8-neighbour filled before ring
     ``before`` (-1 if none)."""
     h, w = known.shape
@@ -99,10 +105,11 @@ def _farthest(known, ring, z, y, x, before):  # pragma: no cover - jit
     for dy in range(-1, 2):
         for dx in range(-1, 2):
             yy, xx = y + dy, x + dx
-            if (0 <= yy < h and 0 <= xx < w and known[yy, xx] and ring[yy, xx] < before
-                    and z[yy, xx] > far):
-                far = z[yy, xx]
-                r = ring[yy, xx]
+            if 0 <= yy < h and 0 <= xx < w and known[yy, xx] and ring[yy, xx] < before:
+                z = _depth_at(depth, filled, ring, yy, xx)
+                if z > far:
+                    far = z
+                    r = ring[yy, xx]
     return far, r
 
 
@@ -119,52 +126,69 @@ def grow_fill_far(color, coverage, depth, iterations, tolerance):  # pragma: no 
     ``iterations`` rings from any covered pixel stay unfilled. A partly covered pixel
     keeps its own colour in proportion to its coverage. Returns the number of
     pixels left unfilled.
+
+    One pass over the frame finds the pixels to fill; the rest of the work visits
+    only them and their neighbours (the per-pixel arrays are allocated, not written:
+    a video frame has few holes).
     """
     h, w = coverage.shape
-    known = coverage >= 0.999
-    z = depth.copy()
-    ring = np.zeros((h, w), np.int32)
+    known = np.empty((h, w), np.bool_)
+    todo_y = np.empty(h * w, np.int64)
+    todo_x = np.empty(h * w, np.int64)
+    m = 0
+    for y in range(h):
+        for x in range(w):
+            k = coverage[y, x] >= 0.999
+            known[y, x] = k
+            if not k:
+                todo_y[m] = y
+                todo_x[m] = x
+                m += 1
+    if m == 0:
+        return 0
+    filled = np.empty((h, w), np.float32)  # source depth of the filled pixels
+    ring = np.zeros((h, w), np.int32)  # 0: known from the start (zeroed lazily by the OS)
     mean = np.zeros(3)
     # Ring 1: partly covered pixels from their fully covered neighbours (in place: a
     # pixel written here has ring 1, which no other ring-1 pixel reads).
-    for y in range(h):
-        for x in range(w):
-            if not known[y, x] and coverage[y, x] > 0.0:
-                far, _ = _farthest(known, ring, z, y, x, 1)
-                if far > 0.0:
-                    n = _far_mean(color, known, ring, z, y, x, 1, far, tolerance, mean)
-                    c = coverage[y, x]
-                    for ch in range(3):
-                        color[y, x, ch] = c * color[y, x, ch] + (1.0 - c) * mean[ch] / n
-                    known[y, x] = True
-                    z[y, x] = far
-                    ring[y, x] = 1
+    for i in range(m):
+        y, x = todo_y[i], todo_x[i]
+        if coverage[y, x] > 0.0:
+            far, _ = _farthest(known, ring, depth, filled, y, x, 1)
+            if far > 0.0:
+                n = _far_mean(color, known, ring, depth, filled, y, x, 1, far, tolerance, mean)
+                c = coverage[y, x]
+                for ch in range(3):
+                    color[y, x, ch] = c * color[y, x, ch] + (1.0 - c) * mean[ch] / n
+                known[y, x] = True
+                filled[y, x] = far
+                ring[y, x] = 1
     # The rest: priority flood from everything filled so far.
-    queued = np.full((h, w), np.inf, np.float32)  # best key queued (skip worse pushes)
+    queued = np.zeros((h, w), np.float32)  # best key queued (keys are < 0; 0: none)
     heap = [(0.0, 0, 0, 0)]
     heap.pop()
     left = 0
-    for y in range(h):
-        for x in range(w):
-            if known[y, x]:
-                continue
-            left += 1
-            far, r = _farthest(known, ring, z, y, x, 2)
-            if far > 0.0:
-                queued[y, x] = -far
-                heapq.heappush(heap, (-far, r + 1, y, x))
+    for i in range(m):
+        y, x = todo_y[i], todo_x[i]
+        if known[y, x]:
+            continue
+        left += 1
+        far, r = _farthest(known, ring, depth, filled, y, x, 2)
+        if far > 0.0:
+            queued[y, x] = -far
+            heapq.heappush(heap, (-far, r + 1, y, x))
     while len(heap) > 0:
         key, r, y, x = heapq.heappop(heap)
         if known[y, x]:
             continue
-        n = _far_mean(color, known, ring, z, y, x, r, -key, tolerance, mean)
+        n = _far_mean(color, known, ring, depth, filled, y, x, r, -key, tolerance, mean)
         if n == 0:
             continue
         c = coverage[y, x]
         for ch in range(3):
             color[y, x, ch] = c * color[y, x, ch] + (1.0 - c) * mean[ch] / n
         known[y, x] = True
-        z[y, x] = -key
+        filled[y, x] = -key
         ring[y, x] = r
         left -= 1
         if r >= iterations:
@@ -189,3 +213,19 @@ def to_rgb8(color):  # pragma: no cover - jit
                 v = min(max(color[y, x, ch], 0.0), 1.0)
                 out[y, x, ch] = np.uint8(v * 255.0 + 0.5)
     return out
+
+
+@numba.njit(cache=True, nogil=True)
+def holes_to_rgb8(color, coverage, rgb):  # pragma: no cover - jit
+    """Write the pixels with ``coverage < 1`` of ``(H, W, 3)`` float ``color`` into the
+    ``(H, W, 3) uint8`` ``rgb`` as :func:`to_rgb8` would (the other pixels are left:
+    a frame whose covered pixels were converted with the rasterizer's pass, whose
+    holes were filled since)."""
+    h, w = coverage.shape
+    for y in range(h):
+        for x in range(w):
+            if coverage[y, x] < 1.0:
+                for ch in range(3):
+                    v = min(max(color[y, x, ch], 0.0), 1.0)
+                    rgb[y, x, ch] = np.uint8(v * 255.0 + 0.5)
+    return rgb

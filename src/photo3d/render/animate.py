@@ -116,9 +116,9 @@ def render_frames(renderer: Renderer, cameras: Sequence[Camera], *, stereo: str 
         if stereo:
             left, right = (renderer.render(c).color for c in eye_cameras(cam, eye_separation))
             image = compose(left, right, stereo, order=eye_order)
+            yield to_rgb8(image)
         else:
-            image = renderer.render(cam).color
-        yield to_rgb8(image)
+            yield renderer.render_rgb8(cam)
         if progress is not None:
             progress(i + 1, len(cameras))
 

@@ -197,6 +197,7 @@ class GLRasterizer:
                  texture: np.ndarray | None = None):
         vertices, colors, scale, faces, _, _ = prepare_mesh(vertices, colors, faces, None)
         self._texture = check_texture(texture)
+        self._packed = None  # the texture as the CPU lookup reads it, on first use
         if not np.all(np.isfinite(vertices)):
             raise InputError("vertices have non-finite coordinates")
         bounds = np.stack([vertices.min(0), vertices.max(0)]) if len(vertices) else np.zeros((2, 3))
@@ -299,9 +300,11 @@ class GLRasterizer:
         """Deferred texturing on the CPU (the same lookup as the numba rasterizer)."""
         if self._texture.shape[0] == 0:
             return color
-        from photo3d.render._kernels import apply_texture
+        from photo3d.render._kernels import apply_texture, pack_texture
 
-        return apply_texture(color, depth, self._texture)
+        if self._packed is None:
+            self._packed = pack_texture(self._texture)
+        return apply_texture(color, depth, self._packed)
 
     def _release_fbo(self) -> None:
         if self._fbo is not None:

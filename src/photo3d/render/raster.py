@@ -35,7 +35,13 @@ import numpy as np
 from photo3d.camera import Intrinsics
 from photo3d.errors import InputError
 from photo3d.render._clip import clip_near, project_vertices
-from photo3d.render._kernels import BLOCK, block_bounds, block_vertices, raster_frame
+from photo3d.render._kernels import (
+    BLOCK,
+    block_bounds,
+    block_vertices,
+    pack_texture,
+    raster_frame,
+)
 
 __all__ = ["CPURasterizer", "Fragments", "rasterize"]
 
@@ -59,6 +65,7 @@ class Fragments:
 
 _NO_COUNT = np.zeros((0, 0), np.int32)
 _NO_TEXTURE = np.zeros((0, 0, 3), np.uint8)
+_NO_PACKED = np.zeros((0, 0), np.uint32)
 
 
 def _check_array(name: str, array: np.ndarray, shape: str) -> None:
@@ -231,13 +238,15 @@ class _Buffers:
 
 def _render(vertices, colors, scale, faces, rot, trans, k, near, height, width, bands, bg, count,
             n_first=None, buffers: _Buffers | None = None, blocks=None, factor: int = 0,
-            texture: np.ndarray = _NO_TEXTURE, smooth: float = 0.0):
+            texture: np.ndarray = _NO_PACKED, smooth: float = 0.0, rgb8: bool = False):
     """Vertex stage, clipping and rasterization on validated inputs (``blocks``:
     :func:`block_vertices` of ``faces``, computed when None). ``factor > 0``: return
     the supersampling resolve ``(color, coverage, depth)`` at ``1 / factor`` the size
     (fresh arrays) instead of the samples; ``smooth``: the depth-edge blend of
-    :meth:`CPURasterizer.render_edges` (``factor`` 1). ``texture``: ``(T, U, 3)
-    uint8`` when ``colors`` are texture coordinates ``(u, v, 0)``."""
+    :meth:`CPURasterizer.render_edges` (``factor`` 1), which with ``rgb8`` also returns
+    the colours in 8 bits (a fresh ``(H, W, 3) uint8``, fourth). ``texture``: ``(T, U)
+    uint32`` (:func:`~photo3d.render._kernels.pack_texture`) when ``colors`` are
+    texture coordinates ``(u, v, 0)``."""
     n_first = len(faces) if n_first is None else n_first
     blocks = block_vertices(faces, BLOCK) if blocks is None else blocks
     buffers = buffers or _Buffers()
@@ -258,8 +267,11 @@ def _render(vertices, colors, scale, faces, rot, trans, k, near, height, width, 
     small = (height // factor, width // factor) if factor else (0, 0)
     resolved = (np.empty((*small, 3), np.float32), np.empty(small, np.float32),
                 np.empty(small, np.float32))
+    rgb = np.empty((height, width, 3) if rgb8 and factor == 1 else (0, 0, 3), np.uint8)
     frame = raster_frame(sv, colors, scale, faces, n_first, bounds, BLOCK, xsv, xcol, xfaces,
-                         *image, *out, factor, *resolved, texture, float(smooth))
+                         *image, *out, factor, *resolved, texture, float(smooth), rgb)
+    if rgb.size:
+        return (*resolved, rgb)
     return resolved if factor else frame
 
 
@@ -285,7 +297,7 @@ class CPURasterizer:
         ``texture``: ``(T, U, 3) uint8`` sRGB; then ``colors`` are ``(N, 3) float32``
         texture coordinates ``(u, v, 0)`` (glTF convention, origin top-left)."""
         self._prepared = prepare_mesh(vertices, colors, faces, None)[:4]
-        self._texture = check_texture(texture)
+        self._texture = pack_texture(check_texture(texture))
         n = len(self._prepared[3])
         self._first = n if first is None else int(np.clip(first, 0, n))
         self._buffers = _Buffers() if reuse else None
@@ -339,7 +351,7 @@ class CPURasterizer:
         )
 
     def render_edges(self, intrinsics: Intrinsics, *, pose=None, near: float = 1e-3,
-                     tolerance: float = 0.03) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                     tolerance: float = 0.03, rgb8: bool = False) -> tuple[np.ndarray, ...]:
         """One sample per pixel, antialiased at depth edges: :meth:`render_resolved`
         with ``factor = 1``, except that a pixel with a 4-neighbour more than
         ``tolerance`` (relative) nearer or farther mixes in
@@ -348,7 +360,9 @@ class CPURasterizer:
 
         Returns:
             ``(color (H, W, 3), coverage (H, W), depth (H, W))`` float32 at the size
-            of ``intrinsics``; coverage is 0 or 1.
+            of ``intrinsics``; coverage is 0 or 1. With ``rgb8``, a fourth array: the
+            colours as ``(H, W, 3) uint8`` (black where coverage is 0), made in the
+            same pass.
 
         Example:
             >>> v = np.array([[-9, -9, 1], [9, -9, 2], [0, 9, 1]], np.float32)
@@ -361,7 +375,7 @@ class CPURasterizer:
         return _render(
             *self._prepared, *view, min(default_bands(), view[-2]), np.zeros(3, np.float32),
             _NO_COUNT, n_first=self._first, buffers=self._buffers, blocks=self._blocks,
-            factor=1, texture=self._texture, smooth=max(float(tolerance), 0.0),
+            factor=1, texture=self._texture, smooth=max(float(tolerance), 0.0), rgb8=rgb8,
         )
 
     def release(self) -> None:

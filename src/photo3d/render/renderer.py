@@ -24,7 +24,7 @@ import numpy as np
 from photo3d.camera import Camera, Intrinsics
 from photo3d.errors import ConfigError, require
 from photo3d.holes import fill_holes
-from photo3d.render._resolve import grow_fill, grow_fill_far
+from photo3d.render._resolve import grow_fill, grow_fill_far, holes_to_rgb8, to_rgb8
 from photo3d.structures.mesh import Mesh, TexturedMesh
 
 AUTHORS_CROP = (0.03, 0.03, 0.05, 0.03)
@@ -209,18 +209,48 @@ class Renderer:
             big = Intrinsics(k.fx * f, k.fy * f, k.cx * f, k.cy * f, k.width * f, k.height * f)
             color, coverage, depth = self._raster.render_resolved(big, f, pose=camera.pose,
                                                                   near=s.near)
-        mask = coverage >= 1.0
-        if s.fill_holes:
-            if s.hole_fill == "far":
-                left = grow_fill_far(color, coverage, depth, 32, 0.05)
-            else:
-                left = grow_fill(color, coverage, 8)
-            if left:  # large holes left: smooth pyramid fill
-                color = fill_holes(color, np.where(mask, 1.0, coverage))
-        else:
+        color = self._holes(color, coverage, depth)
+        return View(color=np.clip(color, 0.0, 1.0, out=color), depth=depth,
+                    mask=coverage >= 1.0)
+
+    def render_rgb8(self, camera: Camera) -> np.ndarray:
+        """``render(camera).color`` in 8 bits (``to_rgb8``): a new ``(H, W, 3) uint8``
+        array. With ``antialias`` ``edges`` on the CPU the rasterizer writes the 8-bit
+        colours in the pass that blends the edges, and only the filled holes are
+        converted afterwards (a video frame: one pass over the image less).
+
+        Example:
+            >>> from photo3d.stages.ldi import from_image
+            >>> from photo3d.mesh.full import build_mesh
+            >>> mesh = build_mesh(from_image(np.full((8, 8, 3), 0.5, np.float32),
+            ...                              np.ones((8, 8), np.float32)))
+            >>> rgb = Renderer(mesh, RenderSettings(backend="numba")).render_rgb8(
+            ...     Camera(Intrinsics.default(8, 8), np.eye(4)))
+            >>> rgb.shape, rgb.dtype, int(rgb[4, 4, 0])
+            ((8, 8, 3), dtype('uint8'), 128)
+        """
+        if not self._edges:
+            return to_rgb8(self.render(camera).color)
+        s = self.settings
+        k = cropped(camera.intrinsics, s.crop) if any(s.crop) else camera.intrinsics
+        color, coverage, depth, rgb = self._raster.render_edges(
+            k, pose=camera.pose, near=s.near, tolerance=EDGE_TOLERANCE, rgb8=True)
+        return holes_to_rgb8(self._holes(color, coverage, depth), coverage, rgb)
+
+    def _holes(self, color: np.ndarray, coverage: np.ndarray, depth: np.ndarray) -> np.ndarray:
+        """``color`` with the pixels of ``coverage < 1`` filled (``fill_holes``) or mixed
+        with the background; may be ``color`` itself, changed in place."""
+        s = self.settings
+        if not s.fill_holes:
             bg = np.asarray(s.background, np.float32)
-            color = color * coverage[..., None] + bg * (1.0 - coverage[..., None])
-        return View(color=np.clip(color, 0.0, 1.0, out=color), depth=depth, mask=mask)
+            return color * coverage[..., None] + bg * (1.0 - coverage[..., None])
+        if s.hole_fill == "far":
+            left = grow_fill_far(color, coverage, depth, 32, 0.05)
+        else:
+            left = grow_fill(color, coverage, 8)
+        if left:  # large holes left: smooth pyramid fill
+            color = fill_holes(color, np.where(coverage >= 1.0, 1.0, coverage))
+        return color
 
 
 def select_backend(name: str) -> str:
