@@ -158,6 +158,21 @@ class Config:
             raise ConfigError(f"bad configuration: {err}") from None
 
 
+def working_shape(shape: tuple[int, int], size: int | None) -> tuple[int, int]:
+    """``(H, W)`` after resizing the longer side to ``size`` (:attr:`Config.size`;
+    None keeps the shape): the shape every stage works at.
+
+    Example:
+        >>> working_shape((500, 741), 1024)
+        (691, 1024)
+    """
+    h, w = shape
+    if size is None:
+        return h, w
+    s = size / max(h, w)
+    return max(1, round(h * s)), max(1, round(w * s))
+
+
 PRESETS: dict[str, Config] = {
     "default": Config(),
     "fast": Config(size=640),

@@ -24,10 +24,9 @@ from __future__ import annotations
 
 import math
 
-from photo3d.config import Config
+from photo3d.config import Config, working_shape
 from photo3d.errors import ConfigError
 from photo3d.io import limits
-from photo3d.stages.preprocess import working_shape
 
 BASE_BYTES = 200e6
 """Interpreter, numpy, numba and the nets' code, resident before any pixel."""

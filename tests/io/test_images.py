@@ -303,8 +303,8 @@ def _natural(name: str) -> np.ndarray:
 
 
 def test_decoded_shape_keeps_the_working_shape_and_the_aspect():
+    from photo3d.config import working_shape
     from photo3d.io.images import KEEP, decoded_shape
-    from photo3d.stages.preprocess import working_shape
 
     rng = np.random.default_rng(3)
     reduced = 0
@@ -332,8 +332,9 @@ def test_decoded_shape_keeps_the_working_shape_and_the_aspect():
                                             ("coffee", 64), ("coffee", 125)])
 def test_a_reduced_photo_gives_the_same_working_image(tmp_path, suffix, name, size):
     """The pipeline's resize of the reduced photo matches its resize of the whole."""
+    from photo3d.config import working_shape
     from photo3d.io.images import decoded_shape
-    from photo3d.stages.preprocess import resize, working_shape
+    from photo3d.stages.preprocess import resize
 
     path = tmp_path / f"{name}{suffix}"
     Image.fromarray(_natural(name)).save(path, quality=92)
@@ -356,7 +357,8 @@ def test_photos_up_to_keep_times_the_working_size_are_decoded_exactly(tmp_path):
 
 @pytest.mark.parametrize("mode", ["P", "LA", "RGBA", "1", "I;16", "I", "F", "CMYK"])
 def test_every_mode_is_reduced_like_the_whole(tmp_path, mode):
-    from photo3d.stages.preprocess import resize, working_shape
+    from photo3d.config import working_shape
+    from photo3d.stages.preprocess import resize
 
     rgb = Image.fromarray(_natural("coffee"))
     alpha = Image.fromarray(np.tile(np.linspace(0, 255, 600, dtype=np.uint8), (400, 1)))
@@ -387,7 +389,8 @@ def test_every_mode_is_reduced_like_the_whole(tmp_path, mode):
 
 @pytest.mark.parametrize("kind", ["tiff16", "png16"])
 def test_sixteen_bit_colour_photos_are_reduced_like_the_whole(tmp_path, kind):
-    from photo3d.stages.preprocess import resize, working_shape
+    from photo3d.config import working_shape
+    from photo3d.stages.preprocess import resize
 
     pixels = _natural("astronaut").astype(np.uint16) * 257
     if kind == "tiff16":

@@ -97,7 +97,7 @@ class _LateBar:
 
 def _say_if_upscaled(shape: tuple[int, int], config: Config) -> None:
     """A small photo is enlarged to the working size (the parameters are tuned at 1024 px)."""
-    from photo3d.stages.preprocess import working_shape
+    from photo3d.config import working_shape
 
     if config.size is not None and max(shape) < config.size:
         h, w = working_shape(shape, config.size)

@@ -210,8 +210,9 @@ def load_photo(path: str | Path | np.ndarray, size: int = SIZE) -> np.ndarray:
         >>> load_photo(np.zeros((48, 64, 3), np.uint8), size=32).shape
         (24, 32, 3)
     """
+    from photo3d.config import working_shape
     from photo3d.depth.sources import read_photo
-    from photo3d.stages.preprocess import resize, working_shape
+    from photo3d.stages.preprocess import resize
 
     image = read_photo(path, working_size=size)
     return np.clip(resize(image, working_shape(image.shape[:2], size)), 0.0, 1.0)

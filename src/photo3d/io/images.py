@@ -34,6 +34,7 @@ from pathlib import Path
 import numpy as np
 from PIL import Image, UnidentifiedImageError
 
+from photo3d.config import working_shape
 from photo3d.errors import InputError, OutputError, install_hint, require
 from photo3d.io.limits import check_available
 
@@ -205,7 +206,7 @@ def decoded_shape(shape: tuple[int, int], working_size: int | None) -> tuple[int
     ``working_size``: ``shape`` itself up to ``KEEP * working_size`` on the longer side
     (or without a working size), else about that: the first longer side from there
     whose shape keeps the aspect ratio within 0.1 %, the pipeline's working shape
-    (:func:`photo3d.stages.preprocess.working_shape`) of ``shape`` and ``KEEP`` times
+    (:func:`photo3d.config.working_shape`) of ``shape`` and ``KEEP`` times
     its shorter side, at least ``MIN_SIDE`` (``shape`` itself if none below twice
     ``KEEP * working_size`` does: a very elongated photo).
 
@@ -217,12 +218,12 @@ def decoded_shape(shape: tuple[int, int], working_size: int | None) -> tuple[int
     longer = max(h, w)
     if working_size is None or longer <= KEEP * working_size:
         return h, w
-    working = _working_shape(shape, working_size)
+    working = working_shape(shape, working_size)
     for side in range(KEEP * working_size, min(longer, 2 * KEEP * working_size)):
         reduced = max(1, round(h * side / longer)), max(1, round(w * side / longer))
         if (min(reduced) >= max(MIN_SIDE, KEEP * min(working))
                 and abs(math.log(reduced[1] * h / (reduced[0] * w))) <= _ASPECT  # either way up
-                and _working_shape(reduced, working_size) == working):
+                and working_shape(reduced, working_size) == working):
             return reduced
     return h, w
 
@@ -368,14 +369,6 @@ def _lanczos(plane: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
     h, w = shape
     image = Image.fromarray(np.ascontiguousarray(plane, np.float32), mode="F")
     return np.asarray(image.resize((w, h), Image.Resampling.LANCZOS, reducing_gap=_GAP))
-
-
-def _working_shape(shape: tuple[int, int], size: int) -> tuple[int, int]:
-    """:func:`photo3d.stages.preprocess.working_shape`, which this layer cannot import
-    (tests/io/test_images.py checks that they agree)."""
-    h, w = shape
-    s = size / max(h, w)
-    return max(1, round(h * s)), max(1, round(w * s))
 
 
 @contextlib.contextmanager

@@ -7,7 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 from PIL import Image
 
-from photo3d.config import Config
+from photo3d.config import Config, working_shape
 from photo3d.depth.normalize import normalize
 from photo3d.stages.edges import DepthEdges, link_edges
 from photo3d.stages.filters import bilateral_median
@@ -30,20 +30,6 @@ class Preprocessed:
     edges: DepthEdges
     disparity_range: tuple[float, float]
     working_size: int
-
-
-def working_shape(shape: tuple[int, int], size: int | None) -> tuple[int, int]:
-    """``(H, W)`` after resizing the longer side to ``size`` (None keeps the shape).
-
-    Example:
-        >>> working_shape((500, 741), 1024)
-        (691, 1024)
-    """
-    h, w = shape
-    if size is None:
-        return h, w
-    s = size / max(h, w)
-    return max(1, round(h * s)), max(1, round(w * s))
 
 
 def resize(array: np.ndarray, shape: tuple[int, int], *, nearest: bool = False) -> np.ndarray:

@@ -30,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-from photo3d.config import Config
+from photo3d.config import Config, working_shape
 from photo3d.depth.normalize import prepare_depth
 from photo3d.errors import InputError, OutputError
 from photo3d.files.atomic import is_temp_of, write_json
@@ -38,7 +38,7 @@ from photo3d.files.folders import IMAGE_SUFFIXES, depth_by_key, files_in
 from photo3d.io.depth import read_depth
 from photo3d.io.images import read_image
 from photo3d.progress import StageProgress
-from photo3d.stages.preprocess import preprocess, resize, working_shape
+from photo3d.stages.preprocess import preprocess, resize
 from photo3d.train.pairs import RegionPair, extract_region_pairs
 
 KINDS = ("edge", "depth", "color")

@@ -321,7 +321,7 @@ def _upscaled(shape: tuple[int, int], size: int | None) -> list[str]:
         >>> _upscaled((240, 320), 1024)
         ['the photo is 320x240; it is upscaled to a 1024x768 working size (size 0 keeps its size)']
     """
-    from photo3d.stages.preprocess import working_shape
+    from photo3d.config import working_shape
 
     if size is None or max(shape) >= size:
         return []
