@@ -157,12 +157,15 @@ def _fill(img, context, synthesis, r, iterations, em_steps, guide_weight, seed,
                     d = _dist(img, weight, y, x, cy, cx, r, best)
                     if d < best:
                         best, by, bx = d, cy, cx
-                # Random search around the current best.
+                # Random search around the current best. A candidate that is the best
+                # itself cannot beat it: not measured (at radius 1 every candidate is,
+                # at 2 a quarter of them; the same matches, a fifth less PatchMatch).
                 rad = big
                 while rad >= 1:
                     cy = by + int((2.0 * _rand(state) - 1.0) * rad)
                     cx = bx + int((2.0 * _rand(state) - 1.0) * rad)
-                    if 0 <= cy < h and 0 <= cx < w and src[cy, cx]:
+                    if (0 <= cy < h and 0 <= cx < w and src[cy, cx]
+                            and (cy != by or cx != bx)):
                         d = _dist(img, weight, y, x, cy, cx, r, best)
                         if d < best:
                             best, by, bx = d, cy, cx

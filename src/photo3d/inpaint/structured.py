@@ -131,10 +131,10 @@ def texture_weight(color: np.ndarray, context: np.ndarray, synthesis: np.ndarray
     known = context.astype(np.float32)
     grey = np.where(context, color.mean(axis=2), 0.0).astype(np.float32)
 
+    den = np.maximum(gaussian_filter(known, radius, mode="constant"), 1e-6)
+
     def local_mean(values: np.ndarray) -> np.ndarray:
-        num = gaussian_filter(values * known, radius, mode="constant")
-        den = gaussian_filter(known, radius, mode="constant")
-        return num / np.maximum(den, 1e-6)
+        return gaussian_filter(values * known, radius, mode="constant") / den
 
     detail = np.sqrt(np.maximum(local_mean((grey - local_mean(grey)) ** 2), 0.0))
     carried = diffuse(detail[..., None].astype(np.float32), context, synthesis)[..., 0]
