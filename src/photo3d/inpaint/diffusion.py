@@ -255,14 +255,15 @@ def diffuse_coarse(values: np.ndarray, context: np.ndarray, synthesis: np.ndarra
     rows, cols = (h + 1) // 2, (w + 1) // 2
     pad = ((0, 2 * rows - h), (0, 2 * cols - w))
 
-    def blocks(a: np.ndarray) -> np.ndarray:
-        return np.pad(a, pad).reshape(rows, 2, cols, 2)
+    def blocks(a: np.ndarray) -> np.ndarray:  # the sum of each 2x2 block (slices:
+        a = np.pad(a, pad)                    # a third of a reduction's time)
+        return a[0::2, 0::2] + a[1::2, 0::2] + a[0::2, 1::2] + a[1::2, 1::2]
 
-    known = blocks(context).sum(axis=(1, 3))
-    total = blocks(np.where(context, values, 0).astype(np.float32)).sum(axis=(1, 3))
+    known = blocks(context.view(np.uint8))
+    total = blocks(np.where(context, values, 0).astype(np.float32))
     coarse_context = known > 0
     coarse = (total / np.maximum(known, 1))[..., None].astype(np.float32)
-    coarse_synthesis = blocks(synthesis).any(axis=(1, 3)) & ~coarse_context
+    coarse_synthesis = blocks(synthesis) & ~coarse_context
     filled = diffuse(coarse, coarse_context, coarse_synthesis, iterations=iterations,
                      tolerance=tolerance)[..., 0]
     up = np.repeat(np.repeat(filled, 2, axis=0), 2, axis=1)[:h, :w]
