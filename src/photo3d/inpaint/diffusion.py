@@ -226,8 +226,8 @@ def diffuse(
 def diffuse_coarse(values: np.ndarray, context: np.ndarray, synthesis: np.ndarray, *,
                    iterations: int = 300, tolerance: float = 1e-3) -> np.ndarray:
     """:func:`diffuse` on a grid half as fine, for a smooth field whose fine detail
-    does not matter (the texture weight's carried detail): a quarter of the pixels
-    and about a fifth of the sweeps.
+    does not matter (the texture weight's carried detail): a quarter of the pixels,
+    about a fifth of the sweeps' work.
 
     A 2x2 block holding context pixels is known, at their mean; a block holding only
     synthesis pixels (and pixels of neither) is filled; every synthesis pixel takes

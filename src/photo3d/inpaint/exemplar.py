@@ -161,7 +161,7 @@ def _fill(img, context, synthesis, r, iterations, em_steps, guide_weight, seed,
                         best, by, bx = d, cy, cx
                 # Random search around the current best. A candidate that is the best
                 # itself cannot beat it: not measured (at radius 1 every candidate is,
-                # at 2 a quarter of them; the same matches, a fifth less PatchMatch).
+                # at 2 a quarter of them; the same matches, about 15 % less PatchMatch).
                 rad = big
                 while rad >= 1:
                     cy = by + int((2.0 * _rand(state) - 1.0) * rad)
