@@ -237,12 +237,14 @@ def diffuse_coarse(values: np.ndarray, context: np.ndarray, synthesis: np.ndarra
     instead of 42.
 
     Args:
-        values: ``(h, w) float32``; only values under ``context`` are read.
+        values: ``(h, w)`` or ``(h, w, c) float32``; only values under ``context``
+            are read.
         context, synthesis: ``(h, w) bool``, disjoint.
         iterations, tolerance: :func:`diffuse`'s, on the coarse grid.
 
     Returns:
-        ``(h, w) float32``: the context as given, the synthesis filled, zero elsewhere.
+        float32, shaped as ``values``: the context as given, the synthesis filled,
+        zero elsewhere.
 
     Example:
         >>> v = np.zeros((4, 16), np.float32); v[:, :2] = 1.0
@@ -251,23 +253,26 @@ def diffuse_coarse(values: np.ndarray, context: np.ndarray, synthesis: np.ndarra
         >>> [round(float(x), 2) for x in out[0, ::2]]  # one value per 2x2 block
         [1.0, 0.86, 0.71, 0.57, 0.43, 0.29, 0.14, 0.0]
     """
+    flat = values.ndim == 2
+    values = values[..., None] if flat else values
     h, w = context.shape
     rows, cols = (h + 1) // 2, (w + 1) // 2
-    pad = ((0, 2 * rows - h), (0, 2 * cols - w))
 
     def blocks(a: np.ndarray) -> np.ndarray:  # the sum of each 2x2 block (slices:
+        pad = ((0, 2 * rows - h), (0, 2 * cols - w)) + ((0, 0),) * (a.ndim - 2)
         a = np.pad(a, pad)                    # a third of a reduction's time)
         return a[0::2, 0::2] + a[1::2, 0::2] + a[0::2, 1::2] + a[1::2, 1::2]
 
     known = blocks(context.view(np.uint8))
-    total = blocks(np.where(context, values, 0).astype(np.float32))
+    total = blocks(np.where(context[..., None], values, 0).astype(np.float32))
     coarse_context = known > 0
-    coarse = (total / np.maximum(known, 1))[..., None].astype(np.float32)
+    coarse = (total / np.maximum(known, 1)[..., None]).astype(np.float32)
     coarse_synthesis = blocks(synthesis) & ~coarse_context
     filled = diffuse(coarse, coarse_context, coarse_synthesis, iterations=iterations,
-                     tolerance=tolerance)[..., 0]
+                     tolerance=tolerance)
     up = np.repeat(np.repeat(filled, 2, axis=0), 2, axis=1)[:h, :w]
-    return np.where(context, values, np.where(synthesis, up, 0)).astype(np.float32)
+    out = np.where(context[..., None], values, np.where(synthesis[..., None], up, 0))
+    return out[..., 0].astype(np.float32) if flat else out.astype(np.float32)
 
 
 @dataclass(frozen=True)
