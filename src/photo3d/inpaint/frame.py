@@ -7,8 +7,9 @@ the photo's look: its first guess is diffusion from the photo's outer band (the 
 frequencies, which keep colours right; solved on a grid half as fine,
 :func:`~photo3d.inpaint.diffusion.diffuse_coarse`: 0.24 s less CPU for the sample's
 frame) plus the photo's own fine detail mirrored at the frame (a texture of the right
-scale and orientation that continues across the edge), and exemplar synthesis (PatchMatch, :mod:`photo3d.inpaint.exemplar`) then
-rebuilds every frame pixel from real patches of the outer band that match that guess.
+scale and orientation that continues across the edge), and exemplar synthesis
+(PatchMatch, :mod:`photo3d.inpaint.exemplar`) then rebuilds every frame pixel from
+real patches of the outer band that match that guess.
 
 Measured on real photos (``docs/fills.md``): lower LPIPS than replication, diffusion
 and the ``structured`` backend on the frame, PSNR above replication's.
