@@ -24,13 +24,13 @@ from __future__ import annotations
 
 import os
 from collections.abc import Mapping, Sequence
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import ThreadPoolExecutor, as_completed
 from dataclasses import dataclass, fields, replace
 
 import numpy as np
 
 from photo3d.inpaint.continuation import continue_edges
-from photo3d.inpaint.diffusion import diffuse, diffuse_in_place
+from photo3d.inpaint.diffusion import diffuse_coarse, diffuse_in_place
 from photo3d.inpaint.exemplar import exemplar_fill
 from photo3d.progress import CountProgress
 from photo3d.structures.patch import InpaintResult, Patch
@@ -131,13 +131,13 @@ def texture_weight(color: np.ndarray, context: np.ndarray, synthesis: np.ndarray
     known = context.astype(np.float32)
     grey = np.where(context, color.mean(axis=2), 0.0).astype(np.float32)
 
+    den = np.maximum(gaussian_filter(known, radius, mode="constant"), 1e-6)
+
     def local_mean(values: np.ndarray) -> np.ndarray:
-        num = gaussian_filter(values * known, radius, mode="constant")
-        den = gaussian_filter(known, radius, mode="constant")
-        return num / np.maximum(den, 1e-6)
+        return gaussian_filter(values * known, radius, mode="constant") / den
 
     detail = np.sqrt(np.maximum(local_mean((grey - local_mean(grey)) ** 2), 0.0))
-    carried = diffuse(detail[..., None].astype(np.float32), context, synthesis)[..., 0]
+    carried = diffuse_coarse(detail.astype(np.float32), context, synthesis)
     span = max(textured - smooth, 1e-6)
     return np.clip((carried - smooth) / span, 0.0, 1.0).astype(np.float32)
 
@@ -273,11 +273,15 @@ class StructuredInpainter:
             tex = exemplar_fill(color, context, p.synthesis, radius=self.radius(p.scale),
                                 **self.exemplar)
             amount = np.float32(o.texture)
+            # tex is color outside the synthesis region: blended in its bounding box
+            rows = np.flatnonzero(p.synthesis.any(axis=1))
+            cols = np.flatnonzero(p.synthesis.any(axis=0))
+            box = np.s_[rows[0]:rows[-1] + 1, cols[0]:cols[-1] + 1] if rows.size else np.s_[:0]
             if o.textured > 0:  # per pixel: texture only where the context has detail
                 amount = amount * texture_weight(p.color, context, p.synthesis,
                                                  smooth=o.smooth,
-                                                 textured=o.textured)[..., None]
-            color = color + amount * (tex - color)
+                                                 textured=o.textured)[box][..., None]
+            color[box] += amount * (tex[box] - color[box])
         return InpaintResult(color=np.clip(color, 0.0, 1.0), disparity=out[..., 3],
                              edges=lines.astype(np.float32))
 
@@ -285,12 +289,17 @@ class StructuredInpainter:
         self, patches: Sequence[Patch], *, progress: CountProgress | None = None,
         pass_index: int = 0,
     ) -> list[InpaintResult]:
-        """Fill every patch's synthesis region (every pass alike)."""
-        results = []
+        """Fill every patch's synthesis region (every pass alike). The largest
+        synthesis regions are started first, so no thread is left with a large patch
+        at the end of the pass while the others wait; the results are in order."""
+        order = sorted(range(len(patches)),
+                       key=lambda i: -int(np.count_nonzero(patches[i].synthesis)))
         with ThreadPoolExecutor(max_workers=self.workers) as pool:
-            for i, result in enumerate(pool.map(self.fill, patches)):
-                results.append(result)
+            futures = {pool.submit(self.fill, patches[i]): i for i in order}
+            results: list[InpaintResult | None] = [None] * len(patches)
+            for done, future in enumerate(as_completed(futures), 1):
+                results[futures[future]] = future.result()
                 if progress is not None:
-                    progress(i + 1, len(patches))
+                    progress(done, len(patches))
         return results
 
