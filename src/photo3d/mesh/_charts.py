@@ -171,7 +171,7 @@ def chart_vertices(faces, chart, n_pixels):
     vchart = np.empty(n_pixels + len(keys), np.int64)
     corners = np.empty(faces.shape, np.int64)
     n_v = _chart_corners(faces, chart, first, keys, span, vid, pixel, vchart, corners)
-    return corners, pixel[:n_v], vchart[:n_v]
+    return corners, pixel[:n_v].copy(), vchart[:n_v].copy()  # not views: free the rest
 
 
 @njit(cache=True, nogil=True)

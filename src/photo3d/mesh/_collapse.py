@@ -53,11 +53,12 @@ def collapse_part(points, faces, leader, lock, limit, drift):
     remap = np.empty(n_all, np.int32)
     tri = np.empty(faces.shape, np.int32)  # int32 inside: half the memory traffic
     n = _number(faces, leader, local, first, used, remap, tri)
-    used = used[:n]
+    del local, first  # (N,) each: freed before the passes
+    used, remap = used[:n].copy(), remap[:n].copy()
     p = points[used]
     m = 3 * len(tri)  # half-edges, at most as many candidate collapses
     err = np.empty(m, np.float32)
-    n_tri = _collapse(p, tri, remap[:n], lock[used], limit, drift,
+    n_tri = _collapse(p, tri, remap, lock[used], limit, drift,
                       np.sqrt(np.maximum(p[:, 2], 0.0)), np.zeros((n, 11)),
                       np.empty((6, n), np.int32), np.empty(n, np.uint8),
                       np.empty(n, np.bool_), np.empty((2, n + 1), np.int64),
