@@ -83,7 +83,6 @@ def _whole(cnt, k, y0, x0, b, cols):
     return True
 
 
-@njit(cache=True, nogil=True)
 def planar_blocks(cnt, images, value, rows, cols, eps, big, small):
     """Quadtree of blocks (sides ``big`` .. ``small``, powers of two) whose quads are
     whole and whose ``value`` is planar within ``eps``.
@@ -92,20 +91,34 @@ def planar_blocks(cnt, images, value, rows, cols, eps, big, small):
         ``(B, 4) int64`` rows ``(layer image, y0, x0, side)``; ``cnt`` is set to 255
         at every quad of a block.
     """
-    out = []
+    # here, not in the kernel: each allocation (and a list) in a kernel compiles
+    out = np.empty((int(np.count_nonzero(cnt == 2)) // (small * small) + 1, 4), np.int64)
+    stack = np.empty((4 * int(np.log2(max(big // small, 1)) + 1) + 1, 3), np.int64)
+    n = _planar_blocks(cnt, images, value, rows, cols, eps, big, small, out, stack)
+    return out[:n].copy()
+
+
+@njit(cache=True, nogil=True)
+def _planar_blocks(cnt, images, value, rows, cols, eps, big, small, out, stack):
+    """:func:`planar_blocks` into ``out``'s first rows (returns how many); ``stack``:
+    scratch (a depth-first walk holds at most 3 rows per level and one)."""
+    n = 0
     for k in range(images.shape[0]):
         for by in range(0, rows - 1, big):
             for bx in range(0, cols - 1, big):
-                stack = [(by, bx, big)]
-                while len(stack):
-                    y0, x0, b = stack.pop()
+                stack[0, 0], stack[0, 1], stack[0, 2] = by, bx, big
+                top = 1
+                while top:
+                    top -= 1
+                    y0, x0, b = stack[top, 0], stack[top, 1], stack[top, 2]
                     if y0 + b > rows - 1 or x0 + b > cols - 1 or not _whole(cnt, k, y0, x0,
                                                                             b, cols):
                         ok = False
                     else:
                         ok = _planar(images, k, value, y0, x0, b, cols, eps)
                     if ok:
-                        out.append((k, y0, x0, b))
+                        out[n, 0], out[n, 1], out[n, 2], out[n, 3] = k, y0, x0, b
+                        n += 1
                         for y in range(y0, y0 + b):
                             for x in range(x0, x0 + b):
                                 cnt[k, y * cols + x] = 255
@@ -114,11 +127,11 @@ def planar_blocks(cnt, images, value, rows, cols, eps, big, small):
                         for dy in (0, h):
                             for dx in (0, h):
                                 if y0 + dy < rows - 1 and x0 + dx < cols - 1:
-                                    stack.append((y0 + dy, x0 + dx, h))
-    result = np.empty((len(out), 4), np.int64)
-    for i in range(len(out)):
-        result[i, 0], result[i, 1], result[i, 2], result[i, 3] = out[i]
-    return result
+                                    stack[top, 0] = y0 + dy
+                                    stack[top, 1] = x0 + dx
+                                    stack[top, 2] = h
+                                    top += 1
+    return n
 
 
 def merged_faces(faces, face_layer, py, px, cnt, cols, blocks, images, sign):
@@ -206,8 +219,8 @@ def _merged_faces(faces, face_layer, py, px, cnt, cols, blocks, images, sign, ke
 
 KERNELS = (
     (_quad_counts, "(int32[:, ::1], int64[::1], int64[::1], int64[::1], int64, uint8[:, ::1])"),
-    (planar_blocks, "(uint8[:, ::1], int32[:, ::1], float64[::1], int64, int64, float64, int64, "
-                    "int64)"),
+    (_planar_blocks, "(uint8[:, ::1], int32[:, ::1], float64[::1], int64, int64, float64, "
+                     "int64, int64, int64[:, ::1], int64[:, ::1])"),
     (_merged_faces, "(int32[:, ::1], int64[::1], int64[::1], int64[::1], uint8[:, ::1], int64, "
                     "int64[:, ::1], int32[:, ::1], int64, boolean[::1], boolean[::1], "
                     "int64[:, ::1], int64[::1])"),
