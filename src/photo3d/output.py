@@ -158,8 +158,7 @@ def _write_photo(photo: SavedPhoto, tmp: Path, *, title: str, options: SaveOptio
 
     The meshes are built in this thread; the files are written by two writer threads
     as soon as what they hold is ready (``photo3d.npz`` first, its deflate and the
-    writes release the GIL), so writing overlaps building the light mesh, and
-    ``mesh.glb`` and ``viewer.html`` are written side by side. The
+    writes release the GIL), so writing overlaps building the light mesh. The
     ``exports`` are written by the same threads, from the meshes built here, before
     the folder is committed: a failed export leaves no folder."""
     meta = photo_meta(photo, options)
@@ -272,10 +271,10 @@ def _write_meshes(photo: SavedPhoto, tmp: Path, pool: ThreadPoolExecutor, jobs: 
         light = build_light_mesh(photo.ldi, full=mesh, max_error=light_error(options))
     if glb and not full_glb:
         jobs.append(pool.submit(write_textured_glb, tmp / "mesh.glb", light))
-    if viewer:  # beside mesh.glb: their JPEG encoders and deflate release the GIL
+    if viewer:  # here: on a writer thread beside mesh.glb, the save took 0.15 s longer
         from photo3d.viewer import write_viewer
 
-        jobs.append(pool.submit(write_viewer, light, tmp / "viewer.html", title=title))
+        write_viewer(light, tmp / "viewer.html", title=title)
     return mesh, light
 
 
