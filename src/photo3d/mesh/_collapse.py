@@ -18,19 +18,15 @@ _CAN_COLLAPSE = np.array([[1, 1, 1, 1], [0, 1, 0, 1], [0, 0, 1, 1], [0, 0, 0, 0]
 _HAS_OPPOSITE = np.array([[1, 1, 1, 1], [1, 0, 1, 0], [1, 1, 1, 1], [1, 0, 1, 0]], np.uint8)
 _BORDER_WEIGHT = 10.0  # border edges keep their place; seams move more freely (1)
 _MAX_PASSES = 200
-_BINS = 2560  # of the counting sort of the candidates' errors (their top 12 bits)
 
 
+@njit(cache=True, nogil=True)
 def collapse_part(points, faces, leader, lock, limit, drift):
     """The faces of one strip simplified: its vertices numbered apart (so the passes
-    touch only them, :func:`_number`), then :func:`_collapse`.
-
-    Every array the kernels use is allocated here, not in them: numba compiles each
-    ``np.empty`` / ``np.zeros`` / ``np.full`` variant (dtype, shape type) of a kernel
-    apart, about 0.05 s of CPU each on the first run.
+    touch only them), then :func:`_collapse`.
 
     Args:
-        points: ``(N, 3) float64`` every vertex of the mesh.
+        points: ``(N, 3) float32`` every vertex of the mesh.
         faces: ``(F, 3) int64`` the strip's faces.
         leader: ``(N,) int64`` the first vertex at each vertex's place (seams).
         lock: ``(N,) bool`` vertices that must stay.
@@ -39,75 +35,52 @@ def collapse_part(points, faces, leader, lock, limit, drift):
 
     Returns:
         ``(F', 3) int64`` the simplified faces, in global vertex numbers.
-
-    Example:
-        >>> points = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]], np.float64)
-        >>> faces = np.array([[0, 2, 1], [1, 2, 3]])
-        >>> collapse_part(points, faces, np.arange(4), np.zeros(4, bool), 0.01, 0.0).shape
-        (2, 3)
     """
-    n_all = len(points)
-    local = np.full(n_all, -1, np.int64)
-    first = np.full(n_all, -1, np.int64)
-    used = np.empty(n_all, np.int64)
-    remap = np.empty(n_all, np.int32)
-    tri = np.empty(faces.shape, np.int32)  # int32 inside: half the memory traffic
-    n = _number(faces, leader, local, first, used, remap, tri)
-    del local, first  # (N,) each: freed before the passes
-    used, remap = used[:n].copy(), remap[:n].copy()
-    p = points[used]
-    m = 3 * len(tri)  # half-edges, at most as many candidate collapses
-    err = np.empty(m, np.float32)
-    n_tri = _collapse(p, tri, remap, lock[used], limit, drift,
-                      np.sqrt(np.maximum(p[:, 2], 0.0)), np.zeros((n, 11)),
-                      np.empty((6, n), np.int32), np.empty(n, np.uint8),
-                      np.empty(n, np.bool_), np.empty((2, n + 1), np.int64),
-                      np.empty((m, 2), np.int32), np.empty((3, m), np.int32), err,
-                      err.view(np.uint32), np.empty(m, np.int64),
-                      np.empty(_BINS + 1, np.int64))
-    return used[tri[:n_tri]]
-
-
-@njit(cache=True, nogil=True)
-def _number(faces, leader, local, first, used, remap, tri):
-    """Number the vertices of ``faces`` apart, in increasing order: ``used[:n]`` the
-    global vertex of each local one, ``tri`` the faces in local numbers, ``remap[:n]``
-    the first local vertex at each one's place (local order is global order).
-    ``local`` and ``first`` ``(N,)`` are -1 on entry. Returns ``n``."""
+    mark = np.zeros(len(points), np.bool_)
     for f in range(len(faces)):
         for c in range(3):
-            local[faces[f, c]] = 0
+            mark[faces[f, c]] = True
+    local = np.full(len(points), -1, np.int64)
+    used = np.empty(len(points), np.int64)
     n = 0
-    for v in range(len(local)):  # the faces' vertices in increasing order
-        if local[v] == 0:
+    for v in range(len(points)):  # the faces' vertices in increasing order
+        if mark[v]:
             local[v] = n
             used[n] = v
             n += 1
+    used = used[:n]
+    tri = np.empty(faces.shape, np.int32)  # int32 inside: half the memory traffic
     for f in range(len(faces)):
         for c in range(3):
             tri[f, c] = local[faces[f, c]]
+    # position leader: the first local vertex of each place (local order is global order)
+    first = np.full(len(points), -1, np.int64)
+    remap = np.empty(n, np.int32)
     for i in range(n):
         g = leader[used[i]]
         if first[g] < 0:
             first[g] = i
         remap[i] = first[g]
-    return n
+    out = _collapse(points[used], tri, remap, lock[used], limit, drift)
+    result = np.empty(out.shape, np.int64)
+    for f in range(len(out)):
+        for c in range(3):
+            result[f, c] = used[out[f, c]]
+    return result
 
 
 @njit(cache=True, nogil=True)
-def _adjacency(tri, n_tri, remap, offsets, fill, ends):
+def _adjacency(tri, n_tri, remap, offsets, ends):
     """Fill the half-edges of ``tri[:n_tri]`` by start vertex (``remap``-ed):
     ``offsets (n + 1,)`` into ``ends (>= 3 n_tri, 2) int32``, each half-edge's end and
-    its triangle's third vertex (``fill (n + 1,)``: scratch)."""
-    for v in range(len(offsets)):
-        offsets[v] = 0
+    its triangle's third vertex."""
+    offsets[:] = 0
     for t in range(n_tri):
         for k in range(3):
             offsets[remap[tri[t, k]] + 1] += 1
     for v in range(len(offsets) - 1):
         offsets[v + 1] += offsets[v]
-    for v in range(len(offsets) - 1):
-        fill[v] = offsets[v]
+    fill = offsets[:-1].copy()
     for t in range(n_tri):
         for k in range(3):
             v = remap[tri[t, k]]
@@ -118,15 +91,14 @@ def _adjacency(tri, n_tri, remap, offsets, fill, ends):
 
 
 @njit(cache=True, nogil=True)
-def _classify(tri, n, remap, wedge, lock, kind, loop, loopback, ident, offsets, fill,
-              ends):
-    """Fill ``kind (n,) uint8``, each vertex's kind, and ``loop``, ``loopback (n,)``:
-    for border and seam vertices, the next and previous vertex along its open loop
-    (``ident``, ``offsets``, ``fill``, ``ends``: scratch)."""
-    for v in range(n):
-        ident[v] = v
-        loop[v] = loopback[v] = -1  # open out-edge's end; the vertex itself: several
-    _adjacency(tri, len(tri), ident, offsets, fill, ends)
+def _classify(tri, n, remap, wedge, lock):
+    """``(kind (n,) uint8, loop (n,), loopback (n,))``: each vertex's kind and, for
+    border and seam vertices, the next and previous vertex along its open loop."""
+    offsets = np.empty(n + 1, np.int64)
+    ends = np.empty((3 * len(tri), 2), np.int32)
+    _adjacency(tri, len(tri), np.arange(n).astype(np.int32), offsets, ends)
+    loop = np.full(n, -1, np.int32)  # open out-edge's end; the vertex itself: several
+    loopback = np.full(n, -1, np.int32)
     for v in range(n):
         for j in range(offsets[v], offsets[v + 1]):
             t = ends[j, 0]
@@ -141,6 +113,7 @@ def _classify(tri, n, remap, wedge, lock, kind, loop, loopback, ident, offsets, 
             if not closed:
                 loopback[t] = v if loopback[t] == -1 else t
                 loop[v] = t if loop[v] == -1 else v
+    kind = np.empty(n, np.uint8)
     for i in range(n):
         if remap[i] != i:
             kind[i] = kind[remap[i]]
@@ -165,6 +138,7 @@ def _classify(tri, n, remap, wedge, lock, kind, loop, loopback, ident, offsets, 
             kind[remap[i]] = _LOCKED
     for i in range(n):
         kind[i] = kind[remap[i]]
+    return kind, loop, loopback
 
 
 @njit(cache=True, nogil=True)
@@ -203,9 +177,10 @@ def _cross(p, a, b, c):
 
 
 @njit(cache=True, nogil=True)
-def _quadrics(p, tri, remap, kind, loop, loopback, q):
-    """Add to ``q (n, 11) float64`` (zeros) the quadric of each place (at its leader):
-    its triangles' planes, and the perpendicular planes of its border and seam edges."""
+def _quadrics(p, tri, remap, kind, loop, loopback):
+    """``(n, 11) float64`` quadric of each place (at its leader): its triangles'
+    planes, and the perpendicular planes of its border and seam edges."""
+    q = np.zeros((len(p), 11))
     for t in range(len(tri)):
         a = tri[t, 0]
         nx, ny, nz = _cross(p, a, tri[t, 1], tri[t, 2])
@@ -238,6 +213,7 @@ def _quadrics(p, tri, remap, kind, loop, loopback, q):
             w = np.sqrt(lsq) * (_BORDER_WEIGHT if k0 == _BORDER or k1 == _BORDER else 1.0)
             _add_plane(q, remap[i0], nx, ny, nz, d, w)
             _add_plane(q, remap[i1], nx, ny, nz, d, w)
+    return q
 
 
 @njit(cache=True, nogil=True)
@@ -275,21 +251,23 @@ def _drifts(p, root, a, b, drift):
 
 
 @njit(cache=True, nogil=True)
-def _order(bits, m, key, hist, order):
-    """Fill ``order[:m]`` with the indices sorting the errors ``>= 0`` whose float32
-    bits are ``bits[:m] uint32`` by their top 12 bits (counting sort, stable, as
-    meshoptimizer's; ``key (>= m,) int64`` and ``hist (> 2560,) int64``: scratch)."""
-    bins = _BINS
-    for b in range(bins + 1):
-        hist[b] = 0
-    for i in range(m):
+def _order(err):
+    """Indices sorting ``err (M,) float32 >= 0`` by its top 12 bits (counting sort,
+    stable, as meshoptimizer's)."""
+    bins = 2560
+    key = np.empty(len(err), np.int64)
+    bits = err.view(np.uint32)
+    hist = np.zeros(bins + 1, np.int64)
+    for i in range(len(err)):
         key[i] = min((np.int64(bits[i]) & 0x7FFFFFFF) >> 19, bins - 1)
         hist[key[i] + 1] += 1
     for b in range(bins):
         hist[b + 1] += hist[b]
-    for i in range(m):
+    order = np.empty(len(err), np.int32)
+    for i in range(len(err)):
         order[hist[key[i]]] = i
         hist[key[i]] += 1
+    return order
 
 
 @njit(cache=True, nogil=True)
@@ -325,13 +303,13 @@ def _pick(p, tri, n_tri, remap, kind, loop, loopback, q, c0, c1, err):
 
 
 @njit(cache=True, nogil=True)
-def _perform(p, root, c0, c1, err, order, m, n_tri, remap, wedge, kind, loop, loopback,
+def _perform(p, root, c0, c1, err, m, n_tri, remap, wedge, kind, loop, loopback,
              offsets, ends, moved, dest, touched, limit, drift, worst):
-    """Carry out the cheapest of the ``m`` candidates (``order``: by error,
-    :func:`_order`), at most one per place, none that spoils a triangle
-    (:func:`_spoils`), paced as meshoptimizer's passes: ``moved[v]`` is where vertex
-    ``v`` goes, ``dest[r]`` where place ``r`` goes. Returns ``(collapses, worst)``, the
-    largest error so far."""
+    """Carry out the cheapest of the ``m`` candidates, at most one per place, none
+    that spoils a triangle (:func:`_spoils`), paced as meshoptimizer's passes:
+    ``moved[v]`` is where vertex ``v`` goes, ``dest[r]`` where place ``r`` goes.
+    Returns ``(collapses, worst)``, the largest error so far."""
+    order = _order(err[:m])
     goal = n_tri // 2  # collapses wanted; the pace is 1.5 x the goal-th error
     removed = done = 0
     for o in range(m):
@@ -390,10 +368,8 @@ def _apply(tri, n_tri, moved, remap, q, loop, loopback):
 
 
 @njit(cache=True, nogil=True)
-def _collapse(p, tri, remap, lock, limit, drift, root, q, vert, kind, touched, offsets,
-              ends, cand, err, bits, key, hist):
-    """Simplify ``tri`` in place (see the module docstring); returns how many of its
-    first rows are the result.
+def _collapse(p, tri, remap, lock, limit, drift):
+    """``(F', 3) int32`` ``tri`` simplified (see the module docstring).
 
     Args:
         p: ``(n, 3) float64`` positions.
@@ -403,28 +379,27 @@ def _collapse(p, tri, remap, lock, limit, drift, root, q, vert, kind, touched, o
         limit: the bound on a collapse's quadric error (squared distance).
         drift: the bound on the texture drift along new edges (:func:`_drifts`); 0:
             none.
-        root: ``(n,) float64`` square roots of ``p[:, 2]`` (0 where negative).
-        q: ``(n, 11) float64`` zeros (the quadrics).
-        vert, kind, touched, offsets, ends, cand, err, bits, key, hist: scratch,
-            ``(6, n) int32``, ``(n,) uint8``, ``(n,) bool``, ``(2, n + 1) int64``,
-            ``(3 F, 2) int32``, ``(3, 3 F) int32``, ``(3 F,) float32``, the same
-            memory as ``uint32``, ``(3 F,) int64``, ``(2561,) int64``.
     """
     n = len(p)
-    wedge, loop, loopback = vert[0], vert[1], vert[2]
-    moved, dest, ident = vert[3], vert[4], vert[5]
-    c0, c1, order = cand[0], cand[1], cand[2]
-    for i in range(n):  # a cycle through the vertices at each place
-        wedge[i] = i
+    wedge = np.arange(n).astype(np.int32)  # a cycle through the vertices at each place
     for i in range(n):
         r = remap[i]
         if r != i:
             wedge[i] = wedge[r]
             wedge[r] = i
-    _classify(tri, n, remap, wedge, lock, kind, loop, loopback, ident, offsets[0],
-              offsets[1], ends)
-    _quadrics(p, tri, remap, kind, loop, loopback, q)
+    kind, loop, loopback = _classify(tri, n, remap, wedge, lock)
+    q = _quadrics(p, tri, remap, kind, loop, loopback)
+    root = np.sqrt(np.maximum(p[:, 2], 0.0))
+    tri = tri.copy()
     n_tri = len(tri)
+    moved = np.empty(n, np.int32)
+    dest = np.empty(n, np.int32)
+    touched = np.empty(n, np.bool_)
+    offsets = np.empty(n + 1, np.int64)
+    ends = np.empty((3 * n_tri, 2), np.int32)
+    c0 = np.empty(3 * n_tri, np.int32)
+    c1 = np.empty(3 * n_tri, np.int32)
+    err = np.empty(3 * n_tri, np.float32)
     worst = 0.0  # the largest error accepted so far
     for _ in range(_MAX_PASSES):
         m = _pick(p, tri, n_tri, remap, kind, loop, loopback, q, c0, c1, err)
@@ -433,11 +408,10 @@ def _collapse(p, tri, remap, lock, limit, drift, root, q, vert, kind, touched, o
         for i in range(n):
             moved[i] = dest[i] = i
             touched[i] = False
-        _adjacency(tri, n_tri, remap, offsets[0], offsets[1], ends)
-        _order(bits, m, key, hist, order)
-        done, worst = _perform(p, root, c0, c1, err, order, m, n_tri, remap, wedge, kind,
-                               loop, loopback, offsets[0], ends, moved, dest, touched, limit,
-                               drift, worst)
+        _adjacency(tri, n_tri, remap, offsets, ends)
+        done, worst = _perform(p, root, c0, c1, err, m, n_tri, remap, wedge, kind, loop,
+                               loopback, offsets, ends, moved, dest, touched, limit, drift,
+                               worst)
         if done == 0:
             break
         n_tri = _apply(tri, n_tri, moved, remap, q, loop, loopback)
@@ -449,17 +423,11 @@ def _collapse(p, tri, remap, lock, limit, drift, root, q, vert, kind, touched, o
         if a != b and a != c and b != c:
             tri[w, 0], tri[w, 1], tri[w, 2] = tri[t, 0], tri[t, 1], tri[t, 2]
             w += 1
-    return w
+    return tri[:w].copy()
 
 
-KERNELS = (
-    (_number, "(int64[:, ::1], int64[::1], int64[::1], int64[::1], int64[::1], int32[::1], "
-              "int32[:, ::1])"),
-    (_collapse, "(float64[:, ::1], int32[:, ::1], int32[::1], boolean[::1], float64, float64, "
-                "float64[::1], float64[:, ::1], int32[:, ::1], uint8[::1], boolean[::1], "
-                "int64[:, ::1], int32[:, ::1], int32[:, ::1], float32[::1], uint32[::1], "
-                "int64[::1], int64[::1])"),
-)
+KERNELS = ((collapse_part, "(float64[:, ::1], int64[:, ::1], int64[::1], boolean[::1], float64, "
+                           "float64)"),)
 """The kernels ``make`` runs here and the argument types it gives them, compiled ahead
 by :func:`photo3d.kernels.compile_kernels` (``tests/test_kernels.py`` checks ``make``
 gives no others)."""
