@@ -6,9 +6,9 @@ import numpy as np
 from numba import njit
 
 
-@njit(cache=True, nogil=True)
 def claim_faces(faces, pos, rank, images, n_layers):
-    """Give every leftover face a layer image holding its three pixels.
+    """Give every leftover face a layer image holding its three pixels
+    (:func:`_claim_faces`).
 
     Args:
         faces: ``(F, 3) int64`` pixel indices.
@@ -22,8 +22,30 @@ def claim_faces(faces, pos, rank, images, n_layers):
     Returns:
         ``(layer (F,) int64, n_layers)``; a face whose pixels fit no layer gets a
         new one.
+
+    Raises:
+        ValueError: ``images`` has no room for a new layer a face needs.
+
+    Example:
+        >>> images = np.full((2, 3), -1, np.int32)
+        >>> images[0] = [0, 1, 2]
+        >>> faces = np.array([[0, 1, 3]], np.int32)
+        >>> pos, rank = np.array([0, 1, 2, 2]), np.array([0, 0, 0, 1])
+        >>> layer, n = claim_faces(faces, pos, rank, images, 1)
+        >>> layer.tolist(), n, images[1].tolist()
+        ([1], 2, [0, 1, 3])
     """
-    layer = np.empty(len(faces), np.int64)
+    layer = np.empty(len(faces), np.int64)  # here: each allocation in a kernel compiles
+    n_layers = _claim_faces(faces, pos, rank, images, n_layers, layer)
+    if n_layers < 0:
+        raise ValueError("no free layer image for a face")
+    return layer, n_layers
+
+
+@njit(cache=True, nogil=True)
+def _claim_faces(faces, pos, rank, images, n_layers, layer):
+    """:func:`claim_faces` into ``layer (F,) int64``; returns ``n_layers``, -1 if a face
+    found no room."""
     for f in range(len(faces)):
         first = max(rank[faces[f, 0]], rank[faces[f, 1]], rank[faces[f, 2]])
         chosen = -1
@@ -41,26 +63,38 @@ def claim_faces(faces, pos, rank, images, n_layers):
                 chosen = k
                 break
         if chosen < 0:
-            raise ValueError("no free layer image for a face")
+            return -1
         if chosen == n_layers:
             n_layers += 1
         for c in range(3):
             images[chosen, pos[faces[f, c]]] = faces[f, c]
         layer[f] = chosen
-    return layer, n_layers
+    return n_layers
+
+
+def fill_charts(src, colors):
+    """``(C, S, S, 3) uint8`` chart texels from pixel indices ``src (C, S, S) int32``
+    (-1: none) and ``colors (N, 3) uint8``: holes take the mean of their known
+    8-neighbours, twice (each round from the previous one), then the chart's mean.
+
+    Example:
+        >>> src = np.array([[[0, -1], [-1, -1]]], np.int32)
+        >>> fill_charts(src, np.array([[10, 20, 30]], np.uint8))[0, 1, 1].tolist()
+        [10, 20, 30]
+    """
+    s = src.shape[1]
+    out = np.empty((*src.shape, 3), np.uint8)  # here: each allocation in a kernel compiles
+    _fill_charts(src, colors, out, np.empty((2, s, s, 3)), np.empty((2, s, s), np.bool_))
+    return out
 
 
 @njit(cache=True, nogil=True)
-def fill_charts(src, colors):
-    """``(C, S, S, 3) uint8`` chart texels from pixel indices ``src (C, S, S)`` (-1:
-    none) and ``colors (N, 3) uint8``: holes take the mean of their known
-    8-neighbours, twice (each round from the previous one), then the chart's mean."""
+def _fill_charts(src, colors, out, values, flags):
+    """:func:`fill_charts` into ``out``; ``values (2, S, S, 3) float64`` and ``flags
+    (2, S, S) bool``: scratch."""
     n, s = src.shape[0], src.shape[1]
-    out = np.zeros((n, s, s, 3), np.uint8)
-    val = np.zeros((s, s, 3), np.float64)
-    known = np.zeros((s, s), np.bool_)
-    grown = np.zeros((s, s), np.bool_)
-    new = np.zeros((s, s, 3), np.float64)
+    val, new = values[0], values[1]
+    known, grown = flags[0], flags[1]
     for c in range(n):
         for y in range(s):
             for x in range(s):
@@ -95,19 +129,22 @@ def fill_charts(src, colors):
                         for ch in range(3):
                             val[y, x, ch] = new[y, x, ch]
         cnt = 0
-        mean = np.zeros(3)
+        mean0 = mean1 = mean2 = 0.0
         for y in range(s):
             for x in range(s):
                 if known[y, x]:
                     cnt += 1
-                    for ch in range(3):
-                        mean[ch] += val[y, x, ch]
+                    mean0 += val[y, x, 0]
+                    mean1 += val[y, x, 1]
+                    mean2 += val[y, x, 2]
         for y in range(s):
             for x in range(s):
+                if not known[y, x]:
+                    val[y, x, 0] = mean0 / max(cnt, 1)
+                    val[y, x, 1] = mean1 / max(cnt, 1)
+                    val[y, x, 2] = mean2 / max(cnt, 1)
                 for ch in range(3):
-                    v = val[y, x, ch] if known[y, x] else mean[ch] / max(cnt, 1)
-                    out[c, y, x, ch] = np.uint8(min(max(np.rint(v), 0.0), 255.0))
-    return out
+                    out[c, y, x, ch] = np.uint8(min(max(np.rint(val[y, x, ch]), 0.0), 255.0))
 
 
 def chart_vertices(faces, chart, n_pixels):
@@ -124,17 +161,24 @@ def chart_vertices(faces, chart, n_pixels):
         ``(pixel, chart)`` (what ``np.unique`` of the pair keys gives, at a fraction
         of its time: most pixels are in one chart, and only the others are sorted).
     """
-    # two kernels around NumPy's unique: numba's np.unique would compile a sort (1 s)
-    first, keys, span = _pixel_charts(faces, chart, n_pixels)
-    return _chart_corners(faces, chart, first, np.unique(keys), span)
+    # two kernels around NumPy's unique: numba's np.unique would compile a sort (1 s);
+    # the arrays are allocated here: each allocation in a kernel compiles
+    first = np.full(n_pixels, -1, np.int64)
+    span = int(chart.max()) + 2 if len(chart) else 1
+    keys = np.unique(_pixel_charts(faces, chart, first, span))
+    vid = np.full(n_pixels, -1, np.int64)
+    pixel = np.empty(n_pixels + len(keys), np.int64)
+    vchart = np.empty(n_pixels + len(keys), np.int64)
+    corners = np.empty(faces.shape, np.int64)
+    n_v = _chart_corners(faces, chart, first, keys, span, vid, pixel, vchart, corners)
+    return corners, pixel[:n_v].copy(), vchart[:n_v].copy()  # not views: free the rest
 
 
 @njit(cache=True, nogil=True)
-def _pixel_charts(faces, chart, n_pixels):
-    """``(first (N,) int64, keys (K,) int64, span)``: each pixel's chart + 1 (-1: in
-    no face, -2: in several charts), and the key ``pixel * span + chart + 1`` of every
-    face corner at a pixel in several charts."""
-    first = np.full(n_pixels, -1, np.int64)
+def _pixel_charts(faces, chart, first, span):
+    """Fill ``first (N,) int64`` (-1 on entry) with each pixel's chart + 1 (-1: in no
+    face, -2: in several charts); returns ``(K,) int64`` the key ``pixel * span +
+    chart + 1`` of every face corner at a pixel in several charts."""
     n_multi = 0
     for f in range(len(faces)):
         for c in range(3):
@@ -148,7 +192,6 @@ def _pixel_charts(faces, chart, n_pixels):
             if first[faces[f, c]] == -2:
                 n_multi += 1
     keys = np.empty(n_multi, np.int64)
-    span = chart.max() + 2 if len(chart) else 1
     j = 0
     for f in range(len(faces)):
         for c in range(3):
@@ -156,20 +199,18 @@ def _pixel_charts(faces, chart, n_pixels):
             if first[p] == -2:
                 keys[j] = p * span + chart[f] + 1
                 j += 1
-    return first, keys, span
+    return keys
 
 
 @njit(cache=True, nogil=True)
-def _chart_corners(faces, chart, first, keys, span):
-    """:func:`chart_vertices` from :func:`_pixel_charts`' ``first`` and ``span`` and
-    its ``keys`` sorted without repeats."""
-    n_pixels = len(first)
-    vid = np.full(n_pixels, -1, np.int64)  # the vertex of a one-chart pixel, or the
-    n_v = 0                                 # first of a several-chart pixel's
+def _chart_corners(faces, chart, first, keys, span, vid, pixel, vchart, corners):
+    """:func:`chart_vertices` from :func:`_pixel_charts`' ``first`` and its ``keys``
+    sorted without repeats, into ``corners``, ``pixel[:n_v]`` and ``vchart[:n_v]``
+    (``vid (N,) int64``: -1, the vertex of a one-chart pixel or the first of a
+    several-chart pixel's); returns ``n_v``."""
+    n_v = 0
     k = 0
-    pixel = np.empty(n_pixels + len(keys), np.int64)
-    vchart = np.empty(n_pixels + len(keys), np.int64)
-    for p in range(n_pixels):
+    for p in range(len(first)):
         if first[p] >= 0:
             vid[p] = n_v
             pixel[n_v], vchart[n_v] = p, first[p]
@@ -180,7 +221,6 @@ def _chart_corners(faces, chart, first, keys, span):
                 pixel[n_v], vchart[n_v] = p, keys[k] % span
                 n_v += 1
                 k += 1
-    corners = np.empty(faces.shape, np.int64)
     for f in range(len(faces)):
         for c in range(3):
             p = faces[f, c]
@@ -189,26 +229,38 @@ def _chart_corners(faces, chart, first, keys, span):
                 while vchart[v] != chart[f] + 1:
                     v += 1
             corners[f, c] = v
-    return corners, pixel[:n_v].copy(), vchart[:n_v].copy()
+    return n_v
 
 
-@njit(cache=True, nogil=True)
 def pixel_ranks(pos, n_positions):
-    """``(N,) int64`` how many pixels before each one (in LDI order) share its position."""
-    seen = np.zeros(n_positions, np.int64)
-    rank = np.empty(len(pos), np.int64)
-    for i in range(len(pos)):
-        rank[i] = seen[pos[i]]
-        seen[pos[i]] += 1
+    """``(N,) int64`` how many pixels before each one (in LDI order) share its position
+    (``pos (N,) int64`` in ``[0, n_positions)``).
+
+    Example:
+        >>> pixel_ranks(np.array([2, 0, 2, 2, 0]), 3).tolist()
+        [0, 0, 1, 2, 1]
+    """
+    rank = np.empty(len(pos), np.int64)  # here: each allocation in a kernel compiles
+    _pixel_ranks(np.ascontiguousarray(pos, np.int64), np.zeros(n_positions, np.int64), rank)
     return rank
 
 
+@njit(cache=True, nogil=True)
+def _pixel_ranks(pos, seen, rank):
+    """:func:`pixel_ranks` into ``rank``; ``seen (n_positions,) int64`` zeros."""
+    for i in range(len(pos)):
+        rank[i] = seen[pos[i]]
+        seen[pos[i]] += 1
+
+
 KERNELS = (
-    (pixel_ranks, "(int64[::1], int64)"),
-    (claim_faces, "(int32[:, ::1], int64[::1], int64[::1], int32[:, ::1], int64)"),
-    (_pixel_charts, "(int64[:, ::1], int64[::1], int64)"),
-    (_chart_corners, "(int64[:, ::1], int64[::1], int64[::1], int64[::1], int64)"),
-    (fill_charts, "(int32[:, :, ::1], uint8[:, ::1])"),
+    (_pixel_ranks, "(int64[::1], int64[::1], int64[::1])"),
+    (_claim_faces, "(int32[:, ::1], int64[::1], int64[::1], int32[:, ::1], int64, int64[::1])"),
+    (_pixel_charts, "(int64[:, ::1], int64[::1], int64[::1], int64)"),
+    (_chart_corners, "(int64[:, ::1], int64[::1], int64[::1], int64[::1], int64, int64[::1], "
+                     "int64[::1], int64[::1], int64[:, ::1])"),
+    (_fill_charts, "(int32[:, :, ::1], uint8[:, ::1], uint8[:, :, :, ::1], float64[:, :, :, ::1], "
+                   "boolean[:, :, ::1])"),
 )
 """The kernels ``make`` runs here and the argument types it gives them, compiled ahead
 by :func:`photo3d.kernels.compile_kernels` (``tests/test_kernels.py`` checks ``make``

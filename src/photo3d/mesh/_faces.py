@@ -16,7 +16,8 @@ from numba import njit
 def _emit(links, out, kind, n):
     """Append the faces of corner kind ``kind`` (0: T_a, 1: T_d, 2: T_b, 3: T_c;
     see :func:`photo3d.mesh.full.build_mesh`) to ``out`` from row ``n``; returns the new
-    row count (``out`` None: only counts)."""
+    row count (``out`` empty: only counts; one compiled variant for both)."""
+    write = len(out) > 0
     for p in range(len(links)):
         left, right, up, down = links[p, 0], links[p, 1], links[p, 2], links[p, 3]
         if kind == 0:
@@ -35,7 +36,7 @@ def _emit(links, out, kind, n):
             if up < 0 or right < 0 or links[up, 1] >= 0 or links[right, 2] >= 0:
                 continue
             f0, f1, f2 = up, p, right
-        if out is not None:
+        if write:
             out[n, 0], out[n, 1], out[n, 2] = f0, f1, f2
         n += 1
     return n
@@ -47,8 +48,9 @@ def mesh_faces(links):
     down; -1 = none): T_a, T_d, T_b, T_c faces in that order, then stably sorted by
     their largest vertex index."""
     n = np.int64(0)  # not a literal 0: _emit would compile once more for its type
+    raw = np.empty((0, 3), np.int64)
     for kind in range(4):
-        n = _emit(links, None, kind, n)
+        n = _emit(links, raw, kind, n)
     raw = np.empty((n, 3), np.int64)
     m = np.int64(0)
     for kind in range(4):

@@ -16,11 +16,24 @@ import numpy as np
 from numba import njit
 
 
-@njit(cache=True, nogil=True)
 def quad_counts(faces, face_layer, py, px, n_layers, rows, cols):
     """``(L, rows * cols) uint8`` faces of layer image ``l`` in the lattice quad whose
-    top-left corner is at each position (2: the quad is whole)."""
-    cnt = np.zeros((n_layers, rows * cols), np.uint8)
+    top-left corner is at each position (2: the quad is whole).
+
+    Example:
+        >>> faces = np.array([[0, 2, 1], [1, 2, 3]], np.int32)
+        >>> py, px = np.array([0, 0, 1, 1]), np.array([0, 1, 0, 1])
+        >>> quad_counts(faces, np.zeros(2, np.int64), py, px, 1, 2, 2).tolist()
+        [[2, 0, 0, 0]]
+    """
+    cnt = np.zeros((n_layers, rows * cols), np.uint8)  # here: an allocation in a kernel
+    _quad_counts(faces, face_layer, py, px, cols, cnt)   # compiles on the first run
+    return cnt
+
+
+@njit(cache=True, nogil=True)
+def _quad_counts(faces, face_layer, py, px, cols, cnt):
+    """:func:`quad_counts` added to ``cnt``."""
     for f in range(len(faces)):
         y0 = min(py[faces[f, 0]], py[faces[f, 1]], py[faces[f, 2]])
         y1 = max(py[faces[f, 0]], py[faces[f, 1]], py[faces[f, 2]])
@@ -28,7 +41,6 @@ def quad_counts(faces, face_layer, py, px, n_layers, rows, cols):
         x1 = max(px[faces[f, 0]], px[faces[f, 1]], px[faces[f, 2]])
         if y1 - y0 == 1 and x1 - x0 == 1:
             cnt[face_layer[f], y0 * cols + x0] += 1
-    return cnt
 
 
 @njit(cache=True, nogil=True)
@@ -71,7 +83,6 @@ def _whole(cnt, k, y0, x0, b, cols):
     return True
 
 
-@njit(cache=True, nogil=True)
 def planar_blocks(cnt, images, value, rows, cols, eps, big, small):
     """Quadtree of blocks (sides ``big`` .. ``small``, powers of two) whose quads are
     whole and whose ``value`` is planar within ``eps``.
@@ -80,20 +91,34 @@ def planar_blocks(cnt, images, value, rows, cols, eps, big, small):
         ``(B, 4) int64`` rows ``(layer image, y0, x0, side)``; ``cnt`` is set to 255
         at every quad of a block.
     """
-    out = []
+    # here, not in the kernel: each allocation (and a list) in a kernel compiles
+    out = np.empty((int(np.count_nonzero(cnt == 2)) // (small * small) + 1, 4), np.int64)
+    stack = np.empty((4 * int(np.log2(max(big // small, 1)) + 1) + 1, 3), np.int64)
+    n = _planar_blocks(cnt, images, value, rows, cols, eps, big, small, out, stack)
+    return out[:n].copy()
+
+
+@njit(cache=True, nogil=True)
+def _planar_blocks(cnt, images, value, rows, cols, eps, big, small, out, stack):
+    """:func:`planar_blocks` into ``out``'s first rows (returns how many); ``stack``:
+    scratch (a depth-first walk holds at most 3 rows per level and one)."""
+    n = 0
     for k in range(images.shape[0]):
         for by in range(0, rows - 1, big):
             for bx in range(0, cols - 1, big):
-                stack = [(by, bx, big)]
-                while len(stack):
-                    y0, x0, b = stack.pop()
+                stack[0, 0], stack[0, 1], stack[0, 2] = by, bx, big
+                top = 1
+                while top:
+                    top -= 1
+                    y0, x0, b = stack[top, 0], stack[top, 1], stack[top, 2]
                     if y0 + b > rows - 1 or x0 + b > cols - 1 or not _whole(cnt, k, y0, x0,
                                                                             b, cols):
                         ok = False
                     else:
                         ok = _planar(images, k, value, y0, x0, b, cols, eps)
                     if ok:
-                        out.append((k, y0, x0, b))
+                        out[n, 0], out[n, 1], out[n, 2], out[n, 3] = k, y0, x0, b
+                        n += 1
                         for y in range(y0, y0 + b):
                             for x in range(x0, x0 + b):
                                 cnt[k, y * cols + x] = 255
@@ -102,16 +127,33 @@ def planar_blocks(cnt, images, value, rows, cols, eps, big, small):
                         for dy in (0, h):
                             for dx in (0, h):
                                 if y0 + dy < rows - 1 and x0 + dx < cols - 1:
-                                    stack.append((y0 + dy, x0 + dx, h))
-    result = np.empty((len(out), 4), np.int64)
-    for i in range(len(out)):
-        result[i, 0], result[i, 1], result[i, 2], result[i, 3] = out[i]
-    return result
+                                    stack[top, 0] = y0 + dy
+                                    stack[top, 1] = x0 + dx
+                                    stack[top, 2] = h
+                                    top += 1
+    return n
+
+
+def merged_faces(faces, face_layer, py, px, cnt, cols, blocks, images, sign):
+    """Faces outside the blocks, then each block's fan; and their layer images
+    (:func:`_merged_faces`, with the arrays it fills allocated here: each allocation
+    in a kernel compiles on the first run).
+
+    Returns:
+        ``(faces (M, 3) int64, layer (M,) int64)``.
+    """
+    return _merged_faces(faces, face_layer, py, px, cnt, cols, blocks, images, sign,
+                         np.zeros(len(faces), np.bool_), np.zeros(len(py), np.bool_),
+                         np.empty((len(blocks), 2), np.int64),
+                         np.empty(4 * int(blocks[:, 3].sum()), np.int64))
 
 
 @njit(cache=True, nogil=True)
-def merged_faces(faces, face_layer, py, px, cnt, cols, blocks, images, sign):
-    """Faces outside the blocks, then each block's fan; and their layer images.
+def _merged_faces(faces, face_layer, py, px, cnt, cols, blocks, images, sign, keep, needed,
+                  rings, ring):
+    """Faces outside the blocks, then each block's fan; and their layer images
+    (``keep (F,)``, ``needed (N,)`` bool zeros, ``rings (B, 2)`` and ``ring (4 sum(b),)``
+    int64: scratch).
 
     A block's fan runs from its centre to the pixels of its border that something
     else needs: its corners, every other block's corners and the vertices of the
@@ -121,8 +163,6 @@ def merged_faces(faces, face_layer, py, px, cnt, cols, blocks, images, sign):
     ``cross(v1 - v0, v2 - v0)`` in (x, y) of the input faces; the fans are wound the
     same way.
     """
-    keep = np.zeros(len(faces), np.bool_)
-    needed = np.zeros(len(py), np.bool_)
     n_keep = 0
     for f in range(len(faces)):
         y0 = min(py[faces[f, 0]], py[faces[f, 1]], py[faces[f, 2]])
@@ -136,9 +176,7 @@ def merged_faces(faces, face_layer, py, px, cnt, cols, blocks, images, sign):
         k, y0, x0, b = blocks[i, 0], blocks[i, 1], blocks[i, 2], blocks[i, 3]
         for y, x in ((y0, x0), (y0, x0 + b), (y0 + b, x0 + b), (y0 + b, x0)):
             needed[images[k, y * cols + x]] = True
-    rings = np.empty((len(blocks), 2), np.int64)  # start and length in `ring`
-    ring = np.empty(4 * int(blocks[:, 3].sum()) if len(blocks) else 0, np.int64)
-    n = 0
+    n = 0  # rings[i]: start and length of block i's border in `ring`
     for i in range(len(blocks)):
         k, y0, x0, b = blocks[i, 0], blocks[i, 1], blocks[i, 2], blocks[i, 3]
         rings[i, 0] = n
@@ -180,11 +218,12 @@ def merged_faces(faces, face_layer, py, px, cnt, cols, blocks, images, sign):
 
 
 KERNELS = (
-    (quad_counts, "(int32[:, ::1], int64[::1], int64[::1], int64[::1], int64, int64, int64)"),
-    (planar_blocks, "(uint8[:, ::1], int32[:, ::1], float64[::1], int64, int64, float64, int64, "
-                    "int64)"),
-    (merged_faces, "(int32[:, ::1], int64[::1], int64[::1], int64[::1], uint8[:, ::1], int64, "
-                   "int64[:, ::1], int32[:, ::1], int64)"),
+    (_quad_counts, "(int32[:, ::1], int64[::1], int64[::1], int64[::1], int64, uint8[:, ::1])"),
+    (_planar_blocks, "(uint8[:, ::1], int32[:, ::1], float64[::1], int64, int64, float64, "
+                     "int64, int64, int64[:, ::1], int64[:, ::1])"),
+    (_merged_faces, "(int32[:, ::1], int64[::1], int64[::1], int64[::1], uint8[:, ::1], int64, "
+                    "int64[:, ::1], int32[:, ::1], int64, boolean[::1], boolean[::1], "
+                    "int64[:, ::1], int64[::1])"),
 )
 """The kernels ``make`` runs here and the argument types it gives them, compiled ahead
 by :func:`photo3d.kernels.compile_kernels` (``tests/test_kernels.py`` checks ``make``
