@@ -24,6 +24,7 @@ from results_light import section_light  # noqa: E402
 from results_speed import (  # noqa: E402
     section_export,
     section_hard_depth,
+    section_parts,
     section_ui,
     section_videos,
 )
@@ -882,6 +883,7 @@ def main() -> None:
         section_light(load, machine_line, missing),
         section_hard_depth(load, machine_line, missing),
         section_videos(load, machine_line, missing),
+        section_parts(load, machine_line, missing),
         section_json("first_run.json", "The first run: an empty numba cache against a warm one "
                      "(issue 35)", "python benchmarks/bench_first_run.py"),
         section_ui(load, machine_line, missing),

@@ -38,6 +38,7 @@ def section_hard_depth(load, machine_line, missing) -> str:
 
 
 VIDEO_RUNS = ("video_demo_final.json", "video_vs_cdd3384_final.json",
+              "video_vs_cdd3384_frames2.json", "video_vs_cdd3384_frames.json",
               "video_vs_cdd3384_second.json", "video_vs_cdd3384.json", "video_render.json",
               "video.json")
 """The runs of ``bench_video.py`` shown, each against its own reference."""
@@ -65,7 +66,7 @@ def section_videos(load, machine_line, missing) -> str:
             if ref and now:
                 out.append(f"| {what} | {ref['wall_s']:.1f} s ({ref['cpu_s']:.1f}) | "
                            f"{now['wall_s']:.1f} s ({now['cpu_s']:.1f}) | "
-                           f"{now['wall_s'] / ref['wall_s']:.2f} |")
+                           f"{now['wall_s'] / ref['wall_s']:.3f} |")
         psnr = rec.get("psnr_now_vs_ref", {})
         if psnr:
             out += ["", "Frames against the reference's (PSNR, dB): " + ", ".join(
@@ -74,6 +75,48 @@ def section_videos(load, machine_line, missing) -> str:
         out.append("")
     if not found:
         return "\n".join(out) + "\n" + missing("python benchmarks/bench_video.py --runs 3")
+    return "\n".join(out)
+
+
+def section_parts(load, machine_line, missing) -> str:
+    """``hard_depth_inpaint.json``, ``save.json``, ``video_steps.json``: the parts of
+    ``make`` and ``render`` timed in issue 35's second round, each against its ``ref``
+    (the main branch when it ran)."""
+    out = ["## Parts of make and render, second round (issue 35)", "",
+           "Each against the main branch of the time (`ref`), alternated, medians; the "
+           "machine was shared with other runs: compare the CPU seconds.", ""]
+    rec = load("hard_depth_inpaint.json")
+    if rec is not None:
+        out += [f"### The fill alone changed: `{rec['command']}`", "",
+                f"Machine: {machine_line(rec)}.", "",
+                "| input | ref: wall / CPU s | now: wall / CPU s | edges |",
+                "| --- | --- | --- | --- |"]
+        for name, now in rec["median"].get("now", {}).items():
+            old = rec["median"].get("previous", {}).get(name, {})
+            out.append(f"| {name} | {old.get('wall_s', 0):.2f} / {old.get('cpu_s', 0):.1f} | "
+                       f"{now['wall_s']:.2f} / {now['cpu_s']:.1f} | {now['edges']} |")
+        out.append("")
+    rec = load("save.json")
+    if rec is not None:
+        med = rec["median"]
+        out += [f"### The save step alone: `{rec['command']}`", "",
+                f"Machine: {machine_line(rec)}. Light mesh identical: {rec.get('identical')}.",
+                "", "| version | wall s | user CPU s | system CPU s |", "| --- | --- | --- | --- |"]
+        for version in ("previous", "now"):
+            m = med[version]
+            out.append(f"| {version} | {m['wall_s']:.2f} | {m['user_s']:.2f} | {m['sys_s']:.2f} |")
+        out.append("")
+    rec = load("video_steps.json")
+    if rec is not None:
+        med = rec["median"]
+        out += [f"### A video frame's steps, one thread: `{rec['command']}`", "",
+                f"Machine: {machine_line(rec)}. Milliseconds a 1280x720 frame.", "",
+                "| step | ref | now |", "| --- | --- | --- |"]
+        for step, ms in med["now"]["steps_ms"].items():
+            out.append(f"| {step} | {med['ref']['steps_ms'].get(step, 0):.1f} | {ms:.1f} |")
+        out += [f"| total | {med['ref']['total_ms']:.1f} | {med['now']['total_ms']:.1f} |", ""]
+    if len(out) == 4:
+        return "\n".join(out) + "\n" + missing("python benchmarks/bench_save.py")
     return "\n".join(out)
 
 
