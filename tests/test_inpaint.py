@@ -5,7 +5,7 @@ from conftest import exact_config, texture
 import photo3d
 from photo3d.errors import ConfigError
 from photo3d.inpaint import get_inpainter
-from photo3d.inpaint.diffusion import diffuse
+from photo3d.inpaint.diffusion import diffuse, diffuse_coarse
 from photo3d.structures.patch import Patch
 
 
@@ -37,6 +37,31 @@ def test_diffusion_never_reads_outside_the_context():
     lo, hi = values[ctx].min(0), values[ctx].max(0)
     assert np.all(a[syn] >= lo - 1e-6) and np.all(a[syn] <= hi + 1e-6)
     assert not a[~ctx & ~syn].any()
+
+
+@pytest.mark.parametrize("shape", [(31, 40), (30, 41)])  # odd sizes: partial blocks
+def test_the_coarse_diffusion_follows_the_full_one(shape):
+    # a smooth field: the half-size solve stays within a block's step of the full
+    # one, keeps the context as given and reads nothing outside it
+    h, w = shape
+    yy, xx = np.mgrid[0:h, 0:w].astype(np.float32)
+    values = np.sin(xx / 9.0) + 0.5 * np.cos(yy / 7.0)
+    ctx = np.ones(shape, bool)
+    ctx[6:h - 5, 7:w - 6] = False
+    syn = ~ctx
+    poisoned = np.where(ctx, values, 1e6).astype(np.float32)
+    coarse = diffuse_coarse(poisoned, ctx, syn)
+    full = diffuse(values[..., None] * ctx[..., None], ctx, syn, tolerance=1e-6,
+                   iterations=3000)[..., 0]
+    assert coarse.shape == shape and coarse.dtype == np.float32
+    np.testing.assert_array_equal(coarse[ctx], values[ctx])
+    error = np.abs(coarse[syn] - full[syn])
+    assert error.mean() < 0.1 * np.abs(full[syn]).mean() and error.max() < 0.2
+    colours = diffuse_coarse(np.repeat(poisoned[..., None], 3, axis=2), ctx, syn)
+    np.testing.assert_array_equal(colours[..., 1], coarse)  # (h, w, c) as (h, w)
+    neither = syn.copy()
+    neither[h // 2, :] = False  # pixels of neither region: left at zero
+    assert not diffuse_coarse(poisoned, ctx, neither)[h // 2, 7:w - 6].any()
 
 
 def test_unreachable_synthesis_gets_the_context_mean():
