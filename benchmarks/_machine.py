@@ -51,6 +51,31 @@ def run_child(code: str, *args) -> dict:
     return _run_json(["-c", code, *map(str, args)])
 
 
+STEP_TIMERS = r"""
+def step_timers(clock):
+    spent = {}
+
+    def timed(module, name, step):  # module.name's calls add their clock() time to spent[step]
+        fn = getattr(module, name, None)
+        if fn is None:  # not in this version of the code
+            return
+
+        def wrapper(*args, **kwargs):
+            t = clock()
+            try:
+                return fn(*args, **kwargs)
+            finally:
+                spent[step] = spent.get(step, 0.0) + clock() - t
+
+        setattr(module, name, wrapper)
+
+    return spent, timed
+"""
+"""Child-program source shared by the per-step render benchmarks: ``spent, timed =
+step_timers(clock)``; ``timed(module, name, step)`` wraps ``module.name`` so each call
+adds its ``clock()`` seconds to ``spent[step]`` (names a version lacks are skipped)."""
+
+
 MAKE_CHILD = Path(__file__).with_name("_make_child.py")
 """The child program of every ``make`` timer (one timed ``photo3d.make`` of the
 motorcycle sample, JSON on stdout; its docstring lists the fields)."""

@@ -17,9 +17,9 @@ import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).parent))
-from _machine import run_child, save_record  # noqa: E402
+from _machine import STEP_TIMERS, run_child, save_record  # noqa: E402
 
-CHILD = r"""
+CHILD = STEP_TIMERS + r"""
 import json, sys, tempfile, time
 from pathlib import Path
 import numpy as np
@@ -33,17 +33,7 @@ frames = int(sys.argv[1])
 s = motorcycle()
 photo = photo3d.make(s.left, depth=np.asarray(s.disparity))
 r = Renderer(photo.mesh(), RenderSettings(ssaa=2, crop=AUTHORS_CROP, backend="numba"))
-spent = {}
-
-def timed(module, name, stage):
-    fn = getattr(module, name)
-    def wrapper(*args, **kwargs):
-        t = time.perf_counter()
-        try:
-            return fn(*args, **kwargs)
-        finally:
-            spent[stage] = spent.get(stage, 0.0) + time.perf_counter() - t
-    setattr(module, name, wrapper)
+spent, timed = step_timers(time.perf_counter)
 
 timed(raster, "project_vertices", "vertex projection")
 timed(raster, "block_bounds", "block bounds")

@@ -33,11 +33,11 @@ import tempfile
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).parent))
-from _machine import git_src, save_record  # noqa: E402
+from _machine import STEP_TIMERS, git_src, save_record  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 
-CHILD = r"""
+CHILD = STEP_TIMERS + r"""
 import json, sys, tempfile, time
 from pathlib import Path
 import photo3d
@@ -52,18 +52,7 @@ mesh = _video_mesh(photo, None, None, SaveOptions(render_settings=settings), fol
 r = Renderer(mesh, settings)
 cams = animate.path_cameras(photo.ldi, animate.VideoSpec(path="circle", size=(1280, 720)))
 cams = (cams * (frames // len(cams) + 1))[:frames]
-spent = {}
-def timed(module, name, step):
-    fn = getattr(module, name, None)
-    if fn is None:
-        return
-    def wrapper(*args, **kwargs):
-        t = time.process_time()
-        try:
-            return fn(*args, **kwargs)
-        finally:
-            spent[step] = spent.get(step, 0.0) + time.process_time() - t
-    setattr(module, name, wrapper)
+spent, timed = step_timers(time.process_time)
 timed(raster, "project_vertices", "vertex projection")
 timed(raster, "block_bounds", "block bounds")
 timed(raster, "raster_frame", "rasterization")
