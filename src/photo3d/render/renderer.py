@@ -200,7 +200,7 @@ class Renderer:
     def render(self, camera: Camera) -> View:
         """Render ``camera`` (its intrinsics give the output size)."""
         s = self.settings
-        k = cropped(camera.intrinsics, s.crop) if any(s.crop) else camera.intrinsics
+        k = self._intrinsics(camera)
         f = s.ssaa
         if self._edges:
             color, coverage, depth = self._raster.render_edges(
@@ -231,11 +231,15 @@ class Renderer:
         """
         if not self._edges:
             return to_rgb8(self.render(camera).color)
-        s = self.settings
-        k = cropped(camera.intrinsics, s.crop) if any(s.crop) else camera.intrinsics
         color, coverage, depth, rgb = self._raster.render_edges(
-            k, pose=camera.pose, near=s.near, tolerance=EDGE_TOLERANCE, rgb8=True)
+            self._intrinsics(camera), pose=camera.pose, near=self.settings.near,
+            tolerance=EDGE_TOLERANCE, rgb8=True)
         return holes_to_rgb8(self._holes(color, coverage, depth), coverage, rgb)
+
+    def _intrinsics(self, camera: Camera) -> Intrinsics:
+        """``camera``'s intrinsics with the settings' crop (the drawn view)."""
+        crop = self.settings.crop
+        return cropped(camera.intrinsics, crop) if any(crop) else camera.intrinsics
 
     def _holes(self, color: np.ndarray, coverage: np.ndarray, depth: np.ndarray) -> np.ndarray:
         """``color`` with the pixels of ``coverage < 1`` filled (``fill_holes``) or mixed
