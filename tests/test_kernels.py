@@ -122,14 +122,14 @@ def test_a_kernel_compiled_on_first_use_shows_in_the_bar():
 def test_the_helper_starts_only_with_a_core_idle_now(monkeypatch, idle, spare):
     # this process sleeps while the idle time is measured: its own core counts as idle
     monkeypatch.setattr(ahead.os, "sched_getaffinity", lambda pid: {0, 1}, raising=False)
-    monkeypatch.setattr(ahead, "_idle_cores", lambda interval: idle)
+    monkeypatch.setattr(ahead, "_idle_cores", lambda interval, allowed: idle)
     monkeypatch.setattr(ahead.os, "getloadavg", lambda: (9.0, 9.0, 9.0))  # not read
     assert ahead.spare_core() is spare
 
 
 def test_without_proc_stat_the_load_average_decides(monkeypatch):
     monkeypatch.setattr(ahead.os, "sched_getaffinity", lambda pid: {0, 1}, raising=False)
-    monkeypatch.setattr(ahead, "_idle_cores", lambda interval: None)
+    monkeypatch.setattr(ahead, "_idle_cores", lambda interval, allowed: None)
     monkeypatch.setattr(ahead.os, "getloadavg", lambda: (0.4, 1.0, 1.0))
     assert ahead.spare_core()
     monkeypatch.setattr(ahead.os, "getloadavg", lambda: (1.4, 1.0, 1.0))
@@ -138,5 +138,5 @@ def test_without_proc_stat_the_load_average_decides(monkeypatch):
 
 @pytest.mark.skipif(not Path("/proc/stat").exists(), reason="no /proc/stat")
 def test_the_idle_cores_are_measured_from_proc_stat():
-    idle = ahead._idle_cores(0.05)
+    idle = ahead._idle_cores(0.05, None)
     assert idle is not None and 0.0 <= idle <= (os.cpu_count() or 1) + 1e-6

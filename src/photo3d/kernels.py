@@ -164,11 +164,11 @@ def spare_core(interval: float = 0.1) -> bool:
         >>> spare_core() in (True, False)
         True
     """
-    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (
-        os.cpu_count() or 1)
+    allowed = _allowed_cores()
+    cores = len(allowed) if allowed is not None else (os.cpu_count() or 1)
     if cores < 2:
         return False
-    idle = _idle_cores(interval)
+    idle = _idle_cores(interval, allowed)
     if idle is not None:
         return idle >= 1.75
     try:
@@ -178,11 +178,15 @@ def spare_core(interval: float = 0.1) -> bool:
     return load < cores - 1
 
 
-def _idle_cores(interval: float) -> float | None:
-    """How many of the cores this process may run on (its affinity) the machine left
-    idle, on average, over ``interval`` seconds, from ``/proc/stat``'s idle and iowait
-    time of each; None where it cannot tell."""
-    allowed = os.sched_getaffinity(0) if hasattr(os, "sched_getaffinity") else None
+def _allowed_cores() -> set[int] | None:
+    """The cores this process may run on (its affinity); None where it cannot tell."""
+    return os.sched_getaffinity(0) if hasattr(os, "sched_getaffinity") else None
+
+
+def _idle_cores(interval: float, allowed: set[int] | None) -> float | None:
+    """How many of the ``allowed`` cores (None: all) the machine left idle, on
+    average, over ``interval`` seconds, from ``/proc/stat``'s idle and iowait time of
+    each; None where it cannot tell."""
 
     def times() -> tuple[int, int]:
         idle = total = 0
