@@ -87,7 +87,8 @@ def render_memory_estimate(ldi_pixels: int, size: tuple[int, int], *, ssaa: int,
                            views: int = 1, video: bool = False) -> int:
     """Peak bytes ``render`` needs for a 3D photo of ``ldi_pixels`` LDI pixels at
     output ``size`` ``(width, height)`` with supersampling ``ssaa`` per axis, ``views``
-    views per frame (2 for stereo) and, for ``video``, the encoder.
+    views per frame (2 for stereo) and, for ``video``, the encoder and a second frame
+    rendered at once (:meth:`~photo3d.render.renderer.Renderer.frame_workers`).
 
     Example:
         >>> round(render_memory_estimate(1_500_000, (1024, 768), ssaa=2) / 1e9, 2)
@@ -95,7 +96,8 @@ def render_memory_estimate(ldi_pixels: int, size: tuple[int, int], *, ssaa: int,
     """
     width, height = size
     per_view = RENDER_BYTES_PER_PIXEL + RENDER_BYTES_PER_SAMPLE * ssaa * ssaa
-    per_pixel = views * per_view + (VIDEO_BYTES_PER_PIXEL if video else 0)
+    frames = 2 if video else 1  # frames rendered at once
+    per_pixel = frames * views * per_view + (VIDEO_BYTES_PER_PIXEL if video else 0)
     return int(BASE_BYTES + RENDER_BYTES_PER_LDI_PIXEL * ldi_pixels
                + per_pixel * width * height)
 

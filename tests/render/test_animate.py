@@ -72,3 +72,37 @@ def test_render_error_leaves_no_file(tmp_path, scene, monkeypatch):
     with pytest.raises(RuntimeError, match="boom"):
         render_video(renderer, ldi, spec, tmp_path / "zoom.mp4")
     assert list(tmp_path.iterdir()) == []
+
+
+def test_frames_rendered_at_once_are_those_of_one_thread(scene, monkeypatch):
+    ldi, renderer = scene
+    if renderer.frame_workers() < 2:
+        pytest.skip("numba has one thread or no thread-safe threading layer here")
+    cameras = path_cameras(ldi, VideoSpec(path="swing", size=(48, 32), frames=7))
+    threads = []
+    original = renderer.render
+
+    def recording_render(camera):
+        import threading
+
+        threads.append(threading.current_thread().name)
+        return original(camera)
+
+    monkeypatch.setattr(renderer, "render", recording_render)
+    at_once = list(render_frames(renderer, cameras, stereo="sbs"))
+    assert len({name for name in threads if name.startswith("photo3d-frame")}) == 2
+    monkeypatch.setattr(renderer, "frame_workers", lambda: 1)
+    one = list(render_frames(renderer, cameras, stereo="sbs"))
+    assert len(at_once) == len(one) == 7
+    assert all(np.array_equal(a, b) for a, b in zip(at_once, one, strict=True))
+
+
+def test_frames_left_unread_stop_the_workers(scene):
+    import threading
+
+    ldi, renderer = scene
+    cameras = path_cameras(ldi, VideoSpec(path="circle", size=(48, 32), frames=30))
+    frames = render_frames(renderer, cameras)
+    next(frames)
+    frames.close()
+    assert [t for t in threading.enumerate() if t.name.startswith("photo3d-frame")] == []

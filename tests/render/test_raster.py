@@ -367,6 +367,15 @@ def test_reused_buffers_give_the_same_frames_without_new_arrays():
     got = reused.render(small, pose=poses[0])
     assert got.color.shape == (24, 32, 3)
     np.testing.assert_array_equal(got.mask, fresh.render(small, pose=poses[0]).mask)
+    # another thread gets its own arrays: threads may render at once
+    from concurrent.futures import ThreadPoolExecutor
+
+    with ThreadPoolExecutor(1) as pool:
+        other = pool.submit(reused.render, K, pose=poses[2]).result()
+    mine = reused.render(K, pose=poses[1])
+    assert other.color is not mine.color
+    np.testing.assert_array_equal(other.color, frames[2].color)
+    np.testing.assert_array_equal(mine.color, frames[1].color)
 
 
 @pytest.mark.parametrize("factor", [1, 2, 3])

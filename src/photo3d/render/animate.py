@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from collections import deque
 from collections.abc import Iterator, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
@@ -15,7 +16,7 @@ from photo3d.errors import ConfigError
 from photo3d.progress import CountProgress
 from photo3d.render._resolve import to_rgb8
 from photo3d.render.paths import STANDARD_PATHS, load_path, preset_path
-from photo3d.render.renderer import Renderer, output_intrinsics
+from photo3d.render.renderer import Renderer, frame_thread, output_intrinsics
 from photo3d.render.stereo import compose, eye_cameras, file_tag
 from photo3d.structures.ldi import LDI
 
@@ -101,6 +102,10 @@ def render_frames(renderer: Renderer, cameras: Sequence[Camera], *, stereo: str 
                   progress: CountProgress | None = None) -> Iterator[np.ndarray]:
     """Yield ``(H, W, 3) uint8`` frames, one per camera (stereo frames composed).
 
+    With the CPU rasterizer, two frames are rendered at once on two threads, each with
+    half of numba's threads (:meth:`~photo3d.render.renderer.Renderer.frame_workers`):
+    the same frames, yielded in order.
+
     Example:
         >>> from photo3d.stages.ldi import from_image
         >>> from photo3d.mesh.full import build_mesh
@@ -112,15 +117,33 @@ def render_frames(renderer: Renderer, cameras: Sequence[Camera], *, stereo: str 
         >>> [f.shape for f in render_frames(r, cams, stereo="sbs")]
         [(8, 16, 3), (8, 16, 3)]
     """
-    for i, cam in enumerate(cameras):
+    def frame(cam: Camera) -> np.ndarray:
         if stereo:
             left, right = (renderer.render(c).color for c in eye_cameras(cam, eye_separation))
-            image = compose(left, right, stereo, order=eye_order)
-            yield to_rgb8(image)
-        else:
-            yield renderer.render_rgb8(cam)
-        if progress is not None:
-            progress(i + 1, len(cameras))
+            return to_rgb8(compose(left, right, stereo, order=eye_order))
+        return renderer.render_rgb8(cam)
+
+    workers = renderer.frame_workers() if len(cameras) > 1 else 1
+    if workers == 1:
+        for i, cam in enumerate(cameras):
+            yield frame(cam)
+            if progress is not None:
+                progress(i + 1, len(cameras))
+        return
+    # frames rendered at once on worker threads, yielded in order, `workers` in flight
+    pool = ThreadPoolExecutor(workers, thread_name_prefix="photo3d-frame",
+                              initializer=frame_thread, initargs=(workers,))
+    try:
+        pending = deque(pool.submit(frame, cam) for cam in cameras[:workers])
+        for i in range(len(cameras)):
+            image = pending.popleft().result()  # raises the worker's error here
+            if i + workers < len(cameras):
+                pending.append(pool.submit(frame, cameras[i + workers]))
+            yield image
+            if progress is not None:
+                progress(i + 1, len(cameras))
+    finally:
+        pool.shutdown(wait=True, cancel_futures=True)
 
 
 def render_still(renderer: Renderer, ldi: LDI, spec: VideoSpec) -> np.ndarray:
@@ -146,9 +169,9 @@ def render_video(renderer: Renderer, ldi: LDI, spec: VideoSpec, out: str | Path,
     """Render ``spec`` to the video file ``out`` (format from ``spec.format``).
 
     The file is written to a temporary name and renamed when complete. Frames are
-    converted to YUV and encoded on a worker thread while the next one renders (the
-    rasterizer's bands, hole filling and the encoder release the GIL; the worker runs
-    no parallel kernel), one frame in flight.
+    converted to YUV and encoded on a worker thread while the next ones render
+    (:func:`render_frames`: the rasterizer, hole filling and the encoder release the
+    GIL; the encoder's thread runs no parallel kernel), one frame in the encoder.
     """
     from photo3d.io.video import VideoWriter
 

@@ -27,6 +27,7 @@ How it works:
 
 from __future__ import annotations
 
+import threading
 from dataclasses import dataclass
 
 import numba
@@ -300,8 +301,18 @@ class CPURasterizer:
         self._texture = pack_texture(check_texture(texture))
         n = len(self._prepared[3])
         self._first = n if first is None else int(np.clip(first, 0, n))
-        self._buffers = _Buffers() if reuse else None
+        self._local = threading.local() if reuse else None  # buffers: one set a thread
         self._blocks = block_vertices(self._prepared[3], BLOCK)
+
+    @property
+    def _buffers(self) -> _Buffers | None:
+        """The calling thread's output arrays (``reuse``), so threads may render at once."""
+        if self._local is None:
+            return None
+        buffers = getattr(self._local, "buffers", None)
+        if buffers is None:
+            buffers = self._local.buffers = _Buffers()
+        return buffers
 
     def render(self, intrinsics: Intrinsics, *, pose=None, near: float = 1e-3,
                background=(0.0, 0.0, 0.0)) -> Fragments:

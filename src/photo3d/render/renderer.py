@@ -236,6 +236,28 @@ class Renderer:
             tolerance=EDGE_TOLERANCE, rgb8=True)
         return holes_to_rgb8(self._holes(color, coverage, depth), coverage, rgb)
 
+    def frame_workers(self) -> int:
+        """How many frames :func:`~photo3d.render.animate.render_frames` renders at
+        once with this renderer: 2 with the CPU rasterizer when numba has two threads
+        or more and a threading layer that runs parallel kernels of several threads at
+        once (:func:`thread_safe_kernels`), each frame then on half the threads
+        (:func:`frame_thread`); else 1. Two frames at once keep both cores busy where
+        one frame's bands wait for the slower band (the video encoder shares a core).
+
+        Example:
+            >>> from photo3d.mesh.full import build_mesh
+            >>> from photo3d.stages.ldi import from_image
+            >>> mesh = build_mesh(from_image(np.ones((8, 8, 3), np.float32),
+            ...                              np.ones((8, 8), np.float32)))
+            >>> Renderer(mesh, RenderSettings(backend="numba")).frame_workers() in (1, 2)
+            True
+        """
+        import numba
+
+        if self.backend != "numba" or numba.get_num_threads() < 2:
+            return 1
+        return 2 if thread_safe_kernels() else 1
+
     def _intrinsics(self, camera: Camera) -> Intrinsics:
         """``camera``'s intrinsics with the settings' crop (the drawn view)."""
         crop = self.settings.crop
@@ -255,6 +277,56 @@ class Renderer:
         if left:  # large holes left: smooth pyramid fill
             color = fill_holes(color, np.where(coverage >= 1.0, 1.0, coverage))
         return color
+
+
+def frame_thread(workers: int) -> None:
+    """Set up the calling thread as one of ``workers`` threads rendering frames at once
+    (:meth:`Renderer.frame_workers`): its parallel kernels use its share of numba's
+    threads (``numba.set_num_threads`` holds for the calling thread only).
+
+    Example:
+        >>> import numba, threading
+        >>> seen = []
+        >>> def worker():
+        ...     frame_thread(numba.get_num_threads())
+        ...     seen.append(numba.get_num_threads())
+        >>> t = threading.Thread(target=worker); t.start(); t.join()
+        >>> seen
+        [1]
+    """
+    import numba
+
+    numba.set_num_threads(max(1, numba.get_num_threads() // max(1, workers)))
+
+
+def thread_safe_kernels() -> bool:
+    """Have numba run parallel kernels of several threads at once (frames rendered at
+    once, the UI's workers) if it can: its OpenMP and TBB threading layers can, its
+    fallback (``workqueue``) cannot: it aborts the process. When no parallel kernel
+    has run yet, a thread-safe layer is chosen if one is installed. Returns whether
+    parallel kernels may run in several threads at once.
+
+    Example:
+        >>> thread_safe_kernels() in (True, False)
+        True
+    """
+    import importlib
+
+    import numba
+
+    try:
+        return numba.threading_layer() != "workqueue"  # already chosen in this process
+    except ValueError:  # not chosen yet: choose a thread-safe one if there is one
+        pass
+    for layer in ("tbbpool", "omppool"):
+        try:
+            importlib.import_module(f"numba.np.ufunc.{layer}")
+        except ImportError:
+            continue
+        if numba.config.THREADING_LAYER == "default":
+            numba.config.THREADING_LAYER = "threadsafe"
+        return numba.config.THREADING_LAYER in ("threadsafe", "tbb", "omp", "safe")
+    return False
 
 
 def select_backend(name: str) -> str:

@@ -106,10 +106,11 @@ def start(options: UiOptions | None = None) -> UiServer:
     port = options.port or _free_port(options.host)
     _check_port(options.host, port)  # before Gradio tries, which leaks its loop when it fails
     options = _with_port(options, port)
+    from photo3d.render.renderer import thread_safe_kernels
     from photo3d.ui.page import CSS, build_app, load_gradio, theme
 
     load_gradio()  # MissingExtra before anything is created
-    overlap = _thread_safe_kernels()
+    overlap = thread_safe_kernels()
     if options.workers > 1 and not overlap:
         raise ConfigError(f"--workers {options.workers} needs numba's OpenMP or TBB "
                           "threading layer (install libgomp1, or pip install tbb), or use "
@@ -222,29 +223,6 @@ def _in_own_loop(fn: Callable[[], T]) -> T:
     if not ok:
         raise value
     return value
-
-
-def _thread_safe_kernels() -> bool:
-    """Have numba run parallel kernels of several threads at once (several workers,
-    or a request beside the warm-up) if it can: its OpenMP and TBB threading layers
-    can, its fallback cannot (it aborts the process). Returns whether it can."""
-    import importlib
-
-    import numba
-
-    try:
-        return numba.threading_layer() != "workqueue"  # already chosen in this process
-    except ValueError:  # not chosen yet: choose a thread-safe one if there is one
-        pass
-    for layer in ("tbbpool", "omppool"):
-        try:
-            importlib.import_module(f"numba.np.ufunc.{layer}")
-        except ImportError:
-            continue
-        if numba.config.THREADING_LAYER == "default":
-            numba.config.THREADING_LAYER = "threadsafe"
-        return numba.config.THREADING_LAYER in ("threadsafe", "tbb", "omp", "safe")
-    return False
 
 
 def _with_port(options: UiOptions, port: int) -> UiOptions:
