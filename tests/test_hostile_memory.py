@@ -170,8 +170,8 @@ def no_rendering(monkeypatch):
     (["--still"], "rendering 9000x9000 with --ssaa 2 needs about 10.6 GB of memory but "
                   "2.0 GB are available: use a smaller --size (about 3748x3748 fits) or "
                   "--ssaa 1"),
-    (["--frames", "2"], "rendering 9000x9000 with --ssaa 2 needs about 15.8 GB of memory "
-                        "but 2.0 GB are available: use a smaller --size (about 3060x3060 "
+    (["--frames", "2"], "rendering 9000x9000 with --ssaa 2 needs about 26.1 GB of memory "
+                        "but 2.0 GB are available: use a smaller --size (about 2370x2370 "
                         "fits) or --ssaa 1"),
     (["--still", "--ssaa", "1", "--stereo", "sbs"],  # two views
      "rendering 9000x9000 with --ssaa 1 needs about 11.2 GB of memory but 2.0 GB are "
