@@ -33,8 +33,10 @@ and the held-out shapes keep them), ``False`` adds photo3d's
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, replace
+from typing import TypeVar
 
 import numpy as np
 
@@ -68,6 +70,8 @@ edge, and hands on no edges. Saving takes up to about 700 bytes per LDI pixel (t
 light mesh of a fragmented LDI); bounding the LDI keeps ``make`` and its files within
 :func:`photo3d.resources.memory_estimate` (3x3 blocks of noise at 1024 px: an LDI of
 2.3M pixels, 1.94 GB, before this limit)."""
+
+T = TypeVar("T")
 
 PassFill = Callable[[Sequence[Patch], CountProgress | None], list[InpaintResult]]
 """``fill(patches, progress) -> results``: a pass's inpainting (one result per patch,
@@ -257,6 +261,18 @@ def _border_readers(ldi: LDI, regions: Regions, split: bool) -> tuple[list[int],
     return ([e for e in every if not reads[e]], [e for e in every if reads[e]])
 
 
+def _ahead(items: Iterator[T]) -> Iterator[T]:
+    """``items``, each next one made in another thread while the caller works on the
+    one before (the same items in the same order; an exception is raised where
+    ``items`` raised it)."""
+    end = object()
+    with ThreadPoolExecutor(max_workers=1) as pool:
+        coming = pool.submit(next, items, end)
+        while (item := coming.result()) is not end:
+            coming = pool.submit(next, items, end)
+            yield item
+
+
 def _shrunk(sizes: RegionSizes, factor: float) -> RegionSizes:
     """``sizes`` with every flood fill ``factor`` as deep, and at least one step less
     (but never below one step)."""
@@ -318,8 +334,10 @@ def fill_pass(state: PassInput, fill: PassFill, *, config: Config, working_size:
         config, working_size, margin, scale, pass_index, later_context, paper_context:
             see :func:`pass_patches`.
         batch_area: give ``fill`` its patches in batches of about this many patch
-            pixels (for a backend that fills each patch on its own: a pass then holds
-            one batch of patches at a time); None: all at once.
+            pixels (the first an eighth of it), each next batch extracted in another
+            thread while ``fill`` fills the one before (for a backend that fills each
+            patch on its own: a pass then holds two batches of patches at a time);
+            None: all at once.
         progress: ``progress(done, total)`` over the pass's patches.
         final: when ``state.ldi``'s border colours are not final yet (the frame is
             still being filled, in another thread): ``final()`` waits for and returns
@@ -352,37 +370,40 @@ def fill_pass(state: PassInput, fill: PassFill, *, config: Config, working_size:
     index = state.ldi.position_index()
     regions = pass_regions(state, sizes, index=index)
     total, done = regions.count, 0
-    fills, batch, area = [], [], 0
-    ldi = state.ldi
+    fills = []
+    first, later = _border_readers(state.ldi, regions, final is not None)
 
-    def run() -> None:
-        nonlocal done, area
+    def batches() -> Iterator[list[PatchJob]]:
+        # the first batch is an eighth of the others: the fill starts sooner (nothing
+        # is filled while it is extracted)
+        ldi, batch, area = state.ldi, [], 0
+        limit = None if batch_area is None else max(1, batch_area // 8)
+        for group in (first, later):
+            if group is later and final is not None:
+                ldi = final()
+            for job in iter_patches(ldi, regions, state.edge_pixels, margin=margin,
+                                    scale=scale, edges=group):
+                batch.append(job)
+                area += job.patch.shape[0] * job.patch.shape[1]
+                if limit is not None and area >= limit:
+                    yield batch
+                    batch, area, limit = [], 0, batch_area
+            if batch:
+                yield batch
+                batch, area, limit = [], 0, batch_area
 
-        def report(i: int, n: int) -> None:
-            if progress is not None:
-                progress(min(done + i, total), total)
+    def report(i: int, n: int) -> None:
+        if progress is not None:
+            progress(min(done + i, total), total)
 
+    # the next batch is extracted (Python and numpy work) while this one is filled
+    for batch in _ahead(batches()) if batch_area is not None else batches():
         results = fill([job.patch for job in batch], report)
-        fills.extend((job.edge, take(ldi, job, res))
+        # take reads the LDI's positions only, the same in final()'s
+        fills.extend((job.edge, take(state.ldi, job, res))
                      for job, res in zip(batch, results, strict=True))
         done += len(batch)
-        batch.clear()
-        area = 0
-
-    first, later = _border_readers(state.ldi, regions, final is not None)
-    for group in (first, later):
-        if group is later and final is not None:
-            ldi = final()
-        for job in iter_patches(ldi, regions, state.edge_pixels, margin=margin,
-                                scale=scale, edges=group):
-            batch.append(job)
-            area += job.patch.shape[0] * job.patch.shape[1]
-            if batch_area is not None and area >= batch_area:
-                run()
-        if batch:
-            run()
-    if final is not None and not later:
-        ldi = final()
+    ldi = final() if final is not None else state.ldi
     fills.sort(key=lambda pair: pair[0])  # edge order, as one group gives them
     pre = config.preprocess
     return merge_fills(ldi, [f for _, f in fills], label=min(pass_index + 2, 3),
