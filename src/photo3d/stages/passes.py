@@ -86,11 +86,13 @@ class PassInput:
         ldi: the LDI, links cut along the edges.
         edge_ptr: ``(E + 1,) int64`` CSR offsets into ``edge_pixels``.
         edge_pixels: ``(K,) int64`` background silhouette pixels of each edge.
+        index: ``ldi.position_index()`` if known (a merge's), else None.
     """
 
     ldi: LDI
     edge_ptr: np.ndarray
     edge_pixels: np.ndarray
+    index: tuple[np.ndarray, np.ndarray] | None = None
 
     @property
     def edges(self) -> int:
@@ -367,7 +369,7 @@ def fill_pass(state: PassInput, fill: PassFill, *, config: Config, working_size:
     """
     sizes = region_sizes(config, working_size, pass_index=pass_index,
                          later_context=later_context, paper_context=paper_context)
-    index = state.ldi.position_index()
+    index = state.index if state.index is not None else state.ldi.position_index()
     regions = pass_regions(state, sizes, index=index)
     total, done = regions.count, 0
     fills = []
