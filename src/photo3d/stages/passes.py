@@ -335,11 +335,10 @@ def fill_pass(state: PassInput, fill: PassFill, *, config: Config, working_size:
         fill: the inpainting (:data:`PassFill`).
         config, working_size, margin, scale, pass_index, later_context, paper_context:
             see :func:`pass_patches`.
-        batch_area: give ``fill`` its patches in batches of about this many patch
-            pixels (the first an eighth of it), each next batch extracted in another
-            thread while ``fill`` fills the one before (for a backend that fills each
-            patch on its own: a pass then holds two batches of patches at a time);
-            None: all at once.
+        batch_area: hold about this many patch pixels at a time (for a backend that
+            fills each patch on its own): ``fill`` gets the patches in batches of half
+            of it (the first an eighth of that), each next batch extracted in another
+            thread while ``fill`` fills the one before; None: all at once.
         progress: ``progress(done, total)`` over the pass's patches.
         final: when ``state.ldi``'s border colours are not final yet (the frame is
             still being filled, in another thread): ``final()`` waits for and returns
@@ -376,10 +375,12 @@ def fill_pass(state: PassInput, fill: PassFill, *, config: Config, working_size:
     first, later = _border_readers(state.ldi, regions, final is not None)
 
     def batches() -> Iterator[list[PatchJob]]:
-        # the first batch is an eighth of the others: the fill starts sooner (nothing
-        # is filled while it is extracted)
+        # two batches are held at once (one filled, the next extracted): each is half
+        # of batch_area, the first an eighth of that, so that the fill starts sooner
+        # (nothing is filled while the first is extracted)
         ldi, batch, area = state.ldi, [], 0
-        limit = None if batch_area is None else max(1, batch_area // 8)
+        half = None if batch_area is None else max(1, batch_area // 2)
+        limit = None if half is None else max(1, half // 8)
         for group in (first, later):
             if group is later and final is not None:
                 ldi = final()
@@ -389,10 +390,10 @@ def fill_pass(state: PassInput, fill: PassFill, *, config: Config, working_size:
                 area += job.patch.shape[0] * job.patch.shape[1]
                 if limit is not None and area >= limit:
                     yield batch
-                    batch, area, limit = [], 0, batch_area
+                    batch, area, limit = [], 0, half
             if batch:
                 yield batch
-                batch, area, limit = [], 0, batch_area
+                batch, area, limit = [], 0, half
 
     def report(i: int, n: int) -> None:
         if progress is not None:
@@ -405,6 +406,7 @@ def fill_pass(state: PassInput, fill: PassFill, *, config: Config, working_size:
         fills.extend((job.edge, take(state.ldi, job, res))
                      for job, res in zip(batch, results, strict=True))
         done += len(batch)
+        del results  # not held while the next batch is filled (a batch's whole patches)
     ldi = final() if final is not None else state.ldi
     fills.sort(key=lambda pair: pair[0])  # edge order, as one group gives them
     pre = config.preprocess
