@@ -5,7 +5,7 @@ from conftest import exact_config, texture
 import photo3d
 from photo3d.errors import ConfigError
 from photo3d.inpaint import get_inpainter
-from photo3d.inpaint.diffusion import diffuse, diffuse_coarse
+from photo3d.inpaint.diffusion import diffuse, diffuse_coarse, diffuse_in_place
 from photo3d.structures.patch import Patch
 
 
@@ -62,6 +62,46 @@ def test_the_coarse_diffusion_follows_the_full_one(shape):
     neither = syn.copy()
     neither[h // 2, :] = False  # pixels of neither region: left at zero
     assert not diffuse_coarse(poisoned, ctx, neither)[h // 2, 7:w - 6].any()
+
+
+def _raster_sweeps(values, context, synthesis, reached, sweeps, omega):
+    """Over-relaxed Gauss-Seidel sweeps in raster order, one pixel at a time (the
+    kernel's arithmetic: float64 sums in the order L, R, U, D, float32 values)."""
+    h, w, c = values.shape
+    out = values.copy()
+    for _ in range(sweeps):
+        for y in range(h):
+            for x in range(w):
+                if not (synthesis[y, x] and reached[y, x]):
+                    continue
+                near = [(y + dy, x + dx) for dy, dx in ((0, -1), (0, 1), (-1, 0), (1, 0))
+                        if 0 <= y + dy < h and 0 <= x + dx < w
+                        and (context[y + dy, x + dx] or synthesis[y + dy, x + dx])]
+                for ch in range(c):
+                    total = 0.0
+                    for q in near:
+                        total += float(out[q][ch])
+                    step = omega * (total * (1.0 / len(near)) - float(out[y, x, ch]))
+                    out[y, x, ch] = np.float32(float(out[y, x, ch]) + step)
+    return out
+
+
+@pytest.mark.parametrize("channels", [1, 3, 4])  # the kernel's three loops
+def test_the_relaxation_sweeps_are_raster_order_gauss_seidel(channels):
+    # the kernel sweeps along diagonals of row bands; every value must be the one the
+    # plain raster-order sweep gives, bit for bit
+    rng = np.random.default_rng(channels)
+    h, w = 13, 18
+    ctx = rng.random((h, w)) < 0.35
+    syn = ~ctx & (rng.random((h, w)) < 0.9)  # some pixels of neither region
+    values = np.where(ctx[..., None], rng.random((h, w, channels)), 0).astype(np.float32)
+    guess = values.copy()
+    reached = diffuse_in_place(guess, ctx, syn, 0, 0.0, 1.9)  # the first guess only
+    swept = guess.copy()
+    diffuse_in_place(swept, ctx, syn, 6, 0.0, 1.9)
+    expected = _raster_sweeps(guess, ctx, syn, reached, 6, 1.9)
+    assert not np.array_equal(expected, guess)
+    np.testing.assert_array_equal(swept, expected)
 
 
 def test_unreachable_synthesis_gets_the_context_mean():

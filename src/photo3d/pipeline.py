@@ -151,7 +151,7 @@ def make(
                                final=framing.result if framing is not None and k == 0 else None)
             edges_per_pass.append(state.edges)
             added_per_pass.append(merged.added)
-            state = PassInput(merged.ldi, merged.edge_ptr, merged.edge_pixels)
+            state = PassInput(merged.ldi, merged.edge_ptr, merged.edge_pixels, merged.index)
     done("inpaint")
 
     return Photo3D(

@@ -164,3 +164,17 @@ def test_a_pass_at_the_ldi_limit_keeps_each_fills_nearest_pixels_and_hands_on_no
     assert half.added == 4 and half.edge_ptr.size == 1
     new = half.ldi.y[ldi.size:].tolist(), half.ldi.x[ldi.size:].tolist()
     assert sorted(zip(*new, strict=True)) == [(0, 12), (0, 13), (1, 12), (1, 13)]
+
+
+def test_the_merge_hands_on_the_merged_ldis_position_index():
+    # the next pass starts from it instead of sorting every pixel again
+    ldi, jobs = one_job()
+    job = jobs[0]
+    kw = dict(label=2, threshold=THR, min_edge_length=3, clamp=False)
+    once = merge(ldi, jobs, [result(job, stepped(job, 12))], **kw)
+    # a second layer at the same positions, farther still: two new pixels per position
+    twice = merge(once.ldi, jobs, [result(job, np.full(job.patch.shape, 0.02))], **kw)
+    assert twice.added == job.new_y.size and once.added == job.new_y.size
+    for m in (once, twice):
+        for mine, sorted_again in zip(m.index, m.ldi.position_index(), strict=True):
+            np.testing.assert_array_equal(mine, sorted_again)

@@ -123,6 +123,37 @@ def test_make_gives_a_patchwise_backend_its_patches_in_batches_for_the_same_resu
     assert np.array_equal(whole.edge_pixels, batched.edge_pixels)
 
 
+def test_an_error_in_a_batched_pass_is_raised_from_the_pass():
+    # the next batch is extracted in another thread meanwhile: an error of the fill or
+    # of the extraction (here the frame's) still comes out of fill_pass
+    from photo3d.stages.passes import fill_pass
+
+    first, config = noise_pass(64)
+    calls = []
+
+    def grey(patches, progress):
+        calls.append(len(patches))
+        return [InpaintResult(np.full((*p.shape, 3), 0.5, np.float32), p.disparity,
+                              np.zeros(p.shape, np.float32)) for p in patches]
+
+    def failing(patches, progress):
+        if len(calls) == 1:
+            raise ValueError("the second batch")
+        return grey(patches, progress)
+
+    kw = dict(config=config, working_size=64, margin=1, batch_area=2000)
+    with pytest.raises(ValueError, match="the second batch"):
+        fill_pass(first, failing, **kw)
+    assert len(calls) == 1
+    calls.clear()
+
+    def no_frame():
+        raise RuntimeError("no frame")
+
+    with pytest.raises(RuntimeError, match="no frame"):  # (every context here reads it)
+        fill_pass(first, grey, **kw, final=no_frame)
+
+
 def test_later_passes_find_no_more_edges_than_the_first_on_a_raw_disparity():
     """The motorcycle's ground truth with unknown pixels = 0 (infinitely far: holes to
     the far plane everywhere the matcher gave up). Before: edges [112, 124, 30] at

@@ -33,8 +33,9 @@ class Inpainter(Protocol):
             :attr:`~photo3d.config.RegionConfig.thin_context` (the learned nets were
             trained on the paper's).
         patchwise: ``True`` if each patch is filled on its own, so the pipeline may hand
-            a pass's patches over in batches and hold one batch at a time (bounded
-            memory); ``False``: all of a pass's patches in one call.
+            a pass's patches over in batches and hold two batches at a time (bounded
+            memory: one being filled, the next being extracted); ``False``: all of a
+            pass's patches in one call.
     """
 
     name: str

@@ -44,9 +44,18 @@ def _dist(img, weight, py, px, qy, qx, r, best):  # pragma: no cover - jit
             wt = weight[ty, tx]
             if wt == 0.0:
                 continue
-            for ch in range(c):
-                e = img[ty, tx, ch] - img[qy + dy, qx + dx, ch]
+            if c == 3:  # colours (every fill make runs): the loop below unrolled,
+                # the same sums in the same order (5 % less PatchMatch)
+                e = img[ty, tx, 0] - img[qy + dy, qx + dx, 0]
                 d += wt * e * e
+                e = img[ty, tx, 1] - img[qy + dy, qx + dx, 1]
+                d += wt * e * e
+                e = img[ty, tx, 2] - img[qy + dy, qx + dx, 2]
+                d += wt * e * e
+            else:
+                for ch in range(c):
+                    e = img[ty, tx, ch] - img[qy + dy, qx + dx, ch]
+                    d += wt * e * e
         if d >= best:
             return d
     return d

@@ -61,12 +61,14 @@ class Merged:
         added: number of new pixels.
         edge_ptr: ``(E + 1,) int64`` CSR offsets of the next pass's edges.
         edge_pixels: ``(K,) int64`` their background silhouette pixels.
+        index: ``ldi.position_index()`` (the merge keeps it up to date; None: not kept).
     """
 
     ldi: LDI
     added: int
     edge_ptr: np.ndarray
     edge_pixels: np.ndarray
+    index: tuple[np.ndarray, np.ndarray] | None = None
 
 
 @numba.njit(cache=True)
@@ -322,7 +324,7 @@ def merge_fills(
         ldi = replace(ldi, color=color, disparity=disparity)
     sizes = [f.new_y.size for f in fills]
     if sum(sizes) == 0:
-        return Merged(ldi, 0, np.zeros(1, np.int64), np.zeros(0, np.int64))
+        return Merged(ldi, 0, np.zeros(1, np.int64), np.zeros(0, np.int64), index)
 
     rows, cols = ldi.lattice_shape
     cy = np.concatenate([f.new_y for f in fills])
@@ -374,7 +376,7 @@ def merge_fills(
     sil, inverse = sil[sel], inverse[sel]
     by_edge = np.argsort(inverse, kind="stable")
     edge_ptr = np.concatenate([[0], np.cumsum(counts[big])]).astype(np.int64)
-    return Merged(ldi, added, edge_ptr, sil[by_edge].astype(np.int64))
+    return Merged(ldi, added, edge_ptr, sil[by_edge].astype(np.int64), (starts, order))
 
 
 def _appended(starts: np.ndarray, order: np.ndarray,

@@ -33,8 +33,10 @@ and the held-out shapes keep them), ``False`` adds photo3d's
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, replace
+from typing import TypeVar
 
 import numpy as np
 
@@ -69,6 +71,8 @@ light mesh of a fragmented LDI); bounding the LDI keeps ``make`` and its files w
 :func:`photo3d.resources.memory_estimate` (3x3 blocks of noise at 1024 px: an LDI of
 2.3M pixels, 1.94 GB, before this limit)."""
 
+T = TypeVar("T")
+
 PassFill = Callable[[Sequence[Patch], CountProgress | None], list[InpaintResult]]
 """``fill(patches, progress) -> results``: a pass's inpainting (one result per patch,
 in order; ``progress(done, total)`` after each patch, may be None)."""
@@ -82,11 +86,13 @@ class PassInput:
         ldi: the LDI, links cut along the edges.
         edge_ptr: ``(E + 1,) int64`` CSR offsets into ``edge_pixels``.
         edge_pixels: ``(K,) int64`` background silhouette pixels of each edge.
+        index: ``ldi.position_index()`` if known (a merge's), else None.
     """
 
     ldi: LDI
     edge_ptr: np.ndarray
     edge_pixels: np.ndarray
+    index: tuple[np.ndarray, np.ndarray] | None = None
 
     @property
     def edges(self) -> int:
@@ -257,6 +263,18 @@ def _border_readers(ldi: LDI, regions: Regions, split: bool) -> tuple[list[int],
     return ([e for e in every if not reads[e]], [e for e in every if reads[e]])
 
 
+def _ahead(items: Iterator[T]) -> Iterator[T]:
+    """``items``, each next one made in another thread while the caller works on the
+    one before (the same items in the same order; an exception is raised where
+    ``items`` raised it)."""
+    end = object()
+    with ThreadPoolExecutor(max_workers=1) as pool:
+        coming = pool.submit(next, items, end)
+        while (item := coming.result()) is not end:
+            coming = pool.submit(next, items, end)
+            yield item
+
+
 def _shrunk(sizes: RegionSizes, factor: float) -> RegionSizes:
     """``sizes`` with every flood fill ``factor`` as deep, and at least one step less
     (but never below one step)."""
@@ -317,9 +335,10 @@ def fill_pass(state: PassInput, fill: PassFill, *, config: Config, working_size:
         fill: the inpainting (:data:`PassFill`).
         config, working_size, margin, scale, pass_index, later_context, paper_context:
             see :func:`pass_patches`.
-        batch_area: give ``fill`` its patches in batches of about this many patch
-            pixels (for a backend that fills each patch on its own: a pass then holds
-            one batch of patches at a time); None: all at once.
+        batch_area: hold about this many patch pixels at a time (for a backend that
+            fills each patch on its own): ``fill`` gets the patches in batches of half
+            of it (the first an eighth of that), each next batch extracted in another
+            thread while ``fill`` fills the one before; None: all at once.
         progress: ``progress(done, total)`` over the pass's patches.
         final: when ``state.ldi``'s border colours are not final yet (the frame is
             still being filled, in another thread): ``final()`` waits for and returns
@@ -349,40 +368,46 @@ def fill_pass(state: PassInput, fill: PassFill, *, config: Config, working_size:
     """
     sizes = region_sizes(config, working_size, pass_index=pass_index,
                          later_context=later_context, paper_context=paper_context)
-    index = state.ldi.position_index()
+    index = state.index if state.index is not None else state.ldi.position_index()
     regions = pass_regions(state, sizes, index=index)
     total, done = regions.count, 0
-    fills, batch, area = [], [], 0
-    ldi = state.ldi
+    fills = []
+    first, later = _border_readers(state.ldi, regions, final is not None)
 
-    def run() -> None:
-        nonlocal done, area
+    def batches() -> Iterator[list[PatchJob]]:
+        # two batches are held at once (one filled, the next extracted): each is half
+        # of batch_area, the first an eighth of that, so that the fill starts sooner
+        # (nothing is filled while the first is extracted)
+        ldi, batch, area = state.ldi, [], 0
+        half = None if batch_area is None else max(1, batch_area // 2)
+        limit = None if half is None else max(1, half // 8)
+        for group in (first, later):
+            if group is later and final is not None:
+                ldi = final()
+            for job in iter_patches(ldi, regions, state.edge_pixels, margin=margin,
+                                    scale=scale, edges=group):
+                batch.append(job)
+                area += job.patch.shape[0] * job.patch.shape[1]
+                if limit is not None and area >= limit:
+                    yield batch
+                    batch, area, limit = [], 0, half
+            if batch:
+                yield batch
+                batch, area, limit = [], 0, half
 
-        def report(i: int, n: int) -> None:
-            if progress is not None:
-                progress(min(done + i, total), total)
+    def report(i: int, n: int) -> None:
+        if progress is not None:
+            progress(min(done + i, total), total)
 
+    # the next batch is extracted (Python and numpy work) while this one is filled
+    for batch in _ahead(batches()) if batch_area is not None else batches():
         results = fill([job.patch for job in batch], report)
-        fills.extend((job.edge, take(ldi, job, res))
+        # take reads the LDI's positions only, the same in final()'s
+        fills.extend((job.edge, take(state.ldi, job, res))
                      for job, res in zip(batch, results, strict=True))
         done += len(batch)
-        batch.clear()
-        area = 0
-
-    first, later = _border_readers(state.ldi, regions, final is not None)
-    for group in (first, later):
-        if group is later and final is not None:
-            ldi = final()
-        for job in iter_patches(ldi, regions, state.edge_pixels, margin=margin,
-                                scale=scale, edges=group):
-            batch.append(job)
-            area += job.patch.shape[0] * job.patch.shape[1]
-            if batch_area is not None and area >= batch_area:
-                run()
-        if batch:
-            run()
-    if final is not None and not later:
-        ldi = final()
+        del results  # not held while the next batch is filled (a batch's whole patches)
+    ldi = final() if final is not None else state.ldi
     fills.sort(key=lambda pair: pair[0])  # edge order, as one group gives them
     pre = config.preprocess
     return merge_fills(ldi, [f for _, f in fills], label=min(pass_index + 2, 3),
