@@ -63,9 +63,10 @@ def _weighted_median_at(disp, ys, xs, radius, sigma_s, sigma_i, out, vals,
     ``(ys[k], xs[k])`` of ``disp (H, W) float32`` (the window clipped at the image
     border): the smallest window value whose own and smaller values' weights (rounded
     to float32) reach half of all its weights (:func:`_weighted_median`; ``vals`` and
-    ``wts``: ``((2 radius + 1)^2,) float32`` scratch). Summed in float64, the weights
-    give the same sums in any order while they span less than 2^29 (the defaults: 0.08
-    to 1), so this is the value the insertion sort and scan of before found."""
+    ``wts``: ``((2 radius + 1)^2,) float32`` scratch). Summed in float64, up to 64
+    float32 weights give the same sums in any order while the largest is less than
+    2^23 times the smallest (the defaults: 0.08 to 1), so this is the value the
+    insertion sort and scan of before found."""
     h, w = disp.shape
     inv_s = 1.0 / (2.0 * sigma_s * sigma_s)
     inv_i = 1.0 / (2.0 * sigma_i * sigma_i)
