@@ -271,10 +271,10 @@ def _write_meshes(photo: SavedPhoto, tmp: Path, pool: ThreadPoolExecutor, jobs: 
         light = build_light_mesh(photo.ldi, full=mesh, max_error=light_error(options))
     if glb and not full_glb:
         jobs.append(pool.submit(write_textured_glb, tmp / "mesh.glb", light))
-    if viewer:  # here: on a writer thread beside mesh.glb, the save took 0.15 s longer;
-        from photo3d.viewer import write_viewer  # its JPEG is encoded on one meanwhile
+    if viewer:  # here: on a writer thread beside mesh.glb, the save took 0.15 s longer
+        from photo3d.viewer import write_viewer
 
-        write_viewer(light, tmp / "viewer.html", title=title, executor=pool)
+        write_viewer(light, tmp / "viewer.html", title=title)
     return mesh, light
 
 

@@ -117,28 +117,6 @@ def test_unwritable_path_and_foreign_files(tmp_path):
         read_viewer(tmp_path / "nothing.html")
 
 
-def test_the_texture_encoded_on_a_thread_gives_the_same_page(tmp_path):
-    """The JPEG on a pool's thread (free, or busy so that it is encoded here after all)
-    and the zlib stream fed a section at a time: the bytes of a page encoded at once."""
-    import threading
-    from concurrent.futures import ThreadPoolExecutor
-
-    light = box_photo().light_mesh()
-    alone = write_viewer(light, tmp_path / "alone.html").read_bytes()
-    with ThreadPoolExecutor(max_workers=1) as pool:
-        free = write_viewer(light, tmp_path / "free.html", executor=pool).read_bytes()
-        release = threading.Event()
-        pool.submit(release.wait)  # the pool's only thread is busy
-        busy = write_viewer(light, tmp_path / "busy.html", executor=pool).read_bytes()
-        release.set()
-    assert free == alone and busy == alone
-    import zlib
-
-    header, payload = encode_mesh(light)
-    assert header["sections"]["texture"][1] > 0
-    assert payload == zlib.compress(zlib.decompress(payload), 6)  # as compressed at once
-
-
 def test_textured_mesh_round_trip(tmp_path):
     """A light textured mesh: uv within 1/65535, texture as JPEG, faces and labels exact."""
     from photo3d.structures.mesh import TexturedMesh

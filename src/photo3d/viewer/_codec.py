@@ -33,7 +33,6 @@ four sections, each starting at a multiple of 4 bytes (offsets in the header):
 from __future__ import annotations
 
 import zlib
-from concurrent.futures import Executor
 
 import numpy as np
 
@@ -49,8 +48,7 @@ TEXTURE_QUALITY = 85
 _LEVELS = 65535.0
 
 
-def encode_mesh(mesh: Mesh | TexturedMesh, *, level: int = 6,
-                executor: Executor | None = None) -> tuple[dict, bytes]:
+def encode_mesh(mesh: Mesh | TexturedMesh, *, level: int = 6) -> tuple[dict, bytes]:
     """Encode ``mesh`` for the viewer.
 
     Args:
@@ -59,9 +57,6 @@ def encode_mesh(mesh: Mesh | TexturedMesh, *, level: int = 6,
             texture: :class:`~photo3d.structures.mesh.TexturedMesh`), labels ``(N,)``, faces
             ``(M, 3) int32``; ``N, M >= 1``.
         level: zlib compression level (1 fastest .. 9 smallest).
-        executor: a thread pool that encodes the texture's JPEG meanwhile (both
-            release the GIL), if one of its threads is free before the JPEG is needed;
-            None: encoded here. The bytes are the same either way.
 
     Returns:
         ``(header, payload)``: the JSON-able header (sizes, fields of view,
@@ -88,10 +83,6 @@ def encode_mesh(mesh: Mesh | TexturedMesh, *, level: int = 6,
     if z.min() <= 0:
         raise InputError(f"mesh.vertices need z > 0 (in front of the input camera), "
                          f"min z is {z.min():g}")
-    texture = None
-    if textured and executor is not None:
-        texture = executor.submit(encode_jpeg, np.asarray(mesh.texture),
-                                  quality=TEXTURE_QUALITY)
     planes = (vertices[:, 0] / z, vertices[:, 1] / z, 1.0 / z)
     lo = [float(p.min()) for p in planes]
     hi = [float(p.max()) for p in planes]
@@ -107,20 +98,15 @@ def encode_mesh(mesh: Mesh | TexturedMesh, *, level: int = 6,
     if textured:
         uv = np.rint(np.clip(colors, 0.0, 1.0) * _LEVELS).astype("<u2")
         blobs["uv"] = np.ascontiguousarray(uv.T).tobytes()
+        blobs["texture"] = encode_jpeg(np.asarray(mesh.texture), quality=TEXTURE_QUALITY)
     else:
         blobs["color"] = colors.tobytes()
-    # one zlib stream, fed a section at a time (the same bytes as compressing them
-    # joined), so that the JPEG, the last section, is needed only at the end
-    stream = zlib.compressobj(level)
-    compressed, sections, offset = [], {}, 0
+    raw, sections, offset = [], {}, 0
     for name in TEXTURED_SECTIONS if textured else SECTIONS:
-        if name == "texture":
-            blobs[name] = (texture.result() if texture is not None and not texture.cancel()
-                           else encode_jpeg(np.asarray(mesh.texture), quality=TEXTURE_QUALITY))
         data = blobs[name]
         sections[name] = [offset, len(data)]
-        compressed.append(stream.compress(data + bytes(-len(data) % 4)))
-        offset += len(data) + (-len(data) % 4)
+        raw.append(data + bytes(-len(data) % 4))
+        offset += len(raw[-1])
     header = {
         "format": "photo3d-viewer", "version": VERSION,
         "width": int(mesh.width), "height": int(mesh.height),
@@ -133,7 +119,7 @@ def encode_mesh(mesh: Mesh | TexturedMesh, *, level: int = 6,
         t = np.asarray(mesh.texture)
         header["texture"] = {"width": int(t.shape[1]), "height": int(t.shape[0]),
                              "mime": "image/jpeg"}
-    return header, b"".join([*compressed, stream.flush()])
+    return header, zlib.compress(b"".join(raw), level)
 
 
 def decode_mesh(header: dict, payload: bytes) -> Mesh | TexturedMesh:

@@ -30,7 +30,6 @@ import html
 import json
 import os
 import re
-from concurrent.futures import Executor
 from importlib import resources
 from pathlib import Path
 
@@ -45,7 +44,7 @@ _SCRIPT_RE = r'<script type="{kind}" id="{id}">(.*?)</script>'
 
 
 def write_viewer(mesh: Mesh | TexturedMesh, path: PathLike, *, title: str = "photo3d",
-                 animate: bool = True, executor: Executor | None = None) -> Path:
+                 animate: bool = True) -> Path:
     """Write the interactive viewer page of ``mesh``.
 
     Args:
@@ -58,9 +57,6 @@ def write_viewer(mesh: Mesh | TexturedMesh, path: PathLike, *, title: str = "pho
         title: page title (plain text; escaped).
         animate: start with the camera moving along the authors' ``circle`` path
             (until the user interacts); False keeps it still.
-        executor: a thread pool to encode the texture's JPEG on while the rest is
-            compressed here (:func:`~photo3d.viewer._codec.encode_mesh`); the same
-            page either way.
 
     Returns:
         ``path`` as a :class:`~pathlib.Path`.
@@ -78,7 +74,7 @@ def write_viewer(mesh: Mesh | TexturedMesh, path: PathLike, *, title: str = "pho
         >>> read_viewer(path).faces.shape
         (1, 3)
     """
-    header, payload = encode_mesh(mesh, executor=executor)
+    header, payload = encode_mesh(mesh)
     header["animate"] = bool(animate)
     before, after = _template().split("{{DATA}}")
     header_json = json.dumps(header, separators=(",", ":")).replace("<", "\\u003c")
