@@ -27,7 +27,7 @@ import tempfile
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).parent))
-from _machine import git_src, save_record  # noqa: E402
+from _machine import START_ENV, git_src, save_record  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -79,7 +79,7 @@ print(json.dumps({"saves": saves, "timeline": timeline}))
 
 
 def run(src: Path, folder: Path, saves: int, mesh_file: Path) -> dict:
-    env = {**os.environ, "PYTHONPATH": str(src)}
+    env = {**START_ENV, "PYTHONPATH": str(src)}
     out = subprocess.run([sys.executable, "-c", CHILD, str(folder), str(saves), str(mesh_file)],
                          capture_output=True, text=True, check=True, env=env)
     result = json.loads(out.stdout.strip().splitlines()[-1])

@@ -25,6 +25,15 @@ from photo3d.errors import ConfigError, InputError, MissingExtra, OutputError, P
 # this). A short spin instead (set before any kernel loads OpenMP); a value the user
 # set is kept.
 _os.environ.setdefault("GOMP_SPINCOUNT", "10000")
+# NumPy asks Linux for transparent huge pages (madvise) for every array of 4 MB or
+# more, and on a machine whose memory is fragmented the first touch of each 2 MB page
+# can wait for the kernel to compact memory. photo3d makes many large short-lived
+# arrays: on such a machine (the one docs/speed.md was measured on) a `make` of the
+# sample spent 0.3-0.4 s more system CPU that way (0.6-0.7 s against 0.8-1.3 s), its
+# raw disparity about 1 s (0.9 s against 1.75-2.1 s), for no gain in user time. So
+# off, unless the user set it; NumPy reads it when it is imported, so this holds when
+# photo3d is imported first (the command line, its workers).
+_os.environ.setdefault("NUMPY_MADVISE_HUGEPAGE", "0")
 
 __version__ = "0.1.0"
 

@@ -1,4 +1,5 @@
 import numpy as np
+import pytest
 
 from photo3d.stages.edges import find_discontinuities, link_edges
 from photo3d.stages.filters import bilateral_median
@@ -76,3 +77,50 @@ def test_short_segment_touching_a_long_edge_is_attached_or_dropped():
     assert np.all(attached.labels[10:13, 19] == long_id)
     assert np.all(attached.cuts[10:13, 19] & 2)
     assert np.all(dropped.labels[10:13, 19] == 0) and np.all(dropped.cuts[10:13, 19] == 0)
+
+
+def test_spread_is_scipys_maximum_minus_minimum_filter():
+    from scipy import ndimage
+
+    from photo3d.stages.filters import spread_above
+
+    rng = np.random.default_rng(3)
+    d = np.where(rng.random((37, 53)) < 0.7, 0.25, rng.random((37, 53))).astype(np.float32)
+    for size in (1, 3, 5, 7, 9):
+        spread = ndimage.maximum_filter(d, size) - ndimage.minimum_filter(d, size)
+        np.testing.assert_array_equal(spread_above(d, size, 0.04), spread > 0.04)
+
+
+def _sorted_scan(d, y, x, radius, sigma_s, sigma_i):
+    """The weighted median of one window as the filter defines it: weights computed in
+    float64, kept as float32, values sorted (stably), the first to reach half."""
+    h, w = d.shape
+    vals, wts, total = [], [], 0.0
+    for dy in range(-radius, radius + 1):
+        for dx in range(-radius, radius + 1):
+            if 0 <= y + dy < h and 0 <= x + dx < w:
+                v = d[y + dy, x + dx]
+                diff = np.float32(v - d[y, x])
+                wt = np.exp(-(dy * dy + dx * dx) / (2.0 * sigma_s ** 2)
+                            - float(np.float32(diff * diff)) / (2.0 * sigma_i ** 2))
+                vals.append(v)
+                wts.append(np.float32(wt))
+                total += wt
+    order = np.argsort(np.array(vals), kind="stable")
+    acc = 0.0
+    for j in order:
+        acc += float(wts[j])
+        if acc >= 0.5 * total:
+            return vals[j]
+    return vals[order[-1]]
+
+
+@pytest.mark.parametrize("sigmas", [(4.0, 0.5), (1e12, 1e12)])  # the defaults; weights 1
+def test_each_filtered_pixel_is_the_weighted_median_of_its_window(sigmas):
+    rng = np.random.default_rng(4)
+    d = np.round(rng.random((23, 29)) * 6).astype(np.float32) / 6  # many equal values
+    out = bilateral_median(d, windows=(5,), threshold=0.0, sigma_spatial=sigmas[0],
+                           sigma_intensity=sigmas[1])
+    for y in range(23):
+        for x in range(29):  # equal weights: the border's even windows hit half exactly
+            assert out[y, x] == _sorted_scan(d, y, x, 2, *sigmas)

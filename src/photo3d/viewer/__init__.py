@@ -6,6 +6,19 @@
 """
 
 from photo3d.viewer.html import VIEWER_FILE, read_viewer, write_viewer
-from photo3d.viewer.serve import ViewerServer, serve
 
 __all__ = ["VIEWER_FILE", "ViewerServer", "read_viewer", "serve", "write_viewer"]
+
+
+def __getattr__(name: str):
+    """:class:`ViewerServer` and :func:`serve` on first use: their ``http.server``
+    takes 16-28 ms to import, which every ``make`` (it writes the page, it does not
+    serve it) would pay."""
+    if name in ("ViewerServer", "serve"):
+        import importlib
+
+        module = importlib.import_module("photo3d.viewer.serve")
+        # the function, not the submodule of the same name the import just set
+        globals().update(ViewerServer=module.ViewerServer, serve=module.serve)
+        return globals()[name]
+    raise AttributeError(f"module 'photo3d.viewer' has no attribute {name!r}")
