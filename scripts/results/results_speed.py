@@ -37,7 +37,9 @@ def section_hard_depth(load, machine_line, missing) -> str:
     return "\n".join(out + [""])
 
 
-VIDEO_RUNS = ("video_demo_final.json", "video_vs_cdd3384_final.json",
+VIDEO_RUNS = ("video_demo_round3.json", "video_vs_cdd3384_round3b.json",
+              "video_vs_cdd3384_round3.json",
+              "video_demo_final.json", "video_vs_cdd3384_final.json",
               "video_vs_cdd3384_frames2.json", "video_vs_cdd3384_frames.json",
               "video_vs_cdd3384_second.json", "video_vs_cdd3384.json", "video_render.json",
               "video.json")
@@ -78,43 +80,53 @@ def section_videos(load, machine_line, missing) -> str:
     return "\n".join(out)
 
 
-def section_parts(load, machine_line, missing) -> str:
-    """``hard_depth_inpaint.json``, ``save.json``, ``video_steps.json``: the parts of
-    ``make`` and ``render`` timed in issue 35's second round, each against its ``ref``
-    (the main branch when it ran)."""
-    out = ["## Parts of make and render, second round (issue 35)", "",
-           "Each against the main branch of the time (`ref`), alternated, medians; the "
-           "machine was shared with other runs: compare the CPU seconds.", ""]
-    rec = load("hard_depth_inpaint.json")
-    if rec is not None:
-        out += [f"### The fill alone changed: `{rec['command']}`", "",
-                f"Machine: {machine_line(rec)}.", "",
-                "| input | ref: wall / CPU s | now: wall / CPU s | edges |",
+PART_RUNS = (("The fill alone changed", "hard_depth_inpaint.json", "hard_depth"),
+             ("The save step alone", "save.json", "save"),
+             ("A video frame's steps, one thread", "video_steps.json", "steps"),
+             ("Third round: the fill's sweeps and batches", "hard_depth_fill.json", "hard_depth"),
+             ("Third round: the save, start-up and preprocess", "hard_depth_save.json",
+              "hard_depth"),
+             ("Third round: the save step alone", "save_round3.json", "save"),
+             ("Third round: the save step alone, raw disparity", "save_raw_round3.json", "save"))
+"""The runs of the parts of issue 35's second and third rounds: ``(title, file, kind)``."""
+
+
+def _part_rows(kind: str, rec: dict) -> list[str]:
+    """Table rows of one run of :data:`PART_RUNS`."""
+    med = rec["median"]
+    if kind == "hard_depth":
+        rows = ["| input | ref: wall / CPU s | now: wall / CPU s | edges |",
                 "| --- | --- | --- | --- |"]
-        for name, now in rec["median"].get("now", {}).items():
-            old = rec["median"].get("previous", {}).get(name, {})
-            out.append(f"| {name} | {old.get('wall_s', 0):.2f} / {old.get('cpu_s', 0):.1f} | "
-                       f"{now['wall_s']:.2f} / {now['cpu_s']:.1f} | {now['edges']} |")
-        out.append("")
-    rec = load("save.json")
-    if rec is not None:
-        med = rec["median"]
-        out += [f"### The save step alone: `{rec['command']}`", "",
-                f"Machine: {machine_line(rec)}. Light mesh identical: {rec.get('identical')}.",
-                "", "| version | wall s | user CPU s | system CPU s |", "| --- | --- | --- | --- |"]
+        for name, now in med.get("now", {}).items():
+            old = med.get("previous", {}).get(name, {})
+            rows.append(f"| {name} | {old.get('wall_s', 0):.2f} / {old.get('cpu_s', 0):.1f} | "
+                        f"{now['wall_s']:.2f} / {now['cpu_s']:.1f} | {now['edges']} |")
+        return rows
+    if kind == "save":
+        rows = [f"Light mesh identical: {rec.get('identical')}.", "",
+                "| version | wall s | user CPU s | system CPU s |", "| --- | --- | --- | --- |"]
         for version in ("previous", "now"):
             m = med[version]
-            out.append(f"| {version} | {m['wall_s']:.2f} | {m['user_s']:.2f} | {m['sys_s']:.2f} |")
-        out.append("")
-    rec = load("video_steps.json")
-    if rec is not None:
-        med = rec["median"]
-        out += [f"### A video frame's steps, one thread: `{rec['command']}`", "",
-                f"Machine: {machine_line(rec)}. Milliseconds a 1280x720 frame.", "",
-                "| step | ref | now |", "| --- | --- | --- |"]
-        for step, ms in med["now"]["steps_ms"].items():
-            out.append(f"| {step} | {med['ref']['steps_ms'].get(step, 0):.1f} | {ms:.1f} |")
-        out += [f"| total | {med['ref']['total_ms']:.1f} | {med['now']['total_ms']:.1f} |", ""]
+            rows.append(f"| {version} | {m['wall_s']:.2f} | {m['user_s']:.2f} | "
+                        f"{m['sys_s']:.2f} |")
+        return rows
+    rows = ["Milliseconds a 1280x720 frame.", "", "| step | ref | now |", "| --- | --- | --- |"]
+    for step, ms in med["now"]["steps_ms"].items():
+        rows.append(f"| {step} | {med['ref']['steps_ms'].get(step, 0):.1f} | {ms:.1f} |")
+    return rows + [f"| total | {med['ref']['total_ms']:.1f} | {med['now']['total_ms']:.1f} |"]
+
+
+def section_parts(load, machine_line, missing) -> str:
+    """:data:`PART_RUNS`: the parts of ``make`` and ``render`` timed in issue 35's
+    second and third rounds, each against its ``ref`` (the main branch when it ran)."""
+    out = ["## Parts of make and render, second and third rounds (issue 35)", "",
+           "Each against the main branch of the time (`ref`), alternated, medians; the "
+           "machine was shared with other runs: compare the CPU seconds.", ""]
+    for title, name, kind in PART_RUNS:
+        rec = load(name)
+        if rec is not None:
+            out += [f"### {title}: `{rec['command']}`", "", f"Machine: {machine_line(rec)}.",
+                    "", *_part_rows(kind, rec), ""]
     if len(out) == 4:
         return "\n".join(out) + "\n" + missing("python benchmarks/bench_save.py")
     return "\n".join(out)
