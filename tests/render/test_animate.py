@@ -97,12 +97,36 @@ def test_frames_rendered_at_once_are_those_of_one_thread(scene, monkeypatch):
     assert all(np.array_equal(a, b) for a, b in zip(at_once, one, strict=True))
 
 
-def test_frames_left_unread_stop_the_workers(scene):
+def _frame_threads() -> set:
     import threading
 
+    return {t for t in threading.enumerate() if t.name.startswith("photo3d-frame")}
+
+
+def test_frames_left_unread_stop_the_workers(scene):
     ldi, renderer = scene
+    before = _frame_threads()
     cameras = path_cameras(ldi, VideoSpec(path="circle", size=(48, 32), frames=30))
     frames = render_frames(renderer, cameras)
     next(frames)
+    assert renderer.frame_workers() == 1 or _frame_threads() - before
     frames.close()
-    assert [t for t in threading.enumerate() if t.name.startswith("photo3d-frame")] == []
+    assert _frame_threads() - before == set()
+
+
+def test_a_failed_video_stops_the_frame_workers(tmp_path, scene, monkeypatch):
+    from photo3d.io import video
+
+    ldi, renderer = scene
+    before = _frame_threads()
+
+    def failing_write(self, frame):
+        raise OutputError("disk full")
+
+    monkeypatch.setattr(video.VideoWriter, "write", failing_write)
+    with pytest.raises(OutputError, match="disk full") as caught:
+        render_video(renderer, ldi, VideoSpec(path="swing", size=(48, 32), frames=20),
+                     tmp_path / "swing.mp4")
+    # the error's traceback holds render_video's frames: closed all the same
+    assert caught.value.__traceback__ is not None
+    assert _frame_threads() - before == set()

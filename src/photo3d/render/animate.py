@@ -6,6 +6,7 @@ import math
 from collections import deque
 from collections.abc import Iterator, Sequence
 from concurrent.futures import ThreadPoolExecutor
+from contextlib import closing
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -181,7 +182,8 @@ def render_video(renderer: Renderer, ldi: LDI, spec: VideoSpec, out: str | Path,
     frames = render_frames(renderer, cameras, stereo=spec.stereo,
                            eye_separation=spec.eye_separation, eye_order=spec.eye_order,
                            progress=progress)
-    with VideoWriter(out, fps=spec.fps, size=(width, k.height)) as writer, \
+    # closing: on an error the frames' worker threads stop now, not when collected
+    with closing(frames), VideoWriter(out, fps=spec.fps, size=(width, k.height)) as writer, \
             ThreadPoolExecutor(max_workers=1, thread_name_prefix="photo3d-encode") as pool:
         pending = None
         for frame in frames:  # each a new array: the worker may keep it
