@@ -124,3 +124,29 @@ def test_each_filtered_pixel_is_the_weighted_median_of_its_window(sigmas):
     for y in range(23):
         for x in range(29):  # equal weights: the border's even windows hit half exactly
             assert out[y, x] == _sorted_scan(d, y, x, 2, *sigmas)
+
+
+def test_bilateral_median_uses_the_threads_numba_is_given(monkeypatch):
+    import numba
+
+    from photo3d.stages import filters
+
+    pools = []
+    real = filters.ThreadPoolExecutor
+
+    def recording(max_workers):
+        pools.append(max_workers)
+        return real(max_workers=max_workers)
+
+    monkeypatch.setattr(filters, "ThreadPoolExecutor", recording)
+    rng = np.random.default_rng(3)
+    disparity = rng.random((24, 24)).astype(np.float32)
+    before = numba.get_num_threads()
+    numba.set_num_threads(1)  # as `batch` does in each worker
+    try:
+        one = filters.bilateral_median(disparity)
+    finally:
+        numba.set_num_threads(before)
+    assert pools == [1]
+    np.testing.assert_array_equal(filters.bilateral_median(disparity), one)
+    assert pools[1] == before

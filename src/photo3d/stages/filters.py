@@ -158,7 +158,7 @@ def bilateral_median(
         (True, 0.0, 1.0)
     """
     out = np.ascontiguousarray(disparity, dtype=np.float32).copy()
-    threads = max(1, numba.config.NUMBA_NUM_THREADS)
+    threads = max(1, numba.get_num_threads())  # this thread's: `batch` sets 1 a worker
     with ThreadPoolExecutor(max_workers=threads) as pool:
         for size in windows:
             if size < 1 or size % 2 == 0:
