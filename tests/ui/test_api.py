@@ -216,7 +216,20 @@ def test_uploads_beyond_the_byte_limit_are_refused(server):
 
 
 def test_two_clients_at_once_each_get_their_own_result_in_queue_order(server, sample,
-                                                                      tmp_path):
+                                                                      tmp_path, monkeypatch):
+    from photo3d.ui import runner
+
+    # the first request holds the worker until the second is seen in the queue: a make
+    # of 256 px may otherwise end before the second is submitted
+    gate, calls, real = threading.Event(), [], runner.run_job
+
+    def held(*args, **kwargs):
+        calls.append(args)
+        if len(calls) == 1:
+            gate.wait(120)
+        yield from real(*args, **kwargs)
+
+    monkeypatch.setattr(runner, "run_job", held)
     first_photo, depth = sample
     second_photo = tmp_path / "grey.png"
     rng = np.random.default_rng(1)
@@ -235,6 +248,8 @@ def test_two_clients_at_once_each_get_their_own_result_in_queue_order(server, sa
     def watch():
         while not done.is_set():
             states.append(second.status().code.name)
+            if states[-1] == "IN_QUEUE":
+                gate.set()
             time.sleep(0.02)
 
     watcher = threading.Thread(target=watch)
@@ -243,8 +258,9 @@ def test_two_clients_at_once_each_get_their_own_result_in_queue_order(server, sa
         results = [first.result(timeout=300), second.result(timeout=300)]
     finally:
         done.set()
+        gate.set()
         watcher.join()
-    assert "IN_QUEUE" in states  # the second waited for the one worker
+    assert "IN_QUEUE" in states and len(calls) == 2  # the second waited for the one worker
     sizes = []
     for (_, bundle, preview, _), stem in zip(results, ("sample", "grey"), strict=True):
         assert bundle.endswith(f"{stem}-3d.zip")
