@@ -18,7 +18,15 @@ import numpy as np
 import pytest
 from conftest import wait_for
 from PIL import Image
-from uikit import GRADIO_WARNINGS, check_glb, check_zip, png_bomb, running, write_sample
+from uikit import (
+    GRADIO_WARNINGS,
+    check_glb,
+    check_zip,
+    first_request_held,
+    png_bomb,
+    running,
+    write_sample,
+)
 
 from photo3d.io.spz import read_spz
 
@@ -217,19 +225,6 @@ def test_uploads_beyond_the_byte_limit_are_refused(server):
 
 def test_two_clients_at_once_each_get_their_own_result_in_queue_order(server, sample,
                                                                       tmp_path, monkeypatch):
-    from photo3d.ui import runner
-
-    # the first request holds the worker until the second is seen in the queue: a make
-    # of 256 px may otherwise end before the second is submitted
-    gate, calls, real = threading.Event(), [], runner.run_job
-
-    def held(*args, **kwargs):
-        calls.append(args)
-        if len(calls) == 1:
-            gate.wait(120)
-        yield from real(*args, **kwargs)
-
-    monkeypatch.setattr(runner, "run_job", held)
     first_photo, depth = sample
     second_photo = tmp_path / "grey.png"
     rng = np.random.default_rng(1)
@@ -238,28 +233,30 @@ def test_two_clients_at_once_each_get_their_own_result_in_queue_order(server, sa
     Image.fromarray(np.tile(np.arange(128, dtype=np.uint16) * 500, (96, 1))).save(second_depth)
     handle = gradio_client.handle_file
     common = dict(size=256, videos=False, api_name="/make")
-    first = client(server, tmp_path / "a").submit(photo=handle(first_photo),
-                                                  depth=handle(depth), **common)
-    states = []
-    second = client(server, tmp_path / "b").submit(photo=handle(second_photo),
-                                                   depth=handle(second_depth), **common)
-    done = threading.Event()
+    # the first request holds the worker until the second is seen in the queue: a make
+    # of 256 px may otherwise end before the second is submitted
+    with first_request_held(monkeypatch) as (gate, calls):
+        first = client(server, tmp_path / "a").submit(photo=handle(first_photo),
+                                                      depth=handle(depth), **common)
+        states = []
+        second = client(server, tmp_path / "b").submit(photo=handle(second_photo),
+                                                       depth=handle(second_depth), **common)
+        done = threading.Event()
 
-    def watch():
-        while not done.is_set():
-            states.append(second.status().code.name)
-            if states[-1] == "IN_QUEUE":
-                gate.set()
-            time.sleep(0.02)
+        def watch():
+            while not done.is_set():
+                states.append(second.status().code.name)
+                if states[-1] == "IN_QUEUE":
+                    gate.set()
+                time.sleep(0.02)
 
-    watcher = threading.Thread(target=watch)
-    watcher.start()
-    try:
-        results = [first.result(timeout=300), second.result(timeout=300)]
-    finally:
-        done.set()
-        gate.set()
-        watcher.join()
+        watcher = threading.Thread(target=watch)
+        watcher.start()
+        try:
+            results = [first.result(timeout=300), second.result(timeout=300)]
+        finally:
+            done.set()
+            watcher.join()
     assert "IN_QUEUE" in states and len(calls) == 2  # the second waited for the one worker
     sizes = []
     for (_, bundle, preview, _), stem in zip(results, ("sample", "grey"), strict=True):

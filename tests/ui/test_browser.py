@@ -19,7 +19,15 @@ from urllib.parse import urlsplit
 import numpy as np
 import pytest
 from PIL import Image
-from uikit import GRADIO_WARNINGS, check_glb, check_zip, png_bomb, running, write_sample
+from uikit import (
+    GRADIO_WARNINGS,
+    check_glb,
+    check_zip,
+    first_request_held,
+    png_bomb,
+    running,
+    write_sample,
+)
 
 from photo3d.io.spz import read_spz
 
@@ -158,42 +166,29 @@ def test_a_hostile_upload_is_one_line_and_the_next_upload_works(page, sample, tm
 
 def test_two_pages_at_once_queue_and_each_get_their_own_result(browser, server, sample,
                                                                tmp_path, monkeypatch):
-    import threading
-
-    from photo3d.ui import runner
-
     flat = tmp_path / "flat.png"  # the second page's depth: make warns it has no range
     Image.new("I;16", (741, 500), 1000).save(flat)
-    # the first request holds the worker until the second page shows its place in the
-    # queue: a make of 256 px may otherwise end before the second click arrives
-    gate, calls, real = threading.Event(), [], runner.run_job
-
-    def held(*args, **kwargs):
-        calls.append(args)
-        if len(calls) == 1:
-            gate.wait(120)
-        yield from real(*args, **kwargs)
-
-    monkeypatch.setattr(runner, "run_job", held)
     pages = []
     for _ in range(2):
         page = browser.new_page(viewport={"width": 1280, "height": 900})
         page.goto(server.url)
         page.wait_for_selector("#photo3d-make")
         pages.append(page)
+    # the first request is held until the second page shows its place in the queue: a
+    # make of 256 px may otherwise end before the second click arrives
     try:
-        for page, depth in zip(pages, (sample[1], flat), strict=True):
-            prepare(page, sample[0], depth, size=256, videos=False)
-        for page in pages:
-            page.click("#photo3d-make")
-        queued = wait_until(lambda: "queue: 1/1" in pages[1].inner_text("#photo3d-viewer"),
-                            60, "the second page's place in the queue")
-        gate.set()
-        lines = [wait_until(lambda p=p: "made in" in status(p) and status(p), 300, "a result")
-                 for p in pages]
-        zips = {p.locator("#photo3d-zip a[download]").get_attribute("href") for p in pages}
+        with first_request_held(monkeypatch) as (gate, calls):
+            for page, depth in zip(pages, (sample[1], flat), strict=True):
+                prepare(page, sample[0], depth, size=256, videos=False)
+            for page in pages:
+                page.click("#photo3d-make")
+            queued = wait_until(lambda: "queue: 1/1" in pages[1].inner_text("#photo3d-viewer"),
+                                60, "the second page's place in the queue")
+            gate.set()
+            lines = [wait_until(lambda p=p: "made in" in status(p) and status(p), 300,
+                                "a result") for p in pages]
+            zips = {p.locator("#photo3d-zip a[download]").get_attribute("href") for p in pages}
     finally:
-        gate.set()
         for page in pages:
             page.close()
     assert queued and len(calls) == 2 and all("256x173" in line for line in lines)

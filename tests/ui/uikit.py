@@ -81,3 +81,28 @@ def running(**options):
     finally:
         server.close()
     assert not server.workspace.root.exists()
+
+
+@contextmanager
+def first_request_held(monkeypatch):
+    """Within the block, the server's first request waits in its worker until the
+    returned ``gate`` (a ``threading.Event``) is set, or 120 s; ``calls`` lists every
+    request's arguments. So a test sees a second request queued, however fast the
+    first would end. The gate is set when the block ends."""
+    import threading
+
+    from photo3d.ui import runner
+
+    gate, calls, real = threading.Event(), [], runner.run_job
+
+    def held(*args, **kwargs):
+        calls.append(args)
+        if len(calls) == 1:
+            gate.wait(120)
+        yield from real(*args, **kwargs)
+
+    monkeypatch.setattr(runner, "run_job", held)
+    try:
+        yield gate, calls
+    finally:
+        gate.set()
