@@ -508,7 +508,9 @@ def _finish_rows(color, depth, smooth, r0, r1, out_color, out_cov, out_depth, ou
 
 @njit(cache=True, error_model="numpy", inline="always")
 def _to_8bit(v):
-    """A colour in [0, 1] (clipped) -> ``uint8``, rounded half up (as ``to_rgb8``)."""
+    """A colour in [0, 1] (clipped) -> ``uint8``, rounded half up (as ``to_rgb8``; a copy
+    of ``_resolve._u8``: numba caches a kernel by its own file, so a helper inlined from
+    another file would not recompile it when changed)."""
     return np.uint8(min(max(np.float64(v), 0.0), 1.0) * 255.0 + 0.5)
 
 

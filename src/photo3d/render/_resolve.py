@@ -202,6 +202,12 @@ def grow_fill_far(color, coverage, depth, iterations, tolerance):  # pragma: no 
     return left
 
 
+@numba.njit(cache=True, inline="always")
+def _u8(v):  # pragma: no cover - jit
+    """A colour in [0, 1] (clipped) -> ``uint8``, rounded half up."""
+    return np.uint8(min(max(v, 0.0), 1.0) * 255.0 + 0.5)
+
+
 @numba.njit(cache=True, parallel=True, nogil=True)
 def to_rgb8(color):  # pragma: no cover - jit
     """``(H, W, 3)`` float in [0, 1] -> ``uint8`` (clipped, rounded half up)."""
@@ -210,8 +216,7 @@ def to_rgb8(color):  # pragma: no cover - jit
     for y in prange(h):
         for x in range(w):
             for ch in range(3):
-                v = min(max(color[y, x, ch], 0.0), 1.0)
-                out[y, x, ch] = np.uint8(v * 255.0 + 0.5)
+                out[y, x, ch] = _u8(color[y, x, ch])
     return out
 
 
@@ -226,6 +231,5 @@ def holes_to_rgb8(color, coverage, rgb):  # pragma: no cover - jit
         for x in range(w):
             if coverage[y, x] < 1.0:
                 for ch in range(3):
-                    v = min(max(color[y, x, ch], 0.0), 1.0)
-                    rgb[y, x, ch] = np.uint8(v * 255.0 + 0.5)
+                    rgb[y, x, ch] = _u8(color[y, x, ch])
     return rgb
