@@ -10,6 +10,7 @@ from contextlib import closing
 from dataclasses import dataclass
 from pathlib import Path
 
+import numba
 import numpy as np
 
 from photo3d.camera import Camera, Intrinsics
@@ -17,7 +18,7 @@ from photo3d.errors import ConfigError
 from photo3d.progress import CountProgress
 from photo3d.render._resolve import to_rgb8
 from photo3d.render.paths import STANDARD_PATHS, load_path, preset_path
-from photo3d.render.renderer import Renderer, frame_thread, output_intrinsics
+from photo3d.render.renderer import Renderer, output_intrinsics
 from photo3d.render.stereo import compose, eye_cameras, file_tag
 from photo3d.structures.ldi import LDI
 
@@ -131,9 +132,12 @@ def render_frames(renderer: Renderer, cameras: Sequence[Camera], *, stereo: str 
             if progress is not None:
                 progress(i + 1, len(cameras))
         return
-    # frames rendered at once on worker threads, yielded in order, `workers` in flight
+    # frames rendered at once on worker threads, yielded in order, `workers` in flight,
+    # each worker's parallel kernels on its share of this thread's numba threads
+    # (numba.set_num_threads holds for the thread that calls it)
+    share = max(1, numba.get_num_threads() // workers)
     pool = ThreadPoolExecutor(workers, thread_name_prefix="photo3d-frame",
-                              initializer=frame_thread, initargs=(workers,))
+                              initializer=numba.set_num_threads, initargs=(share,))
     try:
         pending = deque(pool.submit(frame, cam) for cam in cameras[:workers])
         for i in range(len(cameras)):

@@ -240,8 +240,8 @@ class Renderer:
         """How many frames :func:`~photo3d.render.animate.render_frames` renders at
         once with this renderer: 2 with the CPU rasterizer when numba has two threads
         or more and a threading layer that runs parallel kernels of several threads at
-        once (:func:`thread_safe_kernels`), each frame then on half the threads
-        (:func:`frame_thread`); else 1. Two frames at once keep both cores busy where
+        once (:func:`thread_safe_kernels`), each frame then on half the calling
+        thread's numba threads; else 1. Two frames at once keep both cores busy where
         one frame's bands wait for the slower band (the video encoder shares a core).
 
         Example:
@@ -277,26 +277,6 @@ class Renderer:
         if left:  # large holes left: smooth pyramid fill
             color = fill_holes(color, np.where(coverage >= 1.0, 1.0, coverage))
         return color
-
-
-def frame_thread(workers: int) -> None:
-    """Set up the calling thread as one of ``workers`` threads rendering frames at once
-    (:meth:`Renderer.frame_workers`): its parallel kernels use its share of numba's
-    threads (``numba.set_num_threads`` holds for the calling thread only).
-
-    Example:
-        >>> import numba, threading
-        >>> seen = []
-        >>> def worker():
-        ...     frame_thread(numba.get_num_threads())
-        ...     seen.append(numba.get_num_threads())
-        >>> t = threading.Thread(target=worker); t.start(); t.join()
-        >>> seen
-        [1]
-    """
-    import numba
-
-    numba.set_num_threads(max(1, numba.get_num_threads() // max(1, workers)))
 
 
 def thread_safe_kernels() -> bool:
