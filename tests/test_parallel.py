@@ -299,3 +299,33 @@ def test_one_core_starts_no_pool_thread(how):
         seen = child_pools({parallel.ENV: "1"})
     assert seen["threads"] == 1
     assert [k for k in seen["pools"] if k.startswith("photo3d-")] == []
+
+
+def test_the_command_line_takes_threads_and_refuses_a_bad_budget(tmp_path, capsys,
+                                                                monkeypatch):
+    from photo3d.cli import build_parser, main
+
+    for command in ("make", "batch", "render", "export", "demo", "ui", "train"):
+        assert "--threads" in build_parser()._subparsers._group_actions[0].choices[
+            command].format_help()
+    assert main(["demo", "--threads", "0", "-o", str(tmp_path / "o")]) == 2
+    assert "--threads must be a whole number of at least 1, got 0" in capsys.readouterr().err
+    monkeypatch.setenv(parallel.ENV, "two")
+    assert main(["demo", "-o", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert err.splitlines() == ["photo3d: error: PHOTO3D_THREADS must be a whole number of "
+                                "at least 1, got 'two'"]
+    assert not (tmp_path / "o").exists()
+
+
+def test_threads_on_the_command_line_set_the_budget(monkeypatch, tmp_path):
+    from photo3d.cli import main
+
+    before = parallel.process_threads()
+    monkeypatch.setattr(parallel, "_budget", None)
+    monkeypatch.setenv("OMP_NUM_THREADS", os.environ.get("OMP_NUM_THREADS", "1"))
+    try:  # the folder does not exist: view fails after the budget is set
+        assert main(["view", str(tmp_path / "none"), "--threads", "3"]) == 2
+        assert parallel.process_threads() == 3
+    finally:
+        parallel.set_threads(before)  # numba's and torch's threads as they were

@@ -23,7 +23,7 @@ import warnings
 from photo3d.cli import batch, demo, depth, evaluate, export, make, render, train, ui, view
 from photo3d.errors import Photo3DError
 from photo3d.files.signals import handle_signals
-from photo3d.parallel import ENV, set_threads
+from photo3d.parallel import ENV, process_threads, set_threads
 
 COMMANDS = (make, batch, depth, demo, render, export, view, ui, evaluate, train)
 """Subcommand modules, in the order ``photo3d --help`` lists them."""
@@ -65,6 +65,8 @@ def main(argv: list[str] | None = None) -> int:
             args = build_parser().parse_args(argv)
             if args.threads is not None:  # before numba or torch load
                 set_threads(args.threads)
+            else:
+                process_threads()  # a bad PHOTO3D_THREADS is told before any work
             warnings.showwarning = show
             status = args.run(args)
             if argv is None:  # the photo3d command: the process ends next
