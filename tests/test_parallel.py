@@ -285,15 +285,48 @@ def test_every_pool_follows_a_budget_of_sixteen():
     assert all(n <= 16 for n in pools.values()), pools
 
 
-@pytest.mark.parametrize("how", ["env", "taskset"])
+def quota_group(tmp_name: str) -> Path | None:
+    """A cgroup with a CPU quota of one CPU (v2 ``cpu.max`` or v1 ``cpu.cfs_quota_us``),
+    None where none can be made (not root, no cgroup file system)."""
+    v2 = Path("/sys/fs/cgroup/cgroup.controllers")
+    try:
+        if v2.exists() and "cpu" in v2.read_text().split():
+            folder = Path("/sys/fs/cgroup") / tmp_name
+            folder.mkdir()
+            (folder / "cpu.max").write_text("100000 100000\n")
+            return folder
+        for base in (Path("/sys/fs/cgroup/cpu"), Path("/sys/fs/cgroup/cpu,cpuacct")):
+            if (base / "cpu.cfs_quota_us").exists():
+                folder = base / tmp_name
+                folder.mkdir()
+                (folder / "cpu.cfs_quota_us").write_text("100000\n")
+                return folder
+    except OSError:
+        return None
+    return None
+
+
+@pytest.mark.parametrize("how", ["env", "taskset", "quota"])
 def test_one_core_starts_no_pool_thread(how):
-    # a budget of one (PHOTO3D_THREADS=1, or a process bound to one core): every pool
-    # runs in the calling thread, so no pool has more threads than the cores
+    # a budget of one (PHOTO3D_THREADS=1, a process bound to one core, a cgroup quota of
+    # one CPU): every pool runs in the calling thread, so no pool has more threads than
+    # the cores
     if how == "taskset":
         if not hasattr(os, "sched_getaffinity") or not Path("/usr/bin/taskset").exists():
             pytest.skip("no taskset")
         cpu = min(os.sched_getaffinity(0))
         seen = child_pools({}, prefix=["taskset", "-c", str(cpu)])
+        assert seen["cores"] == 1
+    elif how == "quota":
+        group = quota_group(f"photo3d-test-{os.getpid()}")
+        if group is None:
+            pytest.skip("no cgroup with a CPU quota can be made here (not root?)")
+        try:
+            seen = child_pools({}, prefix=["/bin/sh", "-c",
+                                           f'echo $$ > {group}/cgroup.procs && exec "$@"',
+                                           "sh"])
+        finally:
+            group.rmdir()
         assert seen["cores"] == 1
     else:
         seen = child_pools({parallel.ENV: "1"})
