@@ -38,7 +38,7 @@ from photo3d.stages.passes import (
     start,
 )
 from photo3d.stages.patches import PatchJob
-from photo3d.stages.preprocess import preprocess
+from photo3d.stages.preprocess import Preprocessed, preprocess
 from photo3d.structures.ldi import LDI
 from photo3d.structures.patch import Patch
 
@@ -101,17 +101,8 @@ def make(
     pre = preprocess(img, dep.disparity, config=config)
     done("preprocess")
 
+    state = _first_pass_input(pre, img.shape[:2], config, intrinsics)
     h, w = pre.image.shape[:2]
-    if intrinsics is not None:
-        if (intrinsics.width, intrinsics.height) != (img.shape[1], img.shape[0]):
-            raise InputError(f"intrinsics are for {intrinsics.width}x{intrinsics.height} but "
-                             f"the image is {img.shape[1]}x{img.shape[0]}")
-        intrinsics = intrinsics.scaled(w, h)
-    mapping = None
-    if config.metric:
-        lo, hi = pre.disparity_range  # of 1 / z: normalised d maps back to z exactly
-        mapping = DepthMapping.from_inverse_depth(lo, hi)
-    state = start(pre, config=config, intrinsics=intrinsics, mapping=mapping)
     scale = max(w / img.shape[1], h / img.shape[0])
     reg = config.regions
     with overlap(name="frame") as side:
@@ -179,6 +170,23 @@ def _load(image: np.ndarray | str | Path, depth: np.ndarray | str | Path | Depth
     return img, prepare_depth(raw, img.shape[:2], kind=config.depth_kind)
 
 
+def _first_pass_input(pre: Preprocessed, shape: tuple[int, int], config: Config,
+                      intrinsics: Intrinsics | None) -> PassInput:
+    """The first pass's input (:func:`~photo3d.stages.passes.start`) with the input
+    camera scaled to the working size and, for metric depth, its depth mapping."""
+    h, w = pre.image.shape[:2]
+    if intrinsics is not None:
+        if (intrinsics.width, intrinsics.height) != (shape[1], shape[0]):
+            raise InputError(f"intrinsics are for {intrinsics.width}x{intrinsics.height} but "
+                             f"the image is {shape[1]}x{shape[0]}")
+        intrinsics = intrinsics.scaled(w, h)
+    mapping = None
+    if config.metric:
+        lo, hi = pre.disparity_range  # of 1 / z: normalised d maps back to z exactly
+        mapping = DepthMapping.from_inverse_depth(lo, hi)
+    return start(pre, config=config, intrinsics=intrinsics, mapping=mapping)
+
+
 def fill_pass(state: PassInput, plan: PassPlan, backend: Inpainter, *, pass_index: int = 0,
               frame: Future[LDI] | None = None,
               progress: CountProgress | None = None) -> Merged:
@@ -208,7 +216,7 @@ def fill_pass(state: PassInput, plan: PassPlan, backend: Inpainter, *, pass_inde
 
     Example:
         >>> from photo3d.stages.passes import plan_pass, start
-        >>> from photo3d.stages.preprocess import preprocess
+        >>> from photo3d.stages.preprocess import Preprocessed, preprocess
         >>> cfg = Config(size=None)
         >>> d = np.ones((64, 64), np.float32); d[16:48, 16:48] = 3.0
         >>> pre = preprocess(np.zeros((64, 64, 3), np.float32), d, config=cfg)
