@@ -20,7 +20,7 @@ from photo3d.inpaint import get_inpainter
 from photo3d.inpaint.base import Inpainter
 from photo3d.inpaint.frame import fill_frame
 from photo3d.io.depth import read_depth
-from photo3d.io.images import MIN_SIDE
+from photo3d.io.images import MIN_SIDE, image_shape
 from photo3d.parallel import ahead, overlap
 from photo3d.photo import Photo3D
 from photo3d.progress import CountProgress, StageProgress
@@ -158,7 +158,11 @@ def make(
 
 def _load(image: np.ndarray | str | Path, depth: np.ndarray | str | Path | DepthInput,
           config: Config) -> tuple[np.ndarray, DepthInput]:
-    """The photo and its prepared depth, the photo's size and the memory checked."""
+    """The photo and its prepared depth, the photo's size and the memory checked (for a
+    file, from its header first: before a pixel is decoded)."""
+    shape = image_shape(image) if isinstance(image, str | Path) else None
+    if shape is not None:
+        check_memory(shape, config)
     img = read_photo(image)
     if min(img.shape[:2]) < MIN_SIDE:
         raise InputError(f"image is {img.shape[1]}x{img.shape[0]} pixels; photo3d needs at "

@@ -164,6 +164,33 @@ def read_image(path: PathLike, *, working_size: int | None = None) -> np.ndarray
     return image
 
 
+def image_shape(path: PathLike) -> tuple[int, int] | None:
+    """The upright ``(height, width)`` of an image file from its header, without
+    decoding a pixel (so that the memory a photo needs can be checked before it is
+    read); None if the header cannot be read (the reader then says why).
+
+    Example:
+        >>> import pathlib, tempfile
+        >>> path = pathlib.Path(tempfile.mkdtemp()) / "wide.png"
+        >>> write_image(path, np.zeros((8, 20, 3), np.float32))
+        >>> image_shape(path)
+        (8, 20)
+    """
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # the reader reports what it finds
+            with open_image(Path(path)) as im:
+                w, h = im.size
+                try:
+                    turned = orientation_of(im.getexif().get(0x0112)) >= 5
+                except InputError:
+                    turned = False
+    except (OSError, SyntaxError, ValueError, InputError, Image.DecompressionBombError,
+            UnidentifiedImageError):
+        return None
+    return (w, h) if turned else (h, w)
+
+
 def write_image(path: PathLike, image: np.ndarray, *, quality: int = 95) -> None:
     """Write an 8-bit PNG or JPEG (chosen by the extension), overwriting ``path``.
 
