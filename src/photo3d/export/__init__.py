@@ -149,6 +149,7 @@ def export_folder(folder: str | Path, formats: Sequence[str], *,
         ['splats.ply', 'splats.spz']
     """
     chosen = check_formats(formats, output=output)
+    require_extras([f.name for f in chosen])
     folder = Path(folder)
     if not folder.is_dir():
         raise InputError(f"no 3D photo folder at {folder}")
@@ -268,6 +269,20 @@ def preload(formats: Sequence[Format]) -> None:
                 importlib.import_module(module)
             except ImportError:  # the writer raises MissingExtra naming the extra
                 break
+
+
+def require_extras(formats: Sequence[str]) -> None:
+    """Raise :class:`~photo3d.errors.MissingExtra` now if a package that one of
+    ``formats`` needs is missing (``mesh.usdz``: usd-core), so that ``make``,
+    ``batch`` and ``export`` fail before the work, not after it.
+
+    Example:
+        >>> require_extras(["splats.spz", "quilt"])  # nothing more to install
+    """
+    if "mesh.usdz" in formats:
+        from photo3d.export.usdz import require_usd
+
+        require_usd()
 
 
 def _light_error(meta: dict) -> float | None:
