@@ -1,13 +1,18 @@
 """Export formats whose packages are missing are told before any work."""
+
+import numpy as np
+
+from photo3d import pipeline
+from photo3d.cli import main
+from photo3d.errors import require
+from photo3d.export import usdz
+from photo3d.io.images import write_image
+
+
 def test_a_missing_package_of_an_export_is_told_before_the_work(tmp_path, capsys,
                                                                 monkeypatch):
     # issue 45: `--export mesh.usdz` without usd-core was found only after the photo
     # was made, and `batch` made and threw away every photo
-    from photo3d import pipeline
-    from photo3d.cli import main
-    from photo3d.errors import require
-    from photo3d.export import usdz
-
     def missing() -> None:  # as without usd-core
         require("photo3d_no_such_package", "usdz", purpose="writing USDZ", package="usd-core")
 
@@ -16,10 +21,6 @@ def test_a_missing_package_of_an_export_is_told_before_the_work(tmp_path, capsys
 
     monkeypatch.setattr(usdz, "require_usd", missing)
     monkeypatch.setattr(pipeline, "make", never)
-    import numpy as np
-
-    from photo3d.io.images import write_image
-
     (tmp_path / "in").mkdir()
     write_image(tmp_path / "in" / "p.png", np.full((32, 32, 3), 0.5, np.float32))
     np.save(tmp_path / "d.npy", np.ones((32, 32), np.float32))
