@@ -16,6 +16,7 @@ import struct
 import numpy as np
 
 from photo3d.errors import InputError, OutputError
+from photo3d.files.atomic import open_write
 
 PathLike = str | os.PathLike[str]
 
@@ -122,7 +123,7 @@ def write_container(path: PathLike, document: dict, chunks: list[bytes]) -> None
     text += b" " * (-len(text) % 4)
     length = sum(len(chunk) for chunk in chunks)
     try:
-        with open(path, "wb") as file:
+        with open_write(path) as file:
             file.write(struct.pack("<III", MAGIC, 2, 12 + 8 + len(text) + 8 + length))
             file.write(struct.pack("<II", len(text), JSON_CHUNK) + text)
             file.write(struct.pack("<II", length, BIN_CHUNK))

@@ -36,6 +36,7 @@ from PIL import Image, UnidentifiedImageError
 
 from photo3d.config import working_shape
 from photo3d.errors import InputError, OutputError, install_hint, require
+from photo3d.files.atomic import writing
 from photo3d.io.limits import check_available
 
 PathLike = str | os.PathLike[str]
@@ -196,7 +197,8 @@ def write_image(path: PathLike, image: np.ndarray, *, quality: int = 95) -> None
     pixels = _to_uint8(image)
     try:
         options = {"quality": int(quality)} if fmt == "JPEG" else {}
-        Image.fromarray(pixels).save(path, format=fmt, **options)
+        with writing(path) as target:
+            Image.fromarray(pixels).save(target, format=fmt, **options)
     except OSError as err:
         raise OutputError(f"cannot write image {path}: {err.strerror or err}") from err
 

@@ -23,6 +23,7 @@ import os
 import numpy as np
 
 from photo3d.errors import InputError
+from photo3d.files.atomic import open_write
 from photo3d.structures.splats import SH_C0, Splats
 
 PathLike = str | os.PathLike[str]
@@ -91,7 +92,7 @@ def write_splat_ply(path: PathLike, splats: Splats) -> None:
         (True, True)
     """
     rows = encode(splats)
-    with open(path, "wb") as file:
+    with open_write(path) as file:
         file.write(header(len(rows)))
         rows.tofile(file)
 

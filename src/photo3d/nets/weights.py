@@ -24,6 +24,7 @@ import torch
 from torch import Tensor, nn
 
 from photo3d.errors import InputError
+from photo3d.files.atomic import writing
 from photo3d.files.download import sha256_of
 from photo3d.nets.edge import EdgeGenerator
 from photo3d.nets.partialconv import PartialConvUNet, color_net, depth_net
@@ -239,5 +240,7 @@ def save_safetensors(module: nn.Module, path: str | Path, *,
     if dtype is not None:
         tensors = {k: v.to(dtype) if v.is_floating_point() else v for k, v in tensors.items()}
     path = Path(path)
-    save_file(tensors, str(path), metadata={"photo3d_net": kind, "config": json.dumps(config)})
+    with writing(path) as target:
+        save_file(tensors, str(target),
+                  metadata={"photo3d_net": kind, "config": json.dumps(config)})
     return path

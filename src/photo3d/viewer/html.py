@@ -34,6 +34,7 @@ from importlib import resources
 from pathlib import Path
 
 from photo3d.errors import InputError, OutputError
+from photo3d.files.atomic import open_write
 from photo3d.structures.mesh import Mesh, TexturedMesh
 from photo3d.viewer._codec import decode_mesh, encode_mesh
 
@@ -84,7 +85,7 @@ def write_viewer(mesh: Mesh | TexturedMesh, path: PathLike, *, title: str = "pho
     after = after.replace("{{SCRIPT}}", _script())
     path = Path(path)
     try:
-        with open(path, "wb") as f:
+        with open_write(path) as f:
             f.write(before.encode("utf-8"))
             f.write(base64.b64encode(payload))
             f.write(after.encode("utf-8"))
