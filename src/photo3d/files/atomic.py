@@ -351,6 +351,40 @@ def open_write(path: PathLike, mode: str = "wb") -> Iterator[IO]:
         yield f
 
 
+@contextlib.contextmanager
+def open_append(path: PathLike) -> Iterator[IO]:
+    """Open ``path`` to append text lines (UTF-8, ``newline=""``), created if missing.
+
+    The one write that is not atomic: a log that grows a line at a time
+    (``losses.csv``). The target passes the gate first (no symbolic link, FIFO or
+    input), and is opened with ``O_NOFOLLOW``, so a link that appears meanwhile is
+    refused, never written through.
+
+    Raises:
+        OutputError: one line naming ``path``.
+
+    Example:
+        >>> import pathlib, tempfile
+        >>> target = pathlib.Path(tempfile.mkdtemp()) / "log.csv"
+        >>> for row in ("a\\n", "b\\n"):
+        ...     with open_append(target) as f:
+        ...         _ = f.write(row)
+        >>> target.read_text()
+        'a\\nb\\n'
+    """
+    check_target(path)
+    flags = os.O_WRONLY | os.O_APPEND | os.O_CREAT | os.O_NOFOLLOW | os.O_CLOEXEC
+    try:
+        fd = os.open(path, flags, 0o666)
+    except OSError as err:
+        raise OutputError(f"cannot write {path}: {err.strerror or err}") from None
+    try:
+        with open(fd, "a", encoding="utf-8", newline="") as f:
+            yield f
+    except OSError as err:
+        raise OutputError(f"cannot write {path}: {err.strerror or err}") from None
+
+
 def _issued(path: Path) -> bool:
     """True if ``path`` is a temporary file handed out here or lies in a staged folder."""
     if path.is_symlink():

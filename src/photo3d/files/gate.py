@@ -35,7 +35,7 @@ Example:
     ...     check_target(photo)
     Traceback (most recent call last):
     photo3d.errors.OutputError: ... is an input of this command; photo3d does not replace what it reads
-"""
+"""  # noqa: E501
 
 from __future__ import annotations
 
@@ -131,7 +131,7 @@ def check_target(path: PathLike, *, follow_symlinks: bool = False, hint: str = "
         >>> check_target(folder / "link")
         Traceback (most recent call last):
         photo3d.errors.OutputError: ... is a symbolic link; photo3d does not write through links
-    """
+    """  # noqa: E501
     path = Path(path)
     final = path
     mode = _mode(path)

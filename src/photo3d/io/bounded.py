@@ -69,7 +69,7 @@ def loads_json(data: bytes | str, *, what: str, max_depth: int = MAX_DEPTH) -> A
         >>> loads_json('{"a": 1', what="config.json")
         Traceback (most recent call last):
         photo3d.errors.InputError: config.json is not valid: Expecting ',' delimiter: line 1 column 8 (char 7)
-    """
+    """  # noqa: E501
     if json_depth(data) > max_depth:
         raise InputError(f"{what} is not valid: JSON nested deeper than {max_depth} levels")
     try:
