@@ -219,7 +219,7 @@ def test_a_garbage_optimizer_state_is_one_line(tmp_path):
     run = tmp_path / "run"
     train(_data(), run, _config(1), device="cpu")
     step, folder = checkpoints(run)[-1]
-    (folder / "optimizer.pt").write_bytes(b"PK\x03\x04" + bytes(range(256)) * 4)
+    (folder / "optimizer.pt").write_bytes(b"garbage")  # torch: 5 lines "Weights only load.."
     with pytest.raises(InputError) as err:
         train(_data(), run, _config(2), device="cpu")
     assert "\n" not in str(err.value) and "optimizer.pt" in str(err.value)

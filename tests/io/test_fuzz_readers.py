@@ -21,7 +21,6 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from photo3d.errors import InputError, Photo3DError
-from photo3d.io.bounded import json_depth, loads_json, read_json
 from photo3d.io.glb import read_chunks, write_container
 from photo3d.io.light_glb import read_light_glb
 
@@ -127,6 +126,8 @@ def test_render_builds_the_mesh_again_from_a_hostile_mesh_glb(light, tmp_path, c
 
 @pytest.mark.parametrize("text", ["[" * 100_000, '{"a": ' * 50_000, "[" * 65 + "]" * 65])
 def test_deep_json_is_refused_before_parsing(tmp_path, text):
+    from photo3d.io.bounded import read_json
+
     path = tmp_path / "state.json"
     path.write_text(text)
     with pytest.raises(InputError) as err:
@@ -136,6 +137,8 @@ def test_deep_json_is_refused_before_parsing(tmp_path, text):
 
 def test_a_fifo_is_refused_without_blocking(tmp_path):
     import os
+
+    from photo3d.io.bounded import read_json
 
     os.mkfifo(tmp_path / "config.json")
     with pytest.raises(InputError, match="not a regular file"):
@@ -147,6 +150,8 @@ def test_a_fifo_is_refused_without_blocking(tmp_path):
                     lambda kids: st.lists(kids, max_size=3)
                     | st.dictionaries(st.text(max_size=3), kids, max_size=3), max_leaves=20))
 def test_json_depth_is_the_nesting(value):
+    from photo3d.io.bounded import json_depth, loads_json
+
     text = json.dumps(value)
 
     def depth(v):
@@ -163,6 +168,8 @@ def test_json_depth_is_the_nesting(value):
 @FAST
 @given(st.binary(max_size=200))
 def test_loads_json_is_a_value_or_one_line(data):
+    from photo3d.io.bounded import loads_json
+
     try:
         loads_json(data, what="x")
     except InputError as err:
@@ -173,18 +180,25 @@ def test_loads_json_is_a_value_or_one_line(data):
 
 @pytest.fixture(scope="module")
 def valid(tmp_path_factory):
-    root = tmp_path_factory.mktemp("valid")
-    return {name: make(root / name.replace(".", "_")) for name, make in FORMATS.items()}
+    """``valid(name)``: a valid file of the format ``name`` (made once, when asked for)."""
+    root, made = tmp_path_factory.mktemp("valid"), {}
+
+    def get(name):
+        if name not in made:
+            made[name] = FORMATS[name](root / name.replace(".", "_"))
+        return made[name]
+
+    return get
 
 
 @pytest.mark.parametrize("name", sorted(FORMATS))
 def test_each_valid_file_reads(valid, name):
-    valid[name].read(valid[name].path)
+    valid(name).read(valid(name).path)
 
 
 @pytest.mark.parametrize("name", sorted(FORMATS))
 def test_each_reader_answers_a_damaged_file_in_one_line(valid, tmp_path_factory, name):
-    sample = valid[name]
+    sample = valid(name)
     folder = tmp_path_factory.mktemp("fuzz")
     data = sample.path.read_bytes()
 
