@@ -61,10 +61,21 @@ LIBRARY_SAVES = {"save", "savez", "savez_compressed", "savetxt", "tofile", "save
                  "imwrite", "imsave"}
 
 
+def _dotted(node: ast.AST) -> str | None:
+    """``a.b.c`` of a chain of attributes on a name, else None."""
+    if isinstance(node, ast.Name):
+        return node.id
+    if isinstance(node, ast.Attribute):
+        head = _dotted(node.value)
+        return None if head is None else f"{head}.{node.attr}"
+    return None
+
+
 def _gate_expr(node: ast.AST, names: set[str]) -> bool:
     """True if ``node`` is a path or handle the gate handed out (or built on one)."""
-    if isinstance(node, ast.Name):
-        return node.id in names
+    dotted = _dotted(node)
+    if dotted is not None and any(dotted == n or dotted.startswith(n + ".") for n in names):
+        return True
     if isinstance(node, ast.Attribute):
         return _gate_expr(node.value, names)
     if isinstance(node, ast.BinOp):
@@ -92,15 +103,23 @@ def _violations(path: Path) -> list[str]:
     found = []
 
     def visit(node: ast.AST, function: str, names: set[str]) -> None:
+        if isinstance(node, ast.ClassDef):  # self.X = PendingFile(...) in any method
+            names = names | {d for sub in ast.walk(node) if isinstance(sub, ast.Assign)
+                             and _handed_out(sub.value) for t in sub.targets
+                             if (d := _dotted(t)) is not None}
         if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef):
             function = node.name
             names = set(names)
         if isinstance(node, ast.With):
-            for item in node.items:
-                if _handed_out(item.context_expr) and isinstance(item.optional_vars, ast.Name):
+            for item in node.items:  # a handle opened on the gate's (a zip on its file)
+                call = item.context_expr
+                on_gate = (isinstance(call, ast.Call) and call.args
+                           and _gate_expr(call.args[0], names))
+                if ((_handed_out(call) or on_gate)
+                        and isinstance(item.optional_vars, ast.Name)):
                     names = names | {item.optional_vars.id}
         if isinstance(node, ast.Assign) and _handed_out(node.value):
-            names = names | {t.id for t in node.targets if isinstance(t, ast.Name)}
+            names = names | {d for t in node.targets if (d := _dotted(t)) is not None}
         if isinstance(node, ast.Call):
             why = _unsafe(node, names)
             if why and (rel, function) not in ALLOWED and (rel, "*") not in ALLOWED:
@@ -127,6 +146,12 @@ def _unsafe(call: ast.Call, names: set[str]) -> str | None:
     if not isinstance(func, ast.Attribute):
         return None
     owner = func.value.id if isinstance(func.value, ast.Name) else None
+    if func.attr == "open" and owner != "os" and len(args) > 1:  # av.open(p, "w"), ...
+        mode = args[1]
+        if isinstance(mode, ast.Constant) and WRITE_MODES & set(str(mode.value)):
+            if _gate_expr(args[0], names) or _gate_expr(func.value, names):
+                return None  # a path of the gate's, or a member of its zip
+            return f"{owner}.open(..., {mode.value!r})"
     if (owner, func.attr) in MOVES:
         return f"{owner}.{func.attr}"
     if owner == "os" and func.attr == "open":
@@ -189,12 +214,21 @@ def test_every_allowed_exception_still_exists():
     ("import torch\ndef f(p, x):\n    torch.save(x, p)\n", "torch.save()"),
     ("def f(image, p):\n    image.save(p)\n", ".save()"),
     ("def f(t, p):\n    save_file(t, str(p))\n", "save_file()"),
+    ("import av\ndef f(p):\n    av.open(str(p), 'w')\n", "av.open(..., 'w')"),
 ])
 def test_the_scan_finds_each_kind_of_write(tmp_path, monkeypatch, code, why):
     module = SRC / "_scan_probe.py"
     monkeypatch.setattr(Path, "read_text", lambda self, *a, **k: code)
     found = _violations(module)
     assert found and why in found[0], found
+
+
+def test_the_scan_accepts_a_pending_file_kept_on_self(monkeypatch):
+    code = ("import av\nclass W:\n    def __init__(self, p):\n"
+            "        self._file = PendingFile(p)\n"
+            "    def start(self):\n        av.open(str(self._file.path), 'w')\n")
+    monkeypatch.setattr(Path, "read_text", lambda self, *a, **k: code)
+    assert _violations(SRC / "_scan_probe.py") == []
 
 
 def test_the_scan_accepts_what_the_gate_hands_out(monkeypatch):

@@ -17,6 +17,7 @@ import numpy as np
 from photo3d.camera import DepthMapping, Intrinsics
 from photo3d.errors import InputError
 from photo3d.files.atomic import open_write
+from photo3d.io.bounded import loads_json
 from photo3d.io.limits import check_available
 from photo3d.io.npy import read_npy, read_npy_header
 from photo3d.structures.ldi import LDI
@@ -156,7 +157,8 @@ def _read_arrays(path: Path) -> tuple[dict[str, np.ndarray], dict]:
     shape are checked (the pixel count within :data:`MAX_LAYERS`) before the arrays'
     data is read."""
     with zipfile.ZipFile(path) as zf:
-        header = json.loads(_read_member(zf, "header", _HEADER_BYTES).tobytes().decode())
+        header = loads_json(_read_member(zf, "header", _HEADER_BYTES).tobytes(),
+                            what="its header")
         if not isinstance(header, dict) or header.get("format") != "photo3d-ldi":
             raise InputError("not a photo3d file (its header is not a photo3d LDI header)")
         w, h, border = _checked_frame(header)
