@@ -15,7 +15,7 @@ Example:
     {'a': [1, 2]}
     >>> loads_json(b"[" * 100_000, what="x.json")
     Traceback (most recent call last):
-    photo3d.errors.InputError: x.json is not valid: JSON nested deeper than 64 levels
+    photo3d.io.bounded.MalformedJSON: x.json is not valid: JSON nested deeper than 64 levels
 """
 
 from __future__ import annotations
@@ -38,6 +38,19 @@ MAX_DEPTH = 64
 MAX_JSON_BYTES = 16 << 20
 """The largest JSON file photo3d reads by default (its own are a few kB; a
 checkpoint record or an eval's results at most a few hundred)."""
+
+class MalformedJSON(InputError):
+    """A JSON text that is not valid, or nested too deeply; ``reason`` says why.
+
+    Example:
+        >>> MalformedJSON("config.json", "not JSON").reason
+        'not JSON'
+    """
+
+    def __init__(self, what: str, reason: str) -> None:
+        super().__init__(f"{what} is not valid: {reason}")
+        self.reason = reason
+
 
 _STRING = re.compile(rb'"(?:[^"\\]|\\.)*"', re.DOTALL)
 
@@ -62,21 +75,21 @@ def loads_json(data: bytes | str, *, what: str, max_depth: int = MAX_DEPTH) -> A
     line naming ``what``.
 
     Raises:
-        InputError: ``WHAT is not valid: REASON`` (nested deeper than ``max_depth``,
+        MalformedJSON: ``WHAT is not valid: REASON`` (nested deeper than ``max_depth``,
             not UTF-8, not JSON, a number of more than 4300 digits).
 
     Example:
         >>> loads_json('{"a": 1', what="config.json")
         Traceback (most recent call last):
-        photo3d.errors.InputError: config.json is not valid: Expecting ',' delimiter: line 1 column 8 (char 7)
+        photo3d.io.bounded.MalformedJSON: config.json is not valid: Expecting ',' delimiter: line 1 column 8 (char 7)
     """  # noqa: E501
     if json_depth(data) > max_depth:
-        raise InputError(f"{what} is not valid: JSON nested deeper than {max_depth} levels")
+        raise MalformedJSON(what, f"JSON nested deeper than {max_depth} levels")
     try:
         return json.loads(data)
     except (ValueError, RecursionError) as err:  # UnicodeDecodeError is a ValueError
         reason = str(err).splitlines()[0] if str(err) else type(err).__name__
-        raise InputError(f"{what} is not valid: {reason[:200]}") from None
+        raise MalformedJSON(what, reason[:200]) from None
 
 
 def read_bytes(path: PathLike, *, max_bytes: int, what: str | None = None) -> bytes:

@@ -26,7 +26,7 @@ import numpy as np
 
 from photo3d.camera import Camera, Intrinsics
 from photo3d.errors import InputError, require
-from photo3d.io.bounded import loads_json, read_bytes
+from photo3d.io.bounded import MalformedJSON, loads_json, read_bytes
 
 STANDARD_PATHS = ("dolly-zoom-in", "zoom-in", "circle", "swing")
 _SHIFTS = {  # x, y, z of the authors' presets
@@ -281,7 +281,10 @@ def load_path(path: str | Path, intrinsics: Intrinsics, *, frames: int) -> list[
                 raise InputError(f"cannot parse camera path {path}: "
                                  f"{' '.join(str(err).split())}") from None
         else:
-            data = loads_json(text, what=f"camera path {path}")
+            try:
+                data = loads_json(text, what=f"camera path {path}")
+            except MalformedJSON as err:
+                raise InputError(f"cannot parse camera path {path}: {err.reason}") from None
     except InputError:  # the YAML message above, already one line naming the file
         raise
     except (ValueError, AttributeError) as err:
