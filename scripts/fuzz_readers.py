@@ -16,6 +16,7 @@ import argparse
 import sys
 import tempfile
 import time
+import warnings
 from pathlib import Path
 
 
@@ -30,6 +31,7 @@ def main(argv: list[str] | None = None) -> int:
                         help="formats to fuzz (default: all)")
     parser.add_argument("--examples", type=int, default=2000)
     args = parser.parse_args(argv)
+    warnings.simplefilter("error")  # as the test suite: a warning is a failure
     failed = []
     with tempfile.TemporaryDirectory() as root:
         for name in args.formats or FORMATS:
@@ -37,16 +39,10 @@ def main(argv: list[str] | None = None) -> int:
             data = sample.path.read_bytes()
             path = Path(root) / f"fuzzed_{sample.path.name}"
 
-            @settings(max_examples=args.examples, deadline=None, database=None,
-                      suppress_health_check=list(HealthCheck))
-            @given(mutated(data))
-            def check(damaged: bytes, sample=sample, path=path) -> None:
-                path.write_bytes(damaged)
-                one_line(sample.read, path)
-
             start = time.perf_counter()
             try:
-                check()
+                _property(sample, path, args.examples, given, settings, HealthCheck,
+                          mutated(data), one_line)()
             except AssertionError as err:
                 failed.append(name)
                 sys.stderr.write(f"{name}: FAILED {err}\n")
@@ -54,6 +50,20 @@ def main(argv: list[str] | None = None) -> int:
             sys.stderr.write(f"{name}: {args.examples} examples held "
                              f"({time.perf_counter() - start:.1f} s)\n")
     return 1 if failed else 0
+
+
+def _property(sample, path: Path, examples: int, given, settings, health, strategy,
+              one_line):
+    """The property of one format: a mutated file reads or is refused in one line."""
+
+    @settings(max_examples=examples, deadline=None, database=None,
+              suppress_health_check=list(health))
+    @given(strategy)
+    def check(damaged: bytes) -> None:
+        path.write_bytes(damaged)
+        one_line(sample.read, path)
+
+    return check
 
 
 if __name__ == "__main__":

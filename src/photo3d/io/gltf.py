@@ -139,13 +139,16 @@ def read_glb(path: PathLike) -> Mesh:
             colors = _linear_to_srgb(accessor(document, binary, attributes["COLOR_0"], path))
         labels = np.full(count, _DEFAULT_LABEL, np.uint8)
         if "_LABEL" in attributes:
-            labels = accessor(document, binary, attributes["_LABEL"], path)[:, 0]
+            labels = accessor(document, binary, attributes["_LABEL"], path,
+                              kinds=(5121,))[:, 0]
         extras = document["meshes"][0].get("extras", {})
         view = [float(extras.get(k, 0)) for k in ("width", "height", "hfov", "vfov")]
         if not all(np.isfinite(v) and 0 <= v < 2**31 for v in view):
             raise InputError(f"glTF {path} has an invalid view in its extras")
         if len(colors) != count or len(labels) != count:
             raise InputError(f"glTF {path} has attributes of different lengths")
+        if not np.isfinite(positions).all():
+            raise InputError(f"glTF {path} has NaN or infinite positions")
         if any(
             node.get("mesh") == 0 and {"matrix", "translation", "rotation", "scale"} & set(node)
             for node in document.get("nodes", [])
@@ -180,8 +183,10 @@ _SRGB_TO_LINEAR = _srgb_to_linear_table()
 
 
 def _linear_to_srgb(linear: np.ndarray) -> np.ndarray:
-    """``(N, C >= 3)`` linear float colours -> ``(N, 3) uint8`` sRGB, rounded."""
-    value = np.clip(linear[:, :3].astype(np.float64), 0.0, 1.0)
+    """``(N, C >= 3)`` linear float colours -> ``(N, 3) uint8`` sRGB, rounded (NaN: 0)."""
+    if linear.shape[1] < 3:
+        raise ValueError(f"COLOR_0 has {linear.shape[1]} components")
+    value = np.clip(np.nan_to_num(linear[:, :3].astype(np.float64)), 0.0, 1.0)
     srgb = np.where(value <= 0.0031308, value * 12.92, 1.055 * value ** (1 / 2.4) - 0.055)
     return np.rint(srgb * 255.0).astype(np.uint8)
 

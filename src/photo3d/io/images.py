@@ -24,6 +24,7 @@ from __future__ import annotations
 import contextlib
 import math
 import os
+import struct
 import sys
 import tempfile
 import warnings
@@ -310,12 +311,16 @@ def _read_pixels(path: Path, working_size: int | None) -> np.ndarray:
             check_available(_decode_bytes(im) * im.size[0] * im.size[1] + returned, what)
             load_pixels(im)
             return _apply_orientation(_resized(im, (rh, rw), box), orientation)
+    except InputError:
+        raise
     except UnidentifiedImageError as err:
         if path.suffix.lower() in _TIFF_EXTENSIONS:
             return _read_tiff_with_tifffile(path, working_size)
         raise InputError("not a recognised image format") from err
-    except (OSError, SyntaxError, Image.DecompressionBombError) as err:
-        raise InputError(str(err)) from err
+    except (OSError, SyntaxError, EOFError, ValueError, struct.error,
+            Image.DecompressionBombError) as err:  # Pillow's words for a damaged file
+        raise InputError(str(err).splitlines()[0] if str(err) else type(err).__name__
+                         ) from err
 
 
 def _decode_bytes(im: Image.Image) -> int:
