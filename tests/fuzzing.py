@@ -1,6 +1,6 @@
 """Valid files of every format photo3d reads back, and their mutations, for the readers'
 property tests (``tests/io/test_fuzz_readers.py``) and the long run
-(``scripts/fuzz_readers.py``)."""
+(``scripts/fuzz/fuzz_readers.py``)."""
 
 from __future__ import annotations
 

@@ -3,7 +3,7 @@ answers a damaged file with one line (a :class:`~photo3d.errors.Photo3DError`), 
 a traceback, a recursion or a huge allocation.
 
 Hypothesis mutates a valid file of each format (bytes flipped, cut, inserted, a
-length field rewritten) within a small budget; ``scripts/fuzz_readers.py`` runs the
+length field rewritten) within a small budget; ``scripts/fuzz/fuzz_readers.py`` runs the
 same properties for longer. Crafted cases from the fifth round of hostile testing
 (``mesh.glb`` that ``render`` reads back, deeply nested JSON) come first."""
 

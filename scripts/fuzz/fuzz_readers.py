@@ -5,7 +5,7 @@ Photo3DError is reported with the smallest file Hypothesis finds.
 The suite runs the same property with 30 examples a format
 (``tests/io/test_fuzz_readers.py``); this runs ``--examples`` (default 2000) each::
 
-    PYTHONPATH=src:tests python scripts/fuzz_readers.py --examples 2000 [FORMAT ...]
+    PYTHONPATH=src:tests python scripts/fuzz/fuzz_readers.py --examples 2000 [FORMAT ...]
 
 Exit status 0 when every format held, 1 otherwise (the failures are printed).
 """
@@ -22,7 +22,7 @@ from pathlib import Path
 
 def main(argv: list[str] | None = None) -> int:
     """Fuzz the readers; returns the exit status."""
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+    sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "tests"))
     from fuzzing import FORMATS, mutated, one_line
     from hypothesis import HealthCheck, given, settings
 
