@@ -186,7 +186,8 @@ def _linear_to_srgb(linear: np.ndarray) -> np.ndarray:
     """``(N, C >= 3)`` linear float colours -> ``(N, 3) uint8`` sRGB, rounded (NaN: 0)."""
     if linear.shape[1] < 3:
         raise ValueError(f"COLOR_0 has {linear.shape[1]} components")
-    value = np.clip(np.nan_to_num(linear[:, :3].astype(np.float64)), 0.0, 1.0)
+    with np.errstate(invalid="ignore"):  # a signalling NaN in a damaged file
+        value = np.clip(np.nan_to_num(linear[:, :3].astype(np.float64)), 0.0, 1.0)
     srgb = np.where(value <= 0.0031308, value * 12.92, 1.055 * value ** (1 / 2.4) - 0.055)
     return np.rint(srgb * 255.0).astype(np.uint8)
 

@@ -120,9 +120,9 @@ def read_splat_ply(path: PathLike) -> Splats:
         raise InputError(f"cannot read {path}: {err.strerror or err}") from None
     if len(data) != count:
         raise InputError(f"{path} is truncated: {len(data)} of {count} splats")
-    column = {name: data[name].astype(np.float32) for name in PROPERTIES}
     stack = lambda *names: np.stack([column[n] for n in names], axis=1)  # noqa: E731
     with np.errstate(all="ignore"):  # non-finite results are refused below
+        column = {name: data[name].astype(np.float32) for name in PROPERTIES}
         rotations = stack("rot_0", "rot_1", "rot_2", "rot_3")
         rotations /= np.maximum(np.linalg.norm(rotations, axis=1, keepdims=True), 1e-30)
         splats = Splats(positions=stack("x", "y", "z"),
