@@ -40,6 +40,7 @@ import zlib
 import numpy as np
 
 from photo3d.errors import InputError
+from photo3d.files.atomic import open_write
 from photo3d.structures.splats import SH_C0, Splats
 
 PathLike = str | os.PathLike[str]
@@ -88,7 +89,7 @@ def write_spz(path: PathLike, splats: Splats, *, version: int = 2,
         raise InputError(f"SPZ version must be 2 or 3, got {version}")
     stream = zlib.compressobj(level, zlib.DEFLATED, 16 + zlib.MAX_WBITS)  # gzip
     data = stream.compress(encode(splats, version=version)) + stream.flush()
-    with open(path, "wb") as file:
+    with open_write(path) as file:
         file.write(data)
 
 
