@@ -50,6 +50,7 @@ import errno
 import json
 import os
 import secrets
+import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import IO, Any
@@ -63,6 +64,11 @@ _LIVE: set[Path] = set()
 """Temporary files not yet committed or discarded (removed at exit as a last resort)."""
 
 _HEX = frozenset("0123456789abcdef")
+_HELD: dict[Path, int] = {}
+"""The open descriptor holding each live temporary file's or folder's lock."""
+ORPHAN_AGE_S = 5.0
+"""A temporary file or folder unlocked this long after it was made is an orphan (its
+writer locks it a moment after creating it)."""
 
 
 def temp_sibling(path: PathLike) -> Path:
@@ -184,6 +190,7 @@ class PendingFile(Pending):
         except OSError as err:
             raise OutputError(f"cannot write {self.target}: {err.strerror or err}") from None
         _LIVE.add(self.path)
+        hold(self.path)
 
     def commit(self) -> Path:
         """Rename the temporary file over the target; return the target as given.
@@ -205,6 +212,7 @@ class PendingFile(Pending):
             raise OutputError(f"cannot write {self.target}: {err.strerror or err}") from None
         self._done = True
         _LIVE.discard(self.path)
+        release(self.path)
         return self.target
 
     def discard(self) -> None:
@@ -221,6 +229,7 @@ class PendingFile(Pending):
         with contextlib.suppress(FileNotFoundError):
             os.unlink(self.path)
         _LIVE.discard(self.path)
+        release(self.path)
 
 
 @contextlib.contextmanager
@@ -533,8 +542,94 @@ def _reason(err: OSError, path: Path) -> str:
     return str(err)
 
 
+def hold(path: Path) -> None:
+    """Lock the temporary file or folder ``path`` (``flock``) for as long as this
+    process writes it: the kernel drops the lock when the process ends, even killed
+    with SIGKILL, which is how a later run tells an orphan (:func:`orphaned`).
+
+    Example:
+        >>> import pathlib, tempfile
+        >>> folder = pathlib.Path(tempfile.mkdtemp())
+        >>> hold(folder); orphaned(folder, age=0.0)
+        False
+        >>> release(folder); orphaned(folder, age=0.0)
+        True
+    """
+    try:
+        import fcntl
+    except ImportError:  # no flock (Windows): orphans are not recognised
+        return
+    try:
+        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0))
+    except OSError:
+        return
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError:
+        os.close(fd)
+        return
+    _HELD[Path(path)] = fd
+
+
+def release(path: Path) -> None:
+    """Drop :func:`hold`'s lock of ``path`` (committed or discarded)."""
+    fd = _HELD.pop(Path(path), None)
+    if fd is not None:
+        os.close(fd)
+
+
+def orphaned(path: Path, *, age: float | None = None) -> bool:
+    """True if ``path`` (not a link) was made more than ``age`` seconds ago (default
+    :data:`ORPHAN_AGE_S`) and no process holds it (:func:`hold`): its writer is gone."""
+    try:
+        import fcntl
+    except ImportError:
+        return False
+    try:
+        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0))
+    except OSError:  # a link, gone
+        return False
+    try:
+        if time.time() - os.fstat(fd).st_ctime < (ORPHAN_AGE_S if age is None else age):
+            return False
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)  # free: its writer is gone
+        return True
+    except OSError:  # held: its writer is alive
+        return False
+    finally:
+        os.close(fd)
+
+
+def remove_orphan_files(path: PathLike) -> list[Path]:
+    """Remove the temporary files of ``path`` (:func:`is_temp_of`) whose writer is
+    gone (:func:`orphaned`); safe while other processes write ``path``. Every
+    atomic write does this first. Returns what was removed.
+
+    Example:
+        >>> import pathlib, tempfile
+        >>> target = pathlib.Path(tempfile.mkdtemp()) / "a.png"
+        >>> remove_orphan_files(target)
+        []
+    """
+    final = Path(os.path.realpath(path))
+    try:
+        entries = list(final.parent.iterdir())
+    except OSError:
+        return []
+    removed = []
+    for entry in entries:
+        if (is_temp_of(entry.name, final.name) and entry.is_file()
+                and entry not in _LIVE and orphaned(entry)):
+            with contextlib.suppress(FileNotFoundError):
+                entry.unlink()
+            removed.append(entry)
+    return removed
+
+
 def _create_temp(final: Path, suffix: str) -> Path:
-    """A new empty file ``.NAME.XXXXXXXX.tmp`` + ``suffix`` beside ``final``."""
+    """A new empty file ``.NAME.XXXXXXXX.tmp`` + ``suffix`` beside ``final``, after
+    removing the orphans of killed writers of ``final`` (:func:`remove_orphan_files`)."""
+    remove_orphan_files(final)
     for _ in range(100):
         tmp = temp_sibling(final)
         tmp = tmp.with_name(tmp.name + suffix)
