@@ -36,7 +36,7 @@ def test_a_killed_writers_folder_is_removed_by_the_next_run(tmp_path, monkeypatc
             mine.commit()
     finally:
         live.communicate("")
-    assert out.is_dir()
+    assert out.is_dir() and list(out.iterdir()) == []  # no writer mark left in it
 
 
 def test_a_killed_writers_temporary_file_is_removed_by_the_next_write(tmp_path, monkeypatch):

@@ -542,25 +542,37 @@ def _reason(err: OSError, path: Path) -> str:
     return str(err)
 
 
+WRITER_MARK = ".photo3d-writer"
+"""The file inside a temporary folder that its writer holds locked (:func:`hold`);
+removed before the folder is moved into place."""
+
+
 def hold(path: Path) -> None:
-    """Lock the temporary file or folder ``path`` (``flock``) for as long as this
-    process writes it: the kernel drops the lock when the process ends, even killed
-    with SIGKILL, which is how a later run tells an orphan (:func:`orphaned`).
+    """Lock the temporary file ``path``, or a :data:`WRITER_MARK` file inside the
+    temporary folder ``path`` (not the folder itself, which the write gate locks to
+    record), with ``flock`` for as long as this process writes it: the kernel drops
+    the lock when the process ends, even killed with SIGKILL, which is how a later
+    run tells an orphan (:func:`orphaned`).
 
     Example:
         >>> import pathlib, tempfile
         >>> folder = pathlib.Path(tempfile.mkdtemp())
         >>> hold(folder); orphaned(folder, age=0.0)
         False
-        >>> release(folder); orphaned(folder, age=0.0)
+        >>> release(folder, keep=True); orphaned(folder, age=0.0)
         True
     """
     try:
         import fcntl
     except ImportError:  # no flock (Windows): orphans are not recognised
         return
+    path = Path(path)
     try:
-        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0))
+        if path.is_dir() and not path.is_symlink():
+            fd = os.open(path / WRITER_MARK, os.O_RDWR | os.O_CREAT | os.O_EXCL
+                         | getattr(os, "O_NOFOLLOW", 0), 0o600)
+        else:
+            fd = os.open(path, os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0))
     except OSError:
         return
     try:
@@ -568,26 +580,38 @@ def hold(path: Path) -> None:
     except OSError:
         os.close(fd)
         return
-    _HELD[Path(path)] = fd
+    _HELD[path] = fd
 
 
-def release(path: Path) -> None:
-    """Drop :func:`hold`'s lock of ``path`` (committed or discarded)."""
+def release(path: Path, *, keep: bool = False) -> None:
+    """Drop :func:`hold`'s lock of ``path`` (committed or discarded); a folder's
+    :data:`WRITER_MARK` is removed first, unless ``keep`` (tests)."""
     fd = _HELD.pop(Path(path), None)
-    if fd is not None:
-        os.close(fd)
+    if fd is None:
+        return
+    if not keep:
+        with contextlib.suppress(OSError):
+            os.unlink(Path(path) / WRITER_MARK)  # a file's: no such entry
+    os.close(fd)
 
 
 def orphaned(path: Path, *, age: float | None = None) -> bool:
-    """True if ``path`` (not a link) was made more than ``age`` seconds ago (default
-    :data:`ORPHAN_AGE_S`) and no process holds it (:func:`hold`): its writer is gone."""
+    """True if the temporary file or folder ``path`` (not a link) was made more than
+    ``age`` seconds ago (default :data:`ORPHAN_AGE_S`) and no process holds it
+    (:func:`hold`; a folder without its :data:`WRITER_MARK` is being moved into
+    place, or is not photo3d's: never an orphan): its writer is gone."""
     try:
         import fcntl
     except ImportError:
         return False
+    path = Path(path)
+    nofollow = getattr(os, "O_NOFOLLOW", 0)
     try:
-        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0))
-    except OSError:  # a link, gone
+        if path.is_symlink():
+            return False
+        target = path / WRITER_MARK if path.is_dir() else path
+        fd = os.open(target, os.O_RDONLY | nofollow)
+    except OSError:  # gone, no mark
         return False
     try:
         if time.time() - os.fstat(fd).st_ctime < (ORPHAN_AGE_S if age is None else age):

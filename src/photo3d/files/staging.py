@@ -139,6 +139,7 @@ class Staging(Pending):
                 (another run wrote it), or the rename failed. The temporary folder
                 is removed and nothing already there is touched.
         """
+        release(self.path)  # its writer mark out before it moves into place
         try:
             now = identity(self.final)
             if now != self._seen and not (self._seen is None and _is_empty_dir(self.final)):
@@ -163,7 +164,6 @@ class Staging(Pending):
                               f"{err.strerror or err}") from None
         self._done = True
         _LIVE.discard(self.path)
-        release(self.path)
         release_folder(self.path)
         return self.final
 
