@@ -1,0 +1,170 @@
+"""photo3d batch --engine ray --ray-address on a local cluster of two one-CPU nodes
+(``ray.cluster_utils.Cluster``; the head has no CPU, so every actor runs on a node):
+the same outputs as the local engine, one thread per actor, and a node that dies
+while it holds a photo. Skipped without ray.
+
+The worker processes of the nodes import photo3d from this process's
+``sys.path`` (its ``PYTHONPATH`` is theirs), which the first test checks.
+"""
+
+from __future__ import annotations
+
+import json
+import signal
+import threading
+import time
+from pathlib import Path
+
+import pytest
+from test_batch import FAST, add_photo
+from test_make_parity import same_output
+
+import photo3d
+from photo3d.batch import ray_engine
+from photo3d.batch.worker import is_complete
+from photo3d.cli import main
+
+ray = pytest.importorskip("ray")
+cluster_utils = pytest.importorskip("ray.cluster_utils")
+
+_TIMEOUT_S = 240
+"""Longest batch in these tests (a hung engine fails the test instead of the run)."""
+
+
+@pytest.fixture(scope="module")
+def cluster():
+    """A head without CPUs and two nodes of one CPU each."""
+    made = cluster_utils.Cluster(initialize_head=True, head_node_args={"num_cpus": 0})
+    try:
+        for _ in range(2):
+            made.add_node(num_cpus=1)
+        made.wait_for_nodes()
+        yield made
+    finally:
+        if ray.is_initialized():
+            ray.shutdown()
+        made.shutdown()
+
+
+@pytest.fixture
+def deadline():
+    """SIGALRM after :data:`_TIMEOUT_S`: a batch that hangs raises instead."""
+
+    def expired(signum, frame):
+        raise TimeoutError(f"the batch took more than {_TIMEOUT_S} s")
+
+    before = signal.signal(signal.SIGALRM, expired)
+    signal.alarm(_TIMEOUT_S)
+    yield
+    signal.alarm(0)
+    signal.signal(signal.SIGALRM, before)
+
+
+def _folders(tmp_path: Path, count: int) -> tuple[Path, Path]:
+    src, depth = tmp_path / "photos", tmp_path / "depth"
+    src.mkdir()
+    depth.mkdir()
+    for i in range(count):
+        add_photo(src, f"p{i}", depth, seed=i)
+    return src, depth
+
+
+def _records(out: Path) -> list[dict]:
+    return [json.loads(line) for line in (out / "batch.jsonl").read_text().splitlines()]
+
+
+def test_two_nodes_make_what_the_local_engine_makes(tmp_path, cluster, monkeypatch, deadline):
+    """Both nodes make photos, each actor with one thread, photo3d from this tree, and
+    the LDI of every photo is the local engine's."""
+    monkeypatch.delenv("RAY_ADDRESS", raising=False)
+    src, depth = _folders(tmp_path, 4)
+    log = tmp_path / "where"
+    log.mkdir()
+
+    class Reporting(ray_engine._Actor):  # a local class: Ray sends it by value
+        def make(self, job, out_dir):
+            import numba
+
+            import photo3d as imported
+            from photo3d import parallel
+
+            (log / job.name).write_text(json.dumps({
+                "node": ray.get_runtime_context().get_node_id(), "file": imported.__file__,
+                "threads": parallel.threads(), "numba": numba.get_num_threads()}))
+            return super().make(job, out_dir)
+
+    monkeypatch.setattr(ray_engine, "_Actor", Reporting)
+    common = ["--depth", str(depth), *FAST, "-q"]
+    assert main(["batch", str(src), "-o", str(tmp_path / "local"), "--workers", "1",
+                 *common]) == 0
+    assert main(["batch", str(src), "-o", str(tmp_path / "ray"), "--engine", "ray",
+                 "--ray-address", cluster.address, *common]) == 0
+    assert not ray.is_initialized()  # disconnected from the cluster it connected to
+    records = _records(tmp_path / "ray")
+    assert [(r["name"], r["status"]) for r in records] == [(f"p{i}", "ok") for i in range(4)]
+    seen = [json.loads((log / f"p{i}").read_text()) for i in range(4)]
+    nodes = {n.node_id for n in cluster.worker_nodes}
+    assert {s["node"] for s in seen} == nodes  # both nodes made photos
+    assert len({r["worker"] for r in records}) == 2  # two actors, one per node
+    assert all(s["file"] == photo3d.__file__ for s in seen)  # this tree's photo3d
+    assert all(s["threads"] == 1 and s["numba"] == 1 for s in seen)  # one CPU: one thread
+    for i in range(4):
+        same_output(tmp_path / "local" / f"p{i}", tmp_path / "ray" / f"p{i}")
+
+
+def test_a_photo_whose_node_dies_is_made_on_the_other_node(tmp_path, cluster, monkeypatch,
+                                                            deadline):
+    """p0's node is killed while p0 is half-made (its temporary folder written): p0 is
+    made again on the node left, the manifest says so, nothing partial is left."""
+    monkeypatch.delenv("RAY_ADDRESS", raising=False)
+    src, depth = _folders(tmp_path, 3)
+    out, log = tmp_path / "out", tmp_path / "where"
+    log.mkdir()
+
+    class Stalled:
+        def __init__(self, inner):
+            self.inner = inner
+
+        def __getattr__(self, name):
+            return getattr(self.inner, name)
+
+        def inpaint(self, *args, **kwargs):  # inside p0's temporary folder
+            time.sleep(_TIMEOUT_S)
+            return self.inner.inpaint(*args, **kwargs)
+
+    class Stalling(ray_engine._Actor):
+        def make(self, job, out_dir):
+            node = ray.get_runtime_context().get_node_id()
+            with open(log / job.name, "a") as f:
+                f.write(node + "\n")
+            first = len((log / job.name).read_text().split()) == 1
+            if job.name == "p0" and first:
+                self.maker.inpainter = Stalled(self.maker.inpainter)
+            return super().make(job, out_dir)
+
+    monkeypatch.setattr(ray_engine, "_Actor", Stalling)
+    killed: list[str] = []
+
+    def kill_p0s_node():
+        while not (any(p.name.startswith(".p0.") for p in out.glob(".p0.*"))
+                   and (log / "p0").is_file()):
+            time.sleep(0.1)
+        node_id = (log / "p0").read_text().split()[0]
+        node = next(n for n in cluster.worker_nodes if n.node_id == node_id)
+        cluster.remove_node(node, allow_graceful=False)  # its raylet and workers killed
+        killed.append(node_id)
+
+    killer = threading.Thread(target=kill_p0s_node, daemon=True)
+    killer.start()
+    argv = ["batch", str(src), "-o", str(out), "--depth", str(depth), "--engine", "ray",
+            "--ray-address", cluster.address, *FAST, "-q"]
+    assert main(argv) == 0
+    killer.join(timeout=60)
+    assert killed, "p0's node was not killed"
+    records = _records(out)
+    assert [(r["name"], r["status"]) for r in records] == [("p0", "ok"), ("p1", "ok"),
+                                                           ("p2", "ok")]
+    tries = (log / "p0").read_text().split()
+    assert len(tries) == 2 and tries[0] == killed[0] and tries[1] != killed[0]
+    assert all(is_complete(out / f"p{i}") for i in range(3))
+    assert sorted(p.name for p in out.iterdir()) == ["batch.jsonl", "p0", "p1", "p2"]
