@@ -10,7 +10,6 @@ The worker processes of the nodes import photo3d from this process's
 from __future__ import annotations
 
 import json
-import signal
 import threading
 import time
 from pathlib import Path
@@ -47,17 +46,24 @@ def cluster():
 
 
 @pytest.fixture
-def deadline():
-    """SIGALRM after :data:`_TIMEOUT_S`: a batch that hangs raises instead."""
+def two_nodes(cluster):
+    """The cluster, with two worker nodes again if a test removed one."""
+    while len(cluster.worker_nodes) < 2:
+        cluster.add_node(num_cpus=1)
+    cluster.wait_for_nodes()
+    return cluster
 
-    def expired(signum, frame):
-        raise TimeoutError(f"the batch took more than {_TIMEOUT_S} s")
 
-    before = signal.signal(signal.SIGALRM, expired)
-    signal.alarm(_TIMEOUT_S)
-    yield
-    signal.alarm(0)
-    signal.signal(signal.SIGALRM, before)
+def _batch(argv: list[str]) -> int:
+    """``photo3d batch argv`` in a thread; its exit status, or a failed test when it
+    takes more than :data:`_TIMEOUT_S` (an engine waiting forever)."""
+    status: list[int] = []
+    thread = threading.Thread(target=lambda: status.append(main(["batch", *argv])),
+                              daemon=True)
+    thread.start()
+    thread.join(_TIMEOUT_S)
+    assert status, f"the batch did not end within {_TIMEOUT_S} s"
+    return status[0]
 
 
 def _folders(tmp_path: Path, count: int) -> tuple[Path, Path]:
@@ -73,7 +79,7 @@ def _records(out: Path) -> list[dict]:
     return [json.loads(line) for line in (out / "batch.jsonl").read_text().splitlines()]
 
 
-def test_two_nodes_make_what_the_local_engine_makes(tmp_path, cluster, monkeypatch, deadline):
+def test_two_nodes_make_what_the_local_engine_makes(tmp_path, two_nodes, monkeypatch):
     """Both nodes make photos, each actor with one thread, photo3d from this tree, and
     the LDI of every photo is the local engine's."""
     monkeypatch.delenv("RAY_ADDRESS", raising=False)
@@ -97,13 +103,13 @@ def test_two_nodes_make_what_the_local_engine_makes(tmp_path, cluster, monkeypat
     common = ["--depth", str(depth), *FAST, "-q"]
     assert main(["batch", str(src), "-o", str(tmp_path / "local"), "--workers", "1",
                  *common]) == 0
-    assert main(["batch", str(src), "-o", str(tmp_path / "ray"), "--engine", "ray",
-                 "--ray-address", cluster.address, *common]) == 0
+    assert _batch([str(src), "-o", str(tmp_path / "ray"), "--engine", "ray",
+                   "--ray-address", two_nodes.address, *common]) == 0
     assert not ray.is_initialized()  # disconnected from the cluster it connected to
     records = _records(tmp_path / "ray")
     assert [(r["name"], r["status"]) for r in records] == [(f"p{i}", "ok") for i in range(4)]
     seen = [json.loads((log / f"p{i}").read_text()) for i in range(4)]
-    nodes = {n.node_id for n in cluster.worker_nodes}
+    nodes = {n.node_id for n in two_nodes.worker_nodes}
     assert {s["node"] for s in seen} == nodes  # both nodes made photos
     assert len({r["worker"] for r in records}) == 2  # two actors, one per node
     assert all(s["file"] == photo3d.__file__ for s in seen)  # this tree's photo3d
@@ -112,8 +118,7 @@ def test_two_nodes_make_what_the_local_engine_makes(tmp_path, cluster, monkeypat
         same_output(tmp_path / "local" / f"p{i}", tmp_path / "ray" / f"p{i}")
 
 
-def test_a_photo_whose_node_dies_is_made_on_the_other_node(tmp_path, cluster, monkeypatch,
-                                                            deadline):
+def test_a_photo_whose_node_dies_is_made_on_the_other_node(tmp_path, two_nodes, monkeypatch):
     """p0's node is killed while p0 is half-made (its temporary folder written): p0 is
     made again on the node left, the manifest says so, nothing partial is left."""
     monkeypatch.delenv("RAY_ADDRESS", raising=False)
@@ -143,28 +148,25 @@ def test_a_photo_whose_node_dies_is_made_on_the_other_node(tmp_path, cluster, mo
             return super().make(job, out_dir)
 
     monkeypatch.setattr(ray_engine, "_Actor", Stalling)
-    killed: list[str] = []
-
-    def kill_p0s_node():
-        while not (any(p.name.startswith(".p0.") for p in out.glob(".p0.*"))
-                   and (log / "p0").is_file()):
-            time.sleep(0.1)
-        node_id = (log / "p0").read_text().split()[0]
-        node = next(n for n in cluster.worker_nodes if n.node_id == node_id)
-        cluster.remove_node(node, allow_graceful=False)  # its raylet and workers killed
-        killed.append(node_id)
-
-    killer = threading.Thread(target=kill_p0s_node, daemon=True)
-    killer.start()
-    argv = ["batch", str(src), "-o", str(out), "--depth", str(depth), "--engine", "ray",
-            "--ray-address", cluster.address, *FAST, "-q"]
-    assert main(argv) == 0
-    killer.join(timeout=60)
-    assert killed, "p0's node was not killed"
+    argv = [str(src), "-o", str(out), "--depth", str(depth), "--engine", "ray",
+            "--ray-address", two_nodes.address, *FAST, "-q"]
+    status: list[int] = []
+    batch = threading.Thread(target=lambda: status.append(main(["batch", *argv])),
+                             daemon=True)
+    batch.start()
+    deadline = time.monotonic() + _TIMEOUT_S
+    while not (any(out.glob(".p0.*")) and (log / "p0").is_file()):  # p0 half-made
+        assert batch.is_alive() and time.monotonic() < deadline, "p0 was never started"
+        time.sleep(0.1)
+    killed = (log / "p0").read_text().split()[0]
+    node = next(n for n in two_nodes.worker_nodes if n.node_id == killed)
+    two_nodes.remove_node(node, allow_graceful=False)  # its raylet and workers killed
+    batch.join(max(0.0, deadline - time.monotonic()))
+    assert status == [0], "the batch did not end" if not status else status
     records = _records(out)
     assert [(r["name"], r["status"]) for r in records] == [("p0", "ok"), ("p1", "ok"),
                                                            ("p2", "ok")]
     tries = (log / "p0").read_text().split()
-    assert len(tries) == 2 and tries[0] == killed[0] and tries[1] != killed[0]
+    assert len(tries) == 2 and tries[0] == killed and tries[1] != killed
     assert all(is_complete(out / f"p{i}") for i in range(3))
     assert sorted(p.name for p in out.iterdir()) == ["batch.jsonl", "p0", "p1", "p2"]

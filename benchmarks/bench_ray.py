@@ -1,0 +1,183 @@
+"""Throughput of ``photo3d batch --engine ray`` on a local cluster of one and of two
+one-CPU nodes (issue 43, item 4).
+
+The cluster is ``ray.cluster_utils.Cluster`` on this machine: a head without CPUs
+(so no actor runs there) and worker nodes of one CPU each (``num_cpus=1``), added and
+removed between runs, so a one-node run has no second node's processes beside it.
+Each actor reserves its node's CPU and runs with one thread. The photos are
+``--photos`` copies of the bundled sample (the Middlebury motorcycle, 741x500, its
+ground-truth disparity as ``.npy``), made with the default options at ``--size``
+(default 1024 px) and ``--no-video``: the whole command ``python -m photo3d batch
+photos -o OUT --depth depth --engine ray --ray-address ADDRESS --no-video -q`` is
+timed (the driver's start-up, the connection, each node's actors loading the
+kernels included: that is what the user waits for). Runs alternate one node and two
+nodes, ``--rounds`` times. numba's on-disk cache is warmed by one ``make`` first.
+
+Checked on every run: each photo is ``ok`` in the manifest, and the LDI arrays of
+every photo (all copies of one photo) are identical across runs and to a local
+``make``'s. Recorded: wall seconds, photos per hour, each photo's seconds in its
+actor (the manifest's ``seconds``), the actors that made them, the 1-minute load
+average before and after each run. On a 2-core machine two one-CPU nodes are the
+whole machine, so the driver and Ray's own processes share the cores with the
+actors: the two-node speed-up is a lower bound of what two separate machines give.
+
+The worker nodes import photo3d from this tree (``src`` on ``PYTHONPATH``, inherited
+by the nodes' processes).
+
+Usage: python benchmarks/bench_ray.py [--photos 8] [--rounds 1] [--size 1024]
+Writes ``benchmarks/results/ray.json``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import json
+import os
+import shutil
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).parent))
+from _machine import START_ENV, save_record  # noqa: E402
+
+SRC = Path(__file__).resolve().parents[1] / "src"
+
+
+def make_photos(folder: Path, count: int) -> None:
+    """``count`` copies of the sample: ``photos/sampleNN.png`` and ``depth/sampleNN.npy``."""
+    from photo3d.io.images import write_image
+    from photo3d.sample import motorcycle
+
+    sample = motorcycle()
+    (folder / "photos").mkdir(parents=True)
+    (folder / "depth").mkdir()
+    for i in range(count):
+        write_image(folder / "photos" / f"sample{i:02d}.png", sample.left)
+        np.save(folder / "depth" / f"sample{i:02d}.npy",
+                np.asarray(sample.disparity, np.float32))
+
+
+def ldi_hash(folder: Path) -> str:
+    """SHA-256 of the LDI arrays (colour, links) of a 3D photo folder."""
+    from photo3d.io.npz import load_npz
+
+    ldi = load_npz(folder / "photo3d.npz")[0]
+    digest = hashlib.sha256()
+    for array in (ldi.color, ldi.links):
+        digest.update(np.ascontiguousarray(array).tobytes())
+    return digest.hexdigest()
+
+
+def run_batch(work: Path, out: Path, address: str, options: list[str]) -> dict:
+    """One timed ``photo3d batch --engine ray`` into ``out``; its manifest checked."""
+    load = os.getloadavg()[0]
+    start = time.perf_counter()
+    done = subprocess.run([sys.executable, "-m", "photo3d", "batch", str(work / "photos"),
+                           "-o", str(out), "--depth", str(work / "depth"), "--engine", "ray",
+                           "--ray-address", address, "-q", *options],
+                          env=_env(), capture_output=True, text=True, check=False)
+    wall = time.perf_counter() - start
+    if done.returncode != 0:
+        raise SystemExit(f"batch failed ({done.returncode}):\n{done.stdout}\n{done.stderr}")
+    records = [json.loads(line) for line in (out / "batch.jsonl").read_text().splitlines()]
+    if any(r["status"] != "ok" for r in records):
+        raise SystemExit(f"not every photo is ok: {records}")
+    return {"wall_s": wall, "photo_s": [r["seconds"] for r in records],
+            "actors": len({r["worker"] for r in records}),
+            "load_1min": [load, os.getloadavg()[0]],
+            "ldi": sorted({ldi_hash(out / r["name"]) for r in records})}
+
+
+def _env() -> dict:
+    """This tree's photo3d for the driver and (inherited) every node's processes."""
+    return dict(START_ENV, PYTHONPATH=os.pathsep.join(
+        [str(SRC), *filter(None, [START_ENV.get("PYTHONPATH")])]))
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--photos", type=int, default=8)
+    parser.add_argument("--rounds", type=int, default=1)
+    parser.add_argument("--size", type=int, default=1024, help="working size (--size)")
+    parser.add_argument("--out", type=Path,
+                        default=Path(__file__).parent / "results" / "ray.json")
+    args = parser.parse_args()
+    os.environ.update(_env())  # before the cluster starts: its processes inherit it
+    import ray
+    from ray.cluster_utils import Cluster
+
+    options = ["--size", str(args.size), "--no-video"]
+    work = Path(tempfile.mkdtemp(prefix="bench_ray."))
+    cluster = None
+    try:
+        make_photos(work, args.photos)
+        subprocess.run([sys.executable, "-m", "photo3d", "make",
+                        str(work / "photos" / "sample00.png"), "--depth",
+                        str(work / "depth" / "sample00.npy"), "-o", str(work / "warm"), "-q",
+                        *options], env=_env(), check=True)  # warm-up: numba's cache
+        reference = ldi_hash(work / "warm")
+        cluster = Cluster(initialize_head=True, head_node_args={"num_cpus": 0})
+        runs = []
+        for r in range(args.rounds):
+            for nodes in (1, 2):
+                while len(cluster.worker_nodes) < nodes:
+                    cluster.add_node(num_cpus=1)
+                while len(cluster.worker_nodes) > nodes:
+                    cluster.remove_node(cluster.worker_nodes[-1])
+                cluster.wait_for_nodes()
+                time.sleep(2.0)  # the new node's start-up work settles
+                out = work / f"out{r}-{nodes}"
+                run = {"nodes": nodes, "round": r, **run_batch(work, out, cluster.address,
+                                                                options)}
+                run["photos_per_hour"] = 3600 * args.photos / run["wall_s"]
+                runs.append(run)
+                shutil.rmtree(out)
+                print(f"round {r + 1}, {nodes} node(s): {run['wall_s']:.1f} s, "
+                      f"{run['photos_per_hour']:.0f} photos/h, load "
+                      f"{run['load_1min'][0]:.1f}-{run['load_1min'][1]:.1f}", flush=True)
+    finally:
+        if ray.is_initialized():
+            ray.shutdown()
+        if cluster is not None:
+            cluster.shutdown()
+        shutil.rmtree(work, ignore_errors=True)
+    hashes = {h for run in runs for h in run["ldi"]}
+    if hashes != {reference}:
+        raise SystemExit(f"the LDI differs between runs or from make's: {sorted(hashes)}")
+    summary = {}
+    for nodes in (1, 2):
+        mine = [run for run in runs if run["nodes"] == nodes]
+        summary[nodes] = {"wall_s": statistics.median(r["wall_s"] for r in mine),
+                          "photos_per_hour": statistics.median(r["photos_per_hour"]
+                                                               for r in mine),
+                          "photo_s": statistics.median(s for r in mine for s in r["photo_s"])}
+    speedup = summary[2]["photos_per_hour"] / summary[1]["photos_per_hour"]
+    loads = [x for run in runs for x in run["load_1min"]]
+    rows = ["| nodes (1 CPU each) | wall | photos per hour | per node | a photo in its actor |",
+            "| --- | --- | --- | --- | --- |"]
+    for nodes, s in summary.items():
+        rows.append(f"| {nodes} | {s['wall_s']:.1f} s | {s['photos_per_hour']:.0f} | "
+                    f"{s['photos_per_hour'] / nodes:.0f} | {s['photo_s']:.2f} s |")
+    note = (f"\n{args.photos} copies of the sample, `{' '.join(options)}` (default options "
+            f"otherwise), {args.rounds} round(s), one node and two alternated; whole "
+            f"command timed. Two nodes: **{speedup:.2f}x** one node's throughput (target "
+            f"1.8x). LDI identical in every run and to `make`'s. Load average (1 min) "
+            f"{min(loads):.1f}-{max(loads):.1f} during the runs; on this machine the two "
+            "nodes share its cores with the driver and Ray's processes.")
+    record = {"photos": args.photos, "rounds": args.rounds, "size": args.size,
+              "options": options, "runs": runs,
+              "summary": {str(k): v for k, v in summary.items()}, "speedup": speedup,
+              "ldi_identical": True, "markdown": "\n".join(rows) + "\n" + note}
+    save_record(record, args.out, "ray", "bench_ray.py")
+    print("\n".join(rows) + "\n" + note)
+
+
+if __name__ == "__main__":
+    main()
