@@ -44,10 +44,9 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).parent))
-from _machine import START_ENV, save_record  # noqa: E402
-
 SRC = Path(__file__).resolve().parents[1] / "src"
+sys.path[:0] = [str(Path(__file__).parent), str(SRC)]  # this tree's photo3d here too
+from _machine import START_ENV, save_record  # noqa: E402
 
 
 def make_photos(folder: Path, count: int) -> None:

@@ -14,9 +14,16 @@ act as with the local engine (:mod:`photo3d.files.signals`): the actors are
 killed (actor tasks cannot be interrupted), the photos that had finished are
 recorded, and the temporary folders of the photos being made are removed.
 
-An actor that dies (killed for memory, a crash in native code) costs only its
-photo: a new actor makes it again, and a photo whose actor dies twice is
+An actor that dies (killed for memory, a crash in native code, its node lost)
+costs only its photo: what it had staged is removed and a new actor makes it again
+(on a node with a free CPU: once nothing is left to send, idle actors are killed so
+that a cluster that lost a node can place it), and a photo whose actor dies twice is
 recorded as failed, as the local engine does.
+
+Each actor reserves one CPU on a cluster (its share of the machine's on a local Ray)
+and takes as many threads (:func:`granted_threads`), so a node of N CPUs runs N
+actors of one thread each. How to run it on a real cluster: docs/speed.md, "Many
+photos on a Ray cluster".
 """
 
 from __future__ import annotations
@@ -196,8 +203,8 @@ class _Pool:
     killed: a cluster that lost a node may have no CPU for a replacement actor while
     the others hold theirs, and the photos left then go to the actors that remain.
     When no actor is running or started and the cluster has no CPU left, the photos
-    left are recorded as failed; so are they when :data:`_START_FAILURES` actors in a
-    row die before they start.
+    left are recorded as failed; so are they when ``count`` + :data:`_START_FAILURES`
+    actors in a row die before they start and no actor is left.
 
     When an actor dies (its process, or its node), its process is waited for
     (:meth:`_wait_gone`) before what its photo had staged is removed, so that nothing
@@ -258,11 +265,12 @@ class _Pool:
                         except ray.exceptions.RayError as err:  # died starting (its node?)
                             self._kill([actor])
                             failed_starts += 1
-                            if failed_starts >= _START_FAILURES:
+                            if failed_starts < self.count + _START_FAILURES:
+                                if queue:
+                                    self._start(starting)
+                            elif not (running or idle):  # no actor left to make them
                                 self._fail_all(queue, out, on_result, "no Ray actor could "
                                                f"start ({failed_starts} died): {_why(err)}")
-                            elif queue:
-                                self._start(starting)
                         else:
                             failed_starts = 0
                             idle.append(actor)
@@ -357,8 +365,10 @@ _REMOTE_S = 1.0
 """Wait after killing actors on other hosts (their processes cannot be watched)."""
 _CHECK_S = 10.0
 """How often a batch waiting for actors to start checks that the cluster has a CPU."""
-_START_FAILURES = 3
-"""Actors dying in a row before they start that end the batch's remaining photos."""
+_START_FAILURES = 2
+"""Actors dying in a row before they start, beyond the pool's size, after which no
+more are started: the actors left make the remaining photos, or, with none left, the
+photos are recorded as failed."""
 
 
 def _alive(pid: int) -> bool:
