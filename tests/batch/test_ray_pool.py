@@ -97,6 +97,7 @@ def pool(ray: FakeRay, count: int):
 @pytest.fixture(autouse=True)
 def no_waiting(monkeypatch):
     monkeypatch.setattr(ray_engine, "_REMOTE_S", 0.0)
+    monkeypatch.setattr(ray_engine, "_NO_CPU_S", 0.0)
 
 
 def jobs(count: int) -> list[PhotoJob]:

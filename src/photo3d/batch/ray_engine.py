@@ -202,9 +202,10 @@ class _Pool:
     back), and once no photo is left to send, the actors with nothing to do are
     killed: a cluster that lost a node may have no CPU for a replacement actor while
     the others hold theirs, and the photos left then go to the actors that remain.
-    When no actor is running or started and the cluster has no CPU left, the photos
-    left are recorded as failed; so are they when ``count`` + :data:`_START_FAILURES`
-    actors in a row die before they start and no actor is left.
+    When an actor died, none is running or started and the cluster has had no CPU
+    for :data:`_NO_CPU_S` (its nodes lost, none back: an autoscaler may add one
+    meanwhile), the photos left are recorded as failed; so are they when ``count`` +
+    :data:`_START_FAILURES` actors in a row die before they start and no actor is left.
 
     When an actor dies (its process, or its node), its process is waited for
     (:meth:`_wait_gone`) before what its photo had staged is removed, so that nothing
@@ -237,6 +238,7 @@ class _Pool:
         sending: list[PhotoJob] = []  # a job being sent (not in running yet)
         deaths: dict[str, int] = {}
         failed_starts = 0  # actors in a row that died before they started
+        no_cpu_since: float | None = None  # the cluster had no CPU since, after a death
         try:
             for _ in range(self.count):
                 self._start(starting)
@@ -255,7 +257,13 @@ class _Pool:
                 elif not (running or starting or idle):  # every actor died: a new one
                     self._start(starting)
                 done, _ = ray.wait([*running, *starting], num_returns=1, timeout=_CHECK_S)
-                if not done and not running and not ray.cluster_resources().get("CPU"):
+                if done or running or not (deaths or failed_starts):
+                    no_cpu_since = None
+                elif ray.cluster_resources().get("CPU"):
+                    no_cpu_since = None
+                elif no_cpu_since is None:
+                    no_cpu_since = time.monotonic()
+                elif time.monotonic() - no_cpu_since >= _NO_CPU_S:  # nodes lost, none back
                     self._fail_all(queue, out, on_result, "the Ray cluster has no CPU left")
                 for ref in done:
                     if ref in starting:
@@ -365,6 +373,8 @@ _REMOTE_S = 1.0
 """Wait after killing actors on other hosts (their processes cannot be watched)."""
 _CHECK_S = 10.0
 """How often a batch waiting for actors to start checks that the cluster has a CPU."""
+_NO_CPU_S = 60.0
+"""How long a batch whose actors died waits for the cluster to have a CPU again."""
 _START_FAILURES = 2
 """Actors dying in a row before they start, beyond the pool's size, after which no
 more are started: the actors left make the remaining photos, or, with none left, the
