@@ -88,8 +88,16 @@ def test_two_nodes_make_what_the_local_engine_makes(tmp_path, two_nodes, monkeyp
     log.mkdir()
 
     class Reporting(ray_engine._Actor):  # a local class: Ray sends it by value
-        def make(self, job, out_dir):
+        def __init__(self, *args):
+            super().__init__(*args)
+            (log / f"actor-{ray.get_runtime_context().get_node_id()}").touch()
+
+        def make(self, job, out_dir):  # each photo waits for both actors to be up
             import numba
+
+            deadline = time.monotonic() + _TIMEOUT_S / 2
+            while len(list(log.glob("actor-*"))) < 2 and time.monotonic() < deadline:
+                time.sleep(0.05)
 
             import photo3d as imported
             from photo3d import parallel
@@ -108,7 +116,7 @@ def test_two_nodes_make_what_the_local_engine_makes(tmp_path, two_nodes, monkeyp
     assert not ray.is_initialized()  # disconnected from the cluster it connected to
     records = _records(tmp_path / "ray")
     assert [(r["name"], r["status"]) for r in records] == [(f"p{i}", "ok") for i in range(4)]
-    seen = [json.loads((log / f"p{i}").read_text()) for i in range(4)]
+    seen = [json.loads((log / f"p{i}").read_text()) for i in range(4)]  # node, threads
     nodes = {n.node_id for n in two_nodes.worker_nodes}
     assert {s["node"] for s in seen} == nodes  # both nodes made photos
     assert len({r["worker"] for r in records}) == 2  # two actors, one per node
