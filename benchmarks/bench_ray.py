@@ -45,6 +45,7 @@ import statistics
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 from pathlib import Path
 
@@ -80,6 +81,47 @@ def ldi_hash(folder: Path) -> str:
     return digest.hexdigest()
 
 
+class ActorCPU:
+    """The CPU seconds of this machine's Ray actor processes (``ray::_Actor``), read
+    from ``/proc`` every :data:`SAMPLE_S` while a batch runs; each process counts with
+    its last reading (what an actor spends after it, idle at the batch's end, is left
+    out). Use as a context manager; :meth:`seconds` after it."""
+
+    SAMPLE_S = 0.5
+
+    def __init__(self) -> None:
+        self.seen: dict[tuple[str, bytes], float] = {}  # (pid, start time) -> CPU s
+        self.done = threading.Event()
+        self.thread = threading.Thread(target=self._watch, daemon=True)
+
+    def _watch(self) -> None:
+        tick = os.sysconf("SC_CLK_TCK")
+        while not self.done.is_set():
+            for pid in filter(str.isdigit, os.listdir("/proc")):
+                try:
+                    with open(f"/proc/{pid}/cmdline", "rb") as f:
+                        if not f.read().startswith(b"ray::_Actor"):
+                            continue
+                    with open(f"/proc/{pid}/stat", "rb") as f:
+                        fields = f.read().rpartition(b")")[2].split()
+                except OSError:  # ended meanwhile
+                    continue
+                # after the name: state, ..., utime (14th field), stime, ..., starttime
+                self.seen[pid, fields[19]] = (int(fields[11]) + int(fields[12])) / tick
+            self.done.wait(self.SAMPLE_S)
+
+    def __enter__(self) -> ActorCPU:
+        self.thread.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.done.set()
+        self.thread.join()
+
+    def seconds(self) -> float:
+        return sum(self.seen.values())
+
+
 def run_batch(work: Path, out: Path, address: str, options: list[str], *,
               only: int | None = None) -> dict:
     """One timed ``photo3d batch --engine ray`` into ``out`` (of the first ``only``
@@ -93,10 +135,11 @@ def run_batch(work: Path, out: Path, address: str, options: list[str], *,
                 (photos / image.name).symlink_to(image)
     load = os.getloadavg()[0]
     start = time.perf_counter()
-    done = subprocess.run([sys.executable, "-m", "photo3d", "batch", str(photos),
-                           "-o", str(out), "--depth", str(work / "depth"), "--engine", "ray",
-                           "--ray-address", address, "-q", *options],
-                          env=_env(), capture_output=True, text=True, check=False)
+    with ActorCPU() as cpu:
+        done = subprocess.run([sys.executable, "-m", "photo3d", "batch", str(photos),
+                               "-o", str(out), "--depth", str(work / "depth"), "--engine",
+                               "ray", "--ray-address", address, "-q", *options],
+                              env=_env(), capture_output=True, text=True, check=False)
     wall = time.perf_counter() - start
     if done.returncode != 0:
         raise SystemExit(f"batch failed ({done.returncode}):\n{done.stdout}\n{done.stderr}")
@@ -104,6 +147,7 @@ def run_batch(work: Path, out: Path, address: str, options: list[str], *,
     if any(r["status"] != "ok" for r in records):
         raise SystemExit(f"not every photo is ok: {records}")
     return {"wall_s": wall, "photo_s": [r["seconds"] for r in records],
+            "actor_cpu_s": cpu.seconds(), "actor_cpu_per_photo_s": cpu.seconds() / len(records),
             "actors": len({r["worker"] for r in records}),
             "load_1min": [load, os.getloadavg()[0]],
             "ldi": sorted({ldi_hash(out / r["name"]) for r in records})}
@@ -180,16 +224,19 @@ def main() -> None:
                           "photo_s": statistics.median(s for r in mine for s in r["photo_s"]),
                           "overhead_s": statistics.median(r["overhead_s"] for r in mine)}
         summary[nodes]["actors_per_hour"] = 3600 * nodes / summary[nodes]["photo_s"]
+        summary[nodes]["actor_cpu_per_photo_s"] = statistics.median(
+            r["actor_cpu_per_photo_s"] for r in mine)
     speedup = summary[2]["photos_per_hour"] / summary[1]["photos_per_hour"]
     steady = summary[2]["actors_per_hour"] / summary[1]["actors_per_hour"]
     loads = [x for run in runs for x in run["load_1min"]]
     rows = ["| nodes (1 CPU each) | wall | photos per hour | per node | a photo in its actor "
-            "| wall beyond the photos | photos per hour in the actors |",
-            "| --- | --- | --- | --- | --- | --- | --- |"]
+            "| wall beyond the photos | photos per hour in the actors | actors' CPU a photo |",
+            "| --- | --- | --- | --- | --- | --- | --- | --- |"]
     for nodes, s in summary.items():
         rows.append(f"| {nodes} | {s['wall_s']:.1f} s | {s['photos_per_hour']:.0f} | "
                     f"{s['photos_per_hour'] / nodes:.0f} | {s['photo_s']:.2f} s | "
-                    f"{s['overhead_s']:.1f} s | {s['actors_per_hour']:.0f} |")
+                    f"{s['overhead_s']:.1f} s | {s['actors_per_hour']:.0f} | "
+                    f"{s['actor_cpu_per_photo_s']:.2f} s |")
     note = (f"\n{args.photos} copies of the sample, `{' '.join(options)}` (default options "
             f"otherwise), {args.rounds} round(s), one node and two alternated; whole "
             f"command timed. Two nodes: **{speedup:.2f}x** one node's throughput (target "
@@ -197,7 +244,10 @@ def main() -> None:
             f"seconds, without the fixed cost) {steady:.2f}x. 'A photo in its actor': the "
             "median of the manifest's seconds; 'wall "
             "beyond the photos': the wall minus the photos' seconds per node (the driver's "
-            "start, connecting, the actors' start: imports, models, kernels from the cache). "
+            "start, connecting, the actors' start: imports, models, kernels from the cache); "
+            "'actors' CPU a photo': the actor processes' CPU seconds (their start included) "
+            "over the photos, which a busy machine does not stretch: 3600 over it is a "
+            "CPU's photos per hour on an idle machine. "
             f"LDI identical in every run and to `make`'s. Load average (1 min) "
             f"{min(loads):.1f}-{max(loads):.1f} during the runs; on this machine the two "
             "nodes share its cores with the driver and Ray's processes.")
