@@ -64,6 +64,7 @@ BENCHMARKS = [
     ["bench_viewer.py"],
     ["bench_memory.py"],
     ["bench_batch.py"],
+    ["bench_ray.py"],
     ["bench_heldout.py"],
     ["bench_border.py"],
 ]
@@ -859,6 +860,8 @@ def main() -> None:
         section_json("memory.json", "Peak memory of make (what --size can fit)",
                      "python benchmarks/bench_memory.py"),
         section_batch(),
+        section_json("ray.json", "Many photos on a Ray cluster: one node against two "
+                     "(issue 43)", "python benchmarks/bench_ray.py"),
         section_json("heldout.json", "Held-out fills: first-pass regions and the border on "
                      "photos (issue 27)", "python benchmarks/bench_heldout.py"),
         section_json("heldout_debian.json", "Held-out fills on the held-out split of the "
