@@ -7,6 +7,7 @@ import argparse
 import time
 from pathlib import Path
 
+from photo3d.cli.options import add_splat_options
 from photo3d.cli.progress import count_bar
 from photo3d.save_options import EXPORT_FORMATS
 
@@ -27,8 +28,7 @@ def add_parser(sub) -> None:
                     help="write the one FORMAT given to FILE instead of into the folder")
     ex.add_argument("--overwrite", action="store_true",
                     help="with -o: replace FILE if it exists")
-    ex.add_argument("--merge", action="store_true",
-                    help="splats: join flat, smooth areas into larger splats (fewer splats)")
+    add_splat_options(ex)
     ex.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
     ex.set_defaults(run=run)
 
@@ -42,7 +42,8 @@ def run(args: argparse.Namespace) -> int:
     t = time.perf_counter()
     try:
         written = export_folder(args.photo, args.formats, output=args.output,
-                                overwrite=args.overwrite, merge=args.merge,
+                                overwrite=args.overwrite, density=args.splats,
+                                spz_version=args.spz_version,
                                 progress=lambda stage, fraction: bar.update(
                                     round(fraction * bar.total) - bar.n))
     finally:

@@ -89,13 +89,14 @@ def _named_by(module: str, attribute: str) -> Callable[[LDI], str]:
 
 
 _SPLATS = "photo3d.export.splats"
-_SPLAT_OPTIONS = ("merge", "splats")  # splats: built once for several splat formats
+_SPLAT_OPTIONS = ("density", "splats")  # splats: built once for several splat formats
 _MESH_OPTIONS = ("mesh",)  # the light textured mesh, built once for all that take it
 _USD = ("pxr.Gf", "pxr.Kind", "pxr.Sdf", "pxr.Usd", "pxr.UsdGeom", "pxr.UsdShade",
         "pxr.UsdUtils", "pxr.Vt")  # what write_usdz imports (usd-core)
 FORMATS: dict[str, Format] = {
     "splats.ply": Format("splats.ply", _SPLATS, "write_ply", _fixed("splats.ply"), _SPLAT_OPTIONS),
-    "splats.spz": Format("splats.spz", _SPLATS, "write_spz", _fixed("splats.spz"), _SPLAT_OPTIONS),
+    "splats.spz": Format("splats.spz", _SPLATS, "write_spz", _fixed("splats.spz"),
+                         (*_SPLAT_OPTIONS, "spz_version")),
     "splats.glb": Format("splats.glb", _SPLATS, "write_glb", _fixed("splats.glb"), _SPLAT_OPTIONS),
     "mesh.usdz": Format("mesh.usdz", "photo3d.export.usdz", "write_usdz",
                         _named_by("photo3d.export.usdz", "USDZ_NAME"), _MESH_OPTIONS, _USD),
@@ -108,7 +109,8 @@ FORMATS: dict[str, Format] = {
 
 def export_folder(folder: str | Path, formats: Sequence[str], *,
                   output: str | Path | None = None, overwrite: bool = False,
-                  merge: bool = False, progress: StageProgress | None = None) -> list[Path]:
+                  density: str = "adaptive", spz_version: int = 3,
+                  progress: StageProgress | None = None) -> list[Path]:
     """Write ``formats`` of the 3D photo saved in ``folder``.
 
     Args:
@@ -118,8 +120,10 @@ def export_folder(folder: str | Path, formats: Sequence[str], *,
             folder (nothing is recorded).
         overwrite: replace ``output`` if it exists (files in the folder are
             replaced when photo3d wrote them, whatever this says).
-        merge: splat formats: join flat, smooth areas into larger splats
-            (:func:`photo3d.export.splats.build_splats`).
+        density: splat formats: ``"adaptive"`` (fewer, larger splats where the
+            photo is flat) or ``"dense"`` (one per LDI pixel;
+            :func:`photo3d.export.splats.build_splats`).
+        spz_version: ``splats.spz``'s version, 3 (gzip) or 4 (zstd streams).
         progress: ``progress("export", fraction)`` after each file.
 
     The files are written two at a time (the machine's cores), each atomically, and
@@ -130,7 +134,8 @@ def export_folder(folder: str | Path, formats: Sequence[str], *,
         The files written, in the order of ``formats``.
 
     Raises:
-        ConfigError: an unknown format, no format, or several with ``output``.
+        ConfigError: an unknown format, no format, or several with ``output``; an
+            unknown density or SPZ version.
         InputError: no 3D photo in ``folder`` (or a damaged one).
         OutputError: a file to write is a symbolic link, or exists and photo3d did
             not write it (``output``: exists, without ``overwrite``); nothing is
@@ -148,6 +153,9 @@ def export_folder(folder: str | Path, formats: Sequence[str], *,
         ['splats.ply', 'splats.spz']
     """
     chosen = check_formats(formats, output=output)
+    from photo3d.save_options import SaveOptions
+
+    SaveOptions(splats=density, spz_version=spz_version)  # checks both
     folder = Path(folder)
     if not folder.is_dir():
         raise InputError(f"no 3D photo folder at {folder}")
@@ -165,7 +173,8 @@ def export_folder(folder: str | Path, formats: Sequence[str], *,
     written: list[Path] = []
     with ThreadPoolExecutor(max_workers=2) as pool:  # zlib, numpy and writes run on
         jobs = submit_writers(pool, ldi, list(zip(chosen, targets, strict=True)),  # both cores
-                              merge=merge, light_error=_light_error(meta))
+                              density=density, spz_version=spz_version,
+                              light_error=_light_error(meta))
         error = None
         for job, target in zip(jobs, targets, strict=True):
             try:
@@ -184,7 +193,8 @@ def export_folder(folder: str | Path, formats: Sequence[str], *,
 
 
 def submit_writers(pool: Executor, ldi: LDI, targets: Sequence[tuple[Format, Path]], *,
-                   merge: bool = False, mesh: TexturedMesh | None = None,
+                   density: str = "adaptive", spz_version: int = 3,
+                   mesh: TexturedMesh | None = None,
                    light_error: float | None = None) -> list[Future]:
     """Have ``pool`` write each ``(format, path)`` of ``targets``; returns the writers'
     futures, in the order of ``targets``.
@@ -202,7 +212,8 @@ def submit_writers(pool: Executor, ldi: LDI, targets: Sequence[tuple[Format, Pat
         pool: runs the jobs (two threads: the writes, zlib and numpy release the GIL).
         ldi: the 3D photo's layered depth image.
         targets: what to write where (:func:`check_formats`' formats, each once).
-        merge: splat formats: join flat, smooth areas into larger splats.
+        density: splat formats: ``"adaptive"`` or ``"dense"``.
+        spz_version: ``splats.spz``'s version (3 or 4).
         mesh: the light textured mesh of ``ldi`` if already built.
         light_error: its error bound when it is built here (pixels).
 
@@ -219,11 +230,11 @@ def submit_writers(pool: Executor, ldi: LDI, targets: Sequence[tuple[Format, Pat
         >>> sorted(p.name for p in out.iterdir())
         ['a.ply', 'a.spz']
     """
-    options: dict[str, object] = {"merge": merge}
+    options: dict[str, object] = {"density": density, "spz_version": spz_version}
     if sum(f.module == _SPLATS for f, _ in targets) > 1:  # build the splats once
         from photo3d.export.splats import build_splats
 
-        options["splats"] = build_splats(ldi, merge=merge)
+        options["splats"] = build_splats(ldi, density=density)
     light: Future | None = None
     if mesh is None and any("mesh" in f.options for f, _ in targets):
         from photo3d.mesh.light import LIGHT_ERROR, build_light_mesh
