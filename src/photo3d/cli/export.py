@@ -38,6 +38,8 @@ def run(args: argparse.Namespace) -> int:
     from photo3d.export import export_folder
     from photo3d.export.splats import splat_count
 
+    if not args.quiet:
+        _say_memory(args)
     bar = count_bar(len(set(args.formats)), "export", quiet=args.quiet)
     t = time.perf_counter()
     try:
@@ -55,3 +57,22 @@ def run(args: argparse.Namespace) -> int:
             what = f"  {count:,} splats" if count is not None else ""
             print(f"  {path}  {path.stat().st_size / 1e6:.2f} MB{what}")
     return 0
+
+
+def _say_memory(args: argparse.Namespace) -> None:
+    """Say, before the work, how much memory the export will take at most (what
+    :func:`photo3d.resources.check_export_memory` checks); nothing when the folder
+    has no readable 3D photo (export_folder says why)."""
+    from photo3d.errors import InputError
+    from photo3d.io.limits import format_bytes
+    from photo3d.io.npz import ldi_pixels
+    from photo3d.owned import LDI_FILE
+    from photo3d.resources import export_memory_estimate
+
+    try:
+        pixels = ldi_pixels(args.photo / LDI_FILE)
+    except InputError:
+        return
+    need = export_memory_estimate(pixels, list(dict.fromkeys(args.formats)))
+    print(f"export: {pixels:,} LDI pixels, {args.splats} splats, at most about "
+          f"{format_bytes(need)} of memory", flush=True)

@@ -33,9 +33,10 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from photo3d.errors import ConfigError, InputError, OutputError
-from photo3d.io.npz import load_npz
+from photo3d.io.npz import ldi_pixels, load_npz
 from photo3d.owned import LDI_FILE, claim_files, record_files
 from photo3d.progress import StageProgress
+from photo3d.resources import check_export_memory
 from photo3d.structures.ldi import LDI
 
 if TYPE_CHECKING:
@@ -137,6 +138,8 @@ def export_folder(folder: str | Path, formats: Sequence[str], *,
         ConfigError: an unknown format, no format, or several with ``output``; an
             unknown density or SPZ version.
         InputError: no 3D photo in ``folder`` (or a damaged one).
+        ConfigError: not enough memory (:func:`photo3d.resources.check_export_memory`,
+            checked before the 3D photo is read).
         OutputError: a file to write is a symbolic link, or exists and photo3d did
             not write it (``output``: exists, without ``overwrite``); nothing is
             written then.
@@ -165,6 +168,7 @@ def export_folder(folder: str | Path, formats: Sequence[str], *,
             raise OutputError(f"{output} exists; pass overwrite (--overwrite) to replace it")
     if not (folder / LDI_FILE).is_file():
         raise InputError(f"no 3D photo in {folder} (it has no {LDI_FILE})")
+    check_export_memory(ldi_pixels(folder / LDI_FILE), [f.name for f in chosen])
     ldi, meta = load_npz(folder / LDI_FILE)
     targets = [output] if output is not None else [folder / f.filename(ldi) for f in chosen]
     if output is None:

@@ -58,7 +58,7 @@ import zlib
 
 import numpy as np
 
-from photo3d.errors import InputError, MissingExtra
+from photo3d.errors import InputError, require
 from photo3d.structures.splats import SH_C0, Splats
 
 PathLike = str | os.PathLike[str]
@@ -185,11 +185,8 @@ def zstd_module():
     try:
         from compression import zstd  # Python >= 3.14
     except ImportError:
-        try:
-            from backports import zstd
-        except ImportError:
-            raise MissingExtra("SPZ version 4 needs zstd: pip install 'photo3d[spz4]' "
-                               "(backports-zstd), or write version 3") from None
+        return require("backports.zstd", "spz4", purpose="SPZ version 4",
+                       package="backports-zstd")
     return zstd
 
 
