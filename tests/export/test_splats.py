@@ -17,7 +17,6 @@ from photo3d.export.splats import (
     FOOTPRINT,
     OPACITY,
     build_splats,
-    deblur,
     splat_count,
     splat_opacity,
 )
@@ -48,7 +47,7 @@ def test_one_splat_per_ldi_pixel_at_its_vertex_with_its_footprint(photo):
     splats = build_splats(ldi, density="dense")
     assert len(splats) == ldi.size and set(np.unique(ldi.label)) >= {1, 2, 5}
     np.testing.assert_array_equal(splats.positions, photo.mesh().vertices)
-    np.testing.assert_array_equal(splats.colors, deblur(ldi, ldi.color))
+    np.testing.assert_array_equal(splats.colors, ldi.color)
     z = ldi.depth()
     np.testing.assert_allclose(splats.scales[:, 0], FOOTPRINT * z / ldi.intrinsics.fx, rtol=1e-6)
     np.testing.assert_allclose(splats.scales[:, 1], FOOTPRINT * z / ldi.intrinsics.fy, rtol=1e-6)

@@ -19,11 +19,7 @@ the inpainted layers' alike, with the border. Two layouts (``density=``):
   :data:`ADAPTIVE_DEPTH` of a plane. A joined block's splat spans the block on its
   plane: anisotropic and tilted as the surface is.
 
-The colours of splats standing for one pixel are deblurred (:func:`deblur`, over
-the pixel's linked neighbours, so never across a depth edge): a renderer blends
-each pixel with its neighbours' overlapping Gaussians, which blurs the photo by
-about a pixel and leaves a few percent of it uncovered; the deblurring gives most
-of that back. The opacity of every
+The opacity of every
 splat comes from :func:`splat_opacity`, which takes a per-pixel coverage (the soft
 silhouettes of the edges, once the LDI carries them) and is :data:`OPACITY` today.
 """
@@ -48,23 +44,21 @@ from photo3d.structures.splats import Splats
 FOOTPRINT = 0.6
 """Standard deviation of a splat across the view, in pixels of the input view (of
 its block's side for a joined block)."""
+BLOCK_FOOTPRINT = 0.6
+"""Standard deviation of a joined block's splat along each side, relative to the
+side."""
 THICKNESS = 0.1
 """Standard deviation along the view axis (the surface's normal), relative to the
 ones across it."""
 OPACITY = 0.99
 """Peak opacity of a splat whose pixels are fully covered."""
-RENDER_BLUR = 0.3
-"""The variance (pixels squared) a splat renderer adds to every splat on screen, the
-low-pass filter of the original 3DGS rasterizer that Spark and most viewers keep."""
-DEBLUR_ITERATIONS = 3
-"""Rounds of :func:`deblur` for the colours of one-pixel splats."""
 DENSITIES = ("adaptive", "dense")
 """The splat layouts (``density=``, ``--splats``), the default first."""
 ADAPTIVE_LEVELS = 4
 """Rounds of 2 x 2 joining: blocks up to 16 x 16 pixels in one splat."""
-ADAPTIVE_COLOR = 8 / 255
+ADAPTIVE_COLOR = 14 / 255
 """Largest colour range (per channel, sRGB) inside a joined block of the photo."""
-HIDDEN_COLOR = 16 / 255
+HIDDEN_COLOR = 32 / 255
 """The same on the inpainted layers and the extrapolated border."""
 ADAPTIVE_DEPTH = 0.01
 """Largest departure of a block's inverse depth from a plane, relative: it bounds
@@ -73,7 +67,6 @@ pixels for a camera moved by ``t`` (under a pixel for the circle path beyond z =
 
 PLY_NAME, SPZ_NAME, GLB_NAME = "splats.ply", "splats.spz", "splats.glb"
 _FRONT = (1,)  # LDI labels of the photo's own pixels
-_LEFT_LINK, _RIGHT_LINK, _UP_LINK, _DOWN_LINK = range(4)  # the LDI's link order
 
 
 def build_splats(ldi: LDI, *, density: str = "adaptive",
@@ -115,7 +108,7 @@ def build_splats(ldi: LDI, *, density: str = "adaptive",
     if density == "dense":
         scales = _facing(z, k, np.ones(len(z), np.float32))
         rotations = np.tile(np.array([1, 0, 0, 0], np.float32), (len(z), 1))
-        return Splats(positions=positions, colors=deblur(ldi, colors), opacity=opacity,
+        return Splats(positions=positions, colors=colors, opacity=opacity,
                       scales=scales, rotations=rotations)
     front = np.isin(ldi.label, _FRONT)
     blocks = merge_blocks(ldi, positions, colors, opacity, levels=ADAPTIVE_LEVELS,
@@ -123,7 +116,7 @@ def build_splats(ldi: LDI, *, density: str = "adaptive",
                           depth_tolerance=ADAPTIVE_DEPTH)
     single = blocks.level == 0
     parts = [
-        _single(positions[blocks.pixel[single]], deblur(ldi, colors)[blocks.pixel[single]],
+        _single(positions[blocks.pixel[single]], colors[blocks.pixel[single]],
                 blocks.opacity[single], z[blocks.pixel[single]], k),
         _joined(blocks, ~single),
     ]
@@ -140,7 +133,7 @@ def _single(positions: np.ndarray, colors: np.ndarray, opacity: np.ndarray,
 def _joined(blocks: Blocks, chosen: np.ndarray) -> tuple[np.ndarray, ...]:
     """The splat arrays of the ``chosen`` blocks: each spanning its block on its
     plane."""
-    side = (1 << blocks.level[chosen].astype(np.int64))[:, None] * FOOTPRINT
+    side = (1 << blocks.level[chosen].astype(np.int64))[:, None] * BLOCK_FOOTPRINT
     scales, rotations = block_gaussians(blocks.axis_u[chosen] * side,
                                         blocks.axis_v[chosen] * side, thickness=THICKNESS)
     return (blocks.positions[chosen], blocks.colors[chosen],
@@ -163,88 +156,6 @@ def splat_opacity(count: int, alpha: np.ndarray | None = None) -> np.ndarray:
     if alpha.shape != (count,):
         raise ConfigError(f"alpha has shape {alpha.shape}, expected ({count},)")
     return (OPACITY * np.clip(alpha, 0, 1)).astype(np.float32)
-
-
-def deblur(ldi: LDI, colors: np.ndarray, iterations: int | None = None) -> np.ndarray:
-    """``(N, 3) float32`` colours for one-pixel splats such that a splat renderer's
-    blend of them gives back ``colors`` (one per LDI pixel), clipped to [0, 1].
-
-    A renderer draws each pixel as the blend of the overlapping Gaussians of it and
-    its neighbours: :func:`blend_weights` (a blur of about a pixel that leaves a few
-    percent uncovered). ``iterations`` (None: :data:`DEBLUR_ITERATIONS`) rounds of
-    Van Cittert's deconvolution, ``c <- c + (colors - blend(c))``, over the LDI's links
-    (so never across a depth edge) undo most of it; few rounds, as the blur all but
-    removes the finest checkerboard, which more rounds would only amplify.
-
-    Example:
-        >>> from photo3d.stages.ldi import from_image
-        >>> image = np.zeros((1, 5, 3), np.float32)
-        >>> image[0, 2] = 0.5  # a grey pixel between black ones
-        >>> ldi = from_image(image, np.ones((1, 5), np.float32))
-        >>> out = deblur(ldi, ldi.color)[ldi.y == 0][:, 0]
-        >>> bool(out[2] > 0.5 and out[1] == 0)  # brighter, its neighbours clipped at 0
-        True
-    """
-    iterations = DEBLUR_ITERATIONS if iterations is None else iterations
-    colors = np.asarray(colors, np.float32)
-    weights = blend_weights()
-    links = ldi.links
-    n = len(colors)
-    up, down = links[:, _UP_LINK], links[:, _DOWN_LINK]
-    sides = links[:, [_LEFT_LINK, _RIGHT_LINK, _UP_LINK, _DOWN_LINK]]
-    corners = np.stack([_hop(links, up, _LEFT_LINK), _hop(links, up, _RIGHT_LINK),
-                        _hop(links, down, _LEFT_LINK), _hop(links, down, _RIGHT_LINK)], 1)
-    # -1 (no neighbour) reads the zero row appended at n
-    sides = np.where(sides >= 0, sides, n).T.copy()
-    corners = np.where(corners >= 0, corners, n).T.copy()
-    padded = np.zeros((n + 1, 3), np.float32)
-    w = [np.float32(x) for x in weights]
-
-    def blend(c: np.ndarray) -> np.ndarray:
-        padded[:n] = c
-        out = w[0] * c
-        out += w[1] * (padded[sides[0]] + padded[sides[1]] + padded[sides[2]]
-                       + padded[sides[3]])
-        out += w[2] * (padded[corners[0]] + padded[corners[1]] + padded[corners[2]]
-                       + padded[corners[3]])
-        return out
-
-    out = colors.copy()
-    for _ in range(iterations):
-        out = np.clip(out + (colors - blend(out)), 0, 1)
-    return out
-
-
-def blend_weights() -> tuple[float, float, float]:
-    """``(centre, side, corner)``: the share of a one-pixel splat's colour in its own
-    pixel and in its 4 and its 4 diagonal neighbours, as a renderer draws a layer of
-    them seen from the input camera.
-
-    Each splat is a Gaussian of :data:`FOOTPRINT` pixels, which the renderer widens
-    by :data:`RENDER_BLUR` (adding to its variance, and lowering its opacity as
-    much: Spark, and the 3DGS renderers that follow Mip-Splatting), so its opacity
-    at a distance ``d`` is ``a(d) = o f exp(-d^2 / 2 s^2)``. Over one pixel, in the
-    order the renderer sorts them, the 9 splats cover ``1 - prod(1 - a)``; each
-    gets its ``a(d)`` share of that.
-
-    Example:
-        >>> [round(w, 3) for w in blend_weights()]
-        [0.222, 0.104, 0.049]
-    """
-    variance = FOOTPRINT**2 + RENDER_BLUR
-    peak = OPACITY * FOOTPRINT**2 / variance
-    a = [peak * np.exp(-d2 / (2 * variance)) for d2 in (0.0, 1.0, 2.0)]
-    covered = 1 - (1 - a[0]) * (1 - a[1]) ** 4 * (1 - a[2]) ** 4
-    share = covered / (a[0] + 4 * a[1] + 4 * a[2])
-    return tuple(float(share * x) for x in a)
-
-
-def _hop(links: np.ndarray, start: np.ndarray, direction: int) -> np.ndarray:
-    """The neighbour in ``direction`` of each of ``start`` (-1: none)."""
-    out = np.full(len(start), -1, np.int32)
-    has = start >= 0
-    out[has] = links[start[has], direction]
-    return out
 
 
 def _facing(z: np.ndarray, k, size: np.ndarray) -> np.ndarray:

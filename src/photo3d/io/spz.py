@@ -44,7 +44,7 @@ SPZ stores right-up-back axes (OpenGL, three.js): the OpenCV camera coordinates 
 reference library does when told the source is RDF.
 
 ``fractionalBits`` is chosen per file: the finest step with which the largest
-coordinate still fits in 24 bits, but no finer than a third of the smallest splat's
+coordinate still fits in 24 bits, but no finer than half the smallest splat's
 standard deviation (finer steps only cost size; the reference writer always uses
 12 bits, 2**-12 units).
 """
@@ -74,11 +74,12 @@ _FLIP = np.array([1, -1, -1], np.float32)  # OpenCV (RDF) <-> SPZ (RUB)
 _HEADER = struct.Struct("<IIIBBBB")
 _HEADER_V4 = struct.Struct("<IIIBBBBI12x")
 _TOC_ENTRY = struct.Struct("<QQ")  # compressed, uncompressed bytes of a stream
-GZIP_LEVEL = 1
-"""gzip level of versions 2 and 3: 4 % larger than 6 and twice as fast on the
-bundled sample."""
-ZSTD_LEVEL = 3
-"""zstd level of version 4 (Niantic's library uses 12; see docs/outputs.md)."""
+GZIP_LEVEL = 6
+"""gzip level of versions 2 and 3 (zlib's default; level 1 makes the bundled
+sample's adaptive splats 4 % larger in half the time)."""
+ZSTD_LEVEL = 6
+"""zstd level of version 4 (Niantic's library uses 12: 1 % smaller than 6 on the
+bundled sample's adaptive splats, in over twice the time)."""
 _MAX_BITS = 24
 _MAX_POINTS = 10_000_000  # the reference reader's limit
 
@@ -112,7 +113,7 @@ def write_spz(path: PathLike, splats: Splats, *, version: int = DEFAULT_VERSION,
         >>> path.read_bytes()[:2]  # gzip
         b'\\x1f\\x8b'
         >>> back = read_spz(path)
-        >>> bool(np.abs(back.positions - s.positions).max() <= 0.004 / 3 / 2)  # half a step
+        >>> bool(np.abs(back.positions - s.positions).max() <= 0.004 / 2 / 2)  # half a step
         True
         >>> back.colors.astype(float).round(2).tolist()
         [[0.2, 0.5, 0.8]]
@@ -293,10 +294,11 @@ def _decode_v4(raw: bytes, path: PathLike) -> tuple[int, int, int, int, list[np.
 
 def _fractional_bits(positions: np.ndarray, scales: np.ndarray) -> int:
     """Bits after the point: the finest step that fits every coordinate in 24 bits,
-    and no finer than a third of the smallest splat (its longest axis)."""
+    and no finer than half the smallest splat (its longest axis: a centre is off by
+    at most a quarter of its standard deviation)."""
     largest = float(np.abs(positions).max())
     fits = int(np.floor(np.log2((2**23 - 1) / largest))) if largest > 0 else _MAX_BITS
-    useful = int(np.ceil(np.log2(3.0 / float(scales.max(axis=1).min()))))
+    useful = int(np.ceil(np.log2(2.0 / float(scales.max(axis=1).min()))))
     bits = min(fits, _MAX_BITS, max(useful, 0))
     if bits < 0:
         raise InputError(f"splat positions up to {largest:g} do not fit SPZ's 24-bit "
