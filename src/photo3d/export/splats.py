@@ -44,9 +44,6 @@ from photo3d.structures.splats import Splats
 FOOTPRINT = 0.6
 """Standard deviation of a splat across the view, in pixels of the input view (of
 its block's side for a joined block)."""
-BLOCK_FOOTPRINT = 0.6
-"""Standard deviation of a joined block's splat along each side, relative to the
-side."""
 THICKNESS = 0.1
 """Standard deviation along the view axis (the surface's normal), relative to the
 ones across it."""
@@ -56,7 +53,7 @@ DENSITIES = ("adaptive", "dense")
 """The splat layouts (``density=``, ``--splats``), the default first."""
 ADAPTIVE_LEVELS = 4
 """Rounds of 2 x 2 joining: blocks up to 16 x 16 pixels in one splat."""
-ADAPTIVE_COLOR = 14 / 255
+ADAPTIVE_COLOR = 13 / 255
 """Largest colour range (per channel, sRGB) inside a joined block of the photo."""
 HIDDEN_COLOR = 32 / 255
 """The same on the inpainted layers and the extrapolated border."""
@@ -133,7 +130,7 @@ def _single(positions: np.ndarray, colors: np.ndarray, opacity: np.ndarray,
 def _joined(blocks: Blocks, chosen: np.ndarray) -> tuple[np.ndarray, ...]:
     """The splat arrays of the ``chosen`` blocks: each spanning its block on its
     plane."""
-    side = (1 << blocks.level[chosen].astype(np.int64))[:, None] * BLOCK_FOOTPRINT
+    side = (1 << blocks.level[chosen].astype(np.int64))[:, None] * FOOTPRINT
     scales, rotations = block_gaussians(blocks.axis_u[chosen] * side,
                                         blocks.axis_v[chosen] * side, thickness=THICKNESS)
     return (blocks.positions[chosen], blocks.colors[chosen],
