@@ -112,7 +112,7 @@ def test_spz_read_back_by_spark_equals_the_ply_within_quantization(box_photo, tm
     centres = spz[:, :3] * [1, -1, -1]
     with gzip.open(tmp_path / "splats.spz") as file:  # the step photo3d.io.spz chose
         bits = file.read(16)[13]
-    assert 2.0**-bits <= splats.scales.max(axis=1).min() / 2
+    assert 2.0**-bits <= splats.scales.max(axis=1).min()
     # Spark keeps centres as float16: its own rounding is added to SPZ's step
     half16 = np.abs(splats.positions) * 2.0**-11 + 2.0**-25
     assert (np.abs(centres - splats.positions) <= 2.0**-bits / 2 + half16 + 1e-7).all()

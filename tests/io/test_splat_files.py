@@ -156,7 +156,7 @@ def test_spz_matches_the_published_layout_in_rub_axes(tmp_path, version):
     ref = spz_reference_read(tmp_path / "s.spz")
     assert ref["version"] == version
     step = 2.0 ** -ref["bits"]
-    assert ref["count"] == 300 and step <= splats.scales.max(axis=1).min() / 2
+    assert ref["count"] == 300 and step <= splats.scales.max(axis=1).min()
     flip = np.array([1, -1, -1])  # OpenCV (right, down, forward) -> SPZ (right, up, back)
     np.testing.assert_allclose(ref["positions"], splats.positions * flip, atol=step / 2 + 1e-6)
     np.testing.assert_allclose(ref["opacity"], splats.opacity, atol=0.5 / 255 + 1e-6)

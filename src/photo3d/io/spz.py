@@ -44,9 +44,10 @@ SPZ stores right-up-back axes (OpenGL, three.js): the OpenCV camera coordinates 
 reference library does when told the source is RDF.
 
 ``fractionalBits`` is chosen per file: the finest step with which the largest
-coordinate still fits in 24 bits, but no finer than half the smallest splat's
-standard deviation (finer steps only cost size; the reference writer always uses
-12 bits, 2**-12 units).
+coordinate still fits in 24 bits, but no finer than the smallest splat's standard
+deviation (finer steps only cost size: a centre is off by at most half of it; the
+reference writer always uses 12 bits, 2**-12 units, what this gives on the bundled
+sample).
 """
 
 from __future__ import annotations
@@ -113,7 +114,7 @@ def write_spz(path: PathLike, splats: Splats, *, version: int = DEFAULT_VERSION,
         >>> path.read_bytes()[:2]  # gzip
         b'\\x1f\\x8b'
         >>> back = read_spz(path)
-        >>> bool(np.abs(back.positions - s.positions).max() <= 0.004 / 2 / 2)  # half a step
+        >>> bool(np.abs(back.positions - s.positions).max() <= 0.004 / 2)  # half a step
         True
         >>> back.colors.astype(float).round(2).tolist()
         [[0.2, 0.5, 0.8]]
@@ -294,11 +295,11 @@ def _decode_v4(raw: bytes, path: PathLike) -> tuple[int, int, int, int, list[np.
 
 def _fractional_bits(positions: np.ndarray, scales: np.ndarray) -> int:
     """Bits after the point: the finest step that fits every coordinate in 24 bits,
-    and no finer than half the smallest splat (its longest axis: a centre is off by
-    at most a quarter of its standard deviation)."""
+    and no finer than the smallest splat (its longest axis: a centre is off by at
+    most half its standard deviation, the nearest splats only)."""
     largest = float(np.abs(positions).max())
     fits = int(np.floor(np.log2((2**23 - 1) / largest))) if largest > 0 else _MAX_BITS
-    useful = int(np.ceil(np.log2(2.0 / float(scales.max(axis=1).min()))))
+    useful = int(np.ceil(np.log2(1.0 / float(scales.max(axis=1).min()))))
     bits = min(fits, _MAX_BITS, max(useful, 0))
     if bits < 0:
         raise InputError(f"splat positions up to {largest:g} do not fit SPZ's 24-bit "
