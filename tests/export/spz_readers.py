@@ -1,8 +1,9 @@
-"""SPZ version 4 readers that others wrote, run in headless Chromium for the tests:
-three.js's ``SPZLoader`` (``three`` >= 0.18x, npm) and PlayCanvas's
-``@playcanvas/splat-transform`` (its ``readFile`` and ``materializeToDataTable``, on
-the ``playcanvas`` engine package), both from ``PHOTO3D_NODE_MODULES/node_modules``
-(``make test`` installs them into ``.node/``).
+"""Splat readers that others wrote, run in headless Chromium for the tests: three.js's
+``SPZLoader`` (SPZ 1-4) and ``GLTFGaussianSplatLoaderExtension``
+(``KHR_gaussian_splatting``; ``three`` 0.187, npm) and PlayCanvas's
+``@playcanvas/splat-transform`` (SPZ 2-4: its ``readFile`` and
+``materializeToDataTable``, on the ``playcanvas`` engine package), all from
+``PHOTO3D_NODE_MODULES/node_modules`` (``make test`` installs them into ``.node/``).
 
 :func:`read_with` loads one ``.spz`` file in a page and returns what the reader
 decoded, as numpy arrays. Nothing is fetched from the network: the modules come from
@@ -31,10 +32,15 @@ PAGE = """<!doctype html>
 <script type="importmap">{"imports": {
   "three": "/node_modules/three/build/three.module.js",
   "three/addons/": "/node_modules/three/examples/jsm/",
+  "three/webgpu": "/node_modules/three/build/three.webgpu.js",
+  "three/tsl": "/node_modules/three/build/three.tsl.js",
   "playcanvas": "/node_modules/playcanvas/build/playcanvas.mjs",
   "@playcanvas/splat-transform": "/node_modules/@playcanvas/splat-transform/dist/index.mjs"}}
 </script></head><body><script type="module">
 import { SPZLoader } from "three/addons/loaders/SPZLoader.js";
+import { GLTFLoader } from "three/addons/loaders/GLTFLoader.js";
+import { GLTFGaussianSplatLoaderExtension }
+  from "three/addons/loaders/GLTFGaussianSplatLoaderExtension.js";
 import { MemoryReadFileSystem, readFile, materializeToDataTable, createChunkDataPool }
   from "@playcanvas/splat-transform";
 const pack = (array) => {  // a typed array as base64 of its bytes
@@ -45,7 +51,25 @@ const pack = (array) => {  // a typed array as base64 of its bytes
   }
   return btoa(text);
 };
+const attributes = (geometry) => {
+  const out = {};
+  for (const name of ["position", "covariance", "color"]) {
+    const attribute = geometry.getAttribute(name);
+    out[name] = {data: pack(attribute.array), width: attribute.itemSize,
+                 type: attribute.array.constructor.name};
+  }
+  return JSON.stringify(out);
+};
 window.readers = {
+  async three_glb(url) {
+    const loader = new GLTFLoader();
+    loader.register((parser) => new GLTFGaussianSplatLoaderExtension(parser));
+    const gltf = await loader.loadAsync(url);
+    let splat = null;
+    gltf.scene.traverse((o) => { if (o.isGaussianSplat) splat = o; });
+    if (splat === null) throw new Error("no GaussianSplat in the scene");
+    return attributes(splat.splatGeometry);
+  },
   async three(url) {
     const buffer = await (await fetch(url)).arrayBuffer();
     const geometry = await new SPZLoader().parse(buffer);
@@ -102,7 +126,7 @@ def _served(splat_file: Path):
         root = Path(root)
         (root / "index.html").write_text(PAGE)
         os.symlink(Path(NODE_DIR).resolve() / "node_modules", root / "node_modules")
-        os.symlink(Path(splat_file).resolve(), root / "splats.spz")
+        os.symlink(Path(splat_file).resolve(), root / Path(splat_file).name)
         handler = functools.partial(_Quiet, directory=str(root))
         server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), handler)
         thread = threading.Thread(target=server.serve_forever, daemon=True)
@@ -120,9 +144,11 @@ class _Quiet(http.server.SimpleHTTPRequestHandler):
 
 
 def read_with(reader: str, splat_file: Path, browser) -> dict[str, np.ndarray]:
-    """What ``reader`` (``"three"`` or ``"playcanvas"``) decodes from ``splat_file``:
-    three.js: ``position (N, 3)``, ``covariance (N, 6)`` (xx, xy, xz, yy, yz, zz) and
-    ``color (N, 4) uint8``; splat-transform: one ``(N,)`` array per column (``x``,
+    """What ``reader`` decodes from ``splat_file``: ``"three"`` (an ``.spz``) and
+    ``"three_glb"`` (a ``.glb``, through ``GLTFLoader`` with
+    ``GLTFGaussianSplatLoaderExtension``): ``position (N, 3)``, ``covariance (N, 6)``
+    (xx, xy, xz, yy, yz, zz) and ``color (N, 4) uint8``; ``"playcanvas"`` (an
+    ``.spz``), splat-transform: one ``(N,)`` array per column (``x``,
     ``f_dc_0``, ``opacity``, ``scale_0``, ``rot_0``, ...: the 3DGS PLY's). The
     reader's errors raise AssertionError."""
     with _served(Path(splat_file)) as url:
@@ -130,10 +156,15 @@ def read_with(reader: str, splat_file: Path, browser) -> dict[str, np.ndarray]:
         try:
             errors = []
             page.on("pageerror", lambda error: errors.append(error))
+            page.on("console", lambda m: errors.append(m.text) if m.type == "error" else None)
             page.goto(f"{url}/index.html")
-            page.wait_for_function("window.ready === true", timeout=60_000)
             try:
-                text = page.evaluate(f"u => window.readers.{reader}(u)", f"{url}/splats.spz")
+                page.wait_for_function("window.ready === true", timeout=60_000)
+            except Exception as err:  # playwright's TimeoutError: a module did not load
+                raise AssertionError(f"the readers' page did not load: {errors}") from err
+            try:
+                text = page.evaluate(f"u => window.readers.{reader}(u)",
+                                     f"{url}/{Path(splat_file).name}")
             except Exception as err:  # playwright's Error: the reader threw
                 raise AssertionError(f"{reader} failed: {err} {errors}") from None
         finally:

@@ -1,5 +1,6 @@
-"""splats.spz, versions 3 and 4, read by readers that others wrote, in headless
-Chromium: three.js's SPZLoader and PlayCanvas's splat-transform read both versions;
+"""splats.spz, versions 3 and 4, and splats.glb read by readers that others wrote, in
+headless Chromium: three.js's SPZLoader and PlayCanvas's splat-transform read both
+SPZ versions, three.js's glTF loader with its KHR_gaussian_splatting plugin the GLB;
 Spark 2 reads version 3 and refuses version 4 (tests/export/spz_readers.py,
 spark_renderer.py; skipped when Chromium, playwright or the npm packages are missing).
 """
@@ -7,6 +8,8 @@ spark_renderer.py; skipped when Chromium, playwright or the npm packages are mis
 from __future__ import annotations
 
 import gzip
+import json
+import struct
 
 import numpy as np
 import pytest
@@ -16,7 +19,7 @@ from spark_renderer import missing as spark_missing
 from spz_readers import missing, read_with
 
 import photo3d
-from photo3d.export.splats import build_splats, write_spz
+from photo3d.export.splats import build_splats, write_glb, write_spz
 from photo3d.structures.splats import SH_C0, Splats
 
 if missing():
@@ -118,3 +121,34 @@ def test_spark_reads_version_3_and_refuses_version_4(photo, tmp_path, browser):
     write_spz(photo.ldi, tmp_path / "v4.spz", spz_version=4, splats=splats)
     with pytest.raises(AssertionError, match="Spark failed"):
         read_splats(tmp_path / "v4.spz", browser=browser)
+
+
+def test_three_js_reads_the_glb_by_the_ratified_extension(photo, tmp_path, browser):
+    """three.js's plugin follows KHR_gaussian_splatting as ratified: it refuses a
+    primitive without ``kernel`` or ``colorSpace`` and reads the extension's
+    attribute names."""
+    splats = build_splats(photo.ldi)
+    write_glb(photo.ldi, tmp_path / "splats.glb", splats=splats)
+    got = read_with("three_glb", tmp_path / "splats.glb", browser)
+    np.testing.assert_allclose(got["position"], splats.positions * RUB, atol=1e-6)
+    np.testing.assert_allclose(got["color"][:, 3] / 255, splats.opacity, atol=1 / 255)
+    np.testing.assert_allclose(got["color"][:, :3] / 255, np.clip(splats.colors, 0, 1),
+                               atol=1.5 / 255)
+    mine = covariances(splats)
+    theirs = got["covariance"][:, [0, 1, 2, 1, 3, 4, 2, 4, 5]].reshape(-1, 3, 3)
+    largest = np.abs(mine).reshape(len(mine), -1).max(axis=1)
+    assert (np.abs(theirs - mine).reshape(len(mine), -1).max(axis=1) / largest).max() < 1e-3
+    # without the required colorSpace the plugin refuses the file
+    from photo3d.io.glb import read_chunks
+
+    document, binary = read_chunks(tmp_path / "splats.glb")
+    del document["meshes"][0]["primitives"][0]["extensions"]["KHR_gaussian_splatting"][
+        "colorSpace"]
+    text = json.dumps(document).encode()
+    text += b" " * (-len(text) % 4)
+    (tmp_path / "bad.glb").write_bytes(
+        struct.pack("<III", 0x46546C67, 2, 28 + len(text) + len(binary))
+        + struct.pack("<II", len(text), 0x4E4F534A) + text
+        + struct.pack("<II", len(binary), 0x004E4942) + binary)
+    with pytest.raises(AssertionError, match="colorSpace is required"):
+        read_with("three_glb", tmp_path / "bad.glb", browser)
