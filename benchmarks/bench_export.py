@@ -128,6 +128,7 @@ def main() -> None:
             print(f"making the demo into {demo} ...", flush=True)
             run_measured(versions["now"], ["-m", "photo3d", "demo", "--no-video", "-q",
                                            "-o", str(demo)])
+        stated = stated_mb(versions["now"], demo)  # while the copied sources exist
         for src in versions.values():  # warm-up: numba's cache, the page cache
             measure(src, demo, work, "call")
         runs: dict[str, dict[str, list]] = {v: {"call": [], "command": []} for v in versions}
@@ -159,7 +160,6 @@ def main() -> None:
     files = next(r["files"] for r in runs["now"]["call"] if "files" in r)
     peaks = {name: max(r.get("peak_rss_mb", 0) for rs in kinds.values() for r in rs)
              for name, kinds in runs.items()}
-    stated = stated_mb(versions["now"], demo)
     print("  peak resident memory: " + ", ".join(f"{k} {v:.0f} MB" for k, v in peaks.items())
           + f"; stated before the export (now): {stated:.0f} MB")
     record = {"formats": FORMATS, "runs": runs, "medians": medians,
