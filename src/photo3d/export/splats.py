@@ -19,9 +19,13 @@ the inpainted layers' alike, with the border. Two layouts (``density=``):
   :data:`ADAPTIVE_DEPTH` of a plane. A joined block's splat spans the block on its
   plane: anisotropic and tilted as the surface is.
 
-The opacity of every
-splat comes from :func:`splat_opacity`, which takes a per-pixel coverage (the soft
-silhouettes of the edges, once the LDI carries them) and is :data:`OPACITY` today.
+The opacity of every splat comes from :func:`splat_opacity`, which takes a per-pixel
+coverage: the soft silhouettes of depth edges, once the LDI carries them, are passed
+as ``build_splats(ldi, alpha=...)`` (a joined block takes its pixels' mean; such
+pixels lie on edges, where blocks are not joined). Without it every splat is
+:data:`OPACITY`.
+
+How Spark shows them, and what was tried to make it sharper: docs/outputs.md.
 """
 
 from __future__ import annotations
@@ -30,7 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
-from photo3d.camera import unproject
+from photo3d.camera import Intrinsics, unproject
 from photo3d.errors import ConfigError
 from photo3d.export.splat_blocks import Blocks, block_gaussians, merge_blocks
 from photo3d.files.atomic import atomic_path
@@ -121,7 +125,7 @@ def build_splats(ldi: LDI, *, density: str = "adaptive",
 
 
 def _single(positions: np.ndarray, colors: np.ndarray, opacity: np.ndarray,
-            z: np.ndarray, k) -> tuple[np.ndarray, ...]:
+            z: np.ndarray, k: Intrinsics) -> tuple[np.ndarray, ...]:
     """The splat arrays of single pixels: discs facing the camera."""
     rotations = np.tile(np.array([1, 0, 0, 0], np.float32), (len(z), 1))
     return positions, colors, opacity, _facing(z, k, np.ones(len(z), np.float32)), rotations
@@ -155,7 +159,7 @@ def splat_opacity(count: int, alpha: np.ndarray | None = None) -> np.ndarray:
     return (OPACITY * np.clip(alpha, 0, 1)).astype(np.float32)
 
 
-def _facing(z: np.ndarray, k, size: np.ndarray) -> np.ndarray:
+def _facing(z: np.ndarray, k: Intrinsics, size: np.ndarray) -> np.ndarray:
     """``(M, 3) float32`` scales of discs facing the camera, ``size`` pixels wide."""
     scales = np.empty((len(z), 3), np.float32)
     scales[:, 0] = FOOTPRINT * size * z / k.fx
