@@ -197,7 +197,9 @@ def section_splats(load, machine_line, missing) -> str:
             f"leaves empty. Issue 46's targets: at most {t['splats']:,} splats, "
             f"`splats.spz` at most {t['spz_mb']} MB, input camera at least "
             f"{t['input_db']} dB, widest circle camera at least {t['widest_db']} dB with at "
-            f"most {100 * t['widest_empty']} % empty.", "",
+            f"most {100 * t['widest_empty']} % empty. build s: median seconds to build the "
+            "splats in that session (the machine's load shows in it; "
+            f"{rec.get('load_note', 'see the machine line')}).", "",
             "| layout | splats | build s | PLY MB | GLB MB | SPZ 3 MB | SPZ 4 MB | input dB "
             "| widest dB | widest empty |", "| --- | --- | --- | --- | --- | --- | --- | --- "
             "| --- | --- |"]
