@@ -24,6 +24,7 @@ Usage: PHOTO3D_NODE_MODULES=.node python benchmarks/bench_splats.py [--demo DIR]
 from __future__ import annotations
 
 import argparse
+import os
 import statistics
 import subprocess
 import sys
@@ -76,7 +77,7 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp, chromium() as browser:
         tmp = Path(tmp)
         for density in DENSITIES:
-            times = []
+            times, load = [], os.getloadavg()[0]
             for _ in range(args.runs):
                 start = time.perf_counter()
                 splats = build_splats(ldi, density=density)
@@ -95,6 +96,7 @@ def main() -> None:
             empty = float(np.mean(got[1][..., 3][want[1][1]] < 0.5))
             results[density] = {
                 "splats": len(splats), "build_s": statistics.median(times),
+                "load_1min": round(load, 2),
                 "files_mb": {name: round(mb, 3) for name, mb in files.items()},
                 "input_db": round(views[0], 2), "widest_db": round(views[1], 2),
                 "widest_empty": round(empty, 5)}
