@@ -156,8 +156,27 @@ def test_view_serves_the_viewer_on_localhost(files):
         _, err = proc.communicate(timeout=10)
         proc.stdout.close()
         proc.stderr.close()
-    assert proc.returncode == 0 and "Traceback" not in err
+    assert proc.returncode == 130 and err == "photo3d: interrupted\n"  # as every command
     assert (out / "viewer.html").is_file()  # written on demand
+
+
+def test_view_stops_on_sigterm_with_143_and_a_line(files):
+    # issue 45: view exited 0, silently, on SIGTERM
+    import signal
+
+    out = files / "out"
+    assert main(["make", str(files / "photo.png"), "--depth", str(files / "depth.png"),
+                 "-o", str(out), "--size", "64", "--no-video", "-q"]) == 0
+    proc = subprocess.Popen([sys.executable, "-m", "photo3d", "view", str(out), "--no-browser"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        assert " at http://127.0.0.1:" in proc.stdout.readline()
+    finally:
+        proc.send_signal(signal.SIGTERM)
+        _, err = proc.communicate(timeout=10)
+        proc.stdout.close()
+        proc.stderr.close()
+    assert proc.returncode == 143 and err == "photo3d: interrupted (SIGTERM)\n"
 
 
 def test_make_with_the_learned_inpainter_and_authors_format_weights(files, capsys):

@@ -137,8 +137,9 @@ def prepare(options: MakeOptions) -> Inpainter:
     """Check what can be checked before any photo is read, and build the inpainter
     (build it once and pass it to every :func:`make_folder`).
 
-    Checks that memory suffices for a 16:9 photo at ``config.size`` and that the
-    OpenGL backend works if videos ask for it.
+    Checks that memory suffices for a 16:9 photo at ``config.size``, that the
+    packages the exports need are installed and that the OpenGL backend works if
+    videos ask for it.
 
     Raises:
         ConfigError: not enough memory, no OpenGL, bad inpainter or its options.
@@ -152,6 +153,10 @@ def prepare(options: MakeOptions) -> Inpainter:
 
     check_memory((9, 16), options.config, at_least=True)
     save = options.save
+    if save.exports:  # a missing package (usd-core) now, not after the photo is made
+        from photo3d.export import require_extras
+
+        require_extras(save.exports, spz_version=save.spz_version)
     if save.videos and save.render_settings and save.render_settings.backend == "gl":
         from photo3d.render.renderer import select_backend
 
@@ -216,6 +221,7 @@ def make_folder(image: np.ndarray | PathLike, out: PathLike, *,
     from photo3d.output import stage_photo
 
     options = options or MakeOptions()
+    _check_photo_memory(image, options.config)  # from the header, before any decoding
     report = progress or (lambda stage, fraction: None)
     backend = inpainter or options.inpainter()
     inputs = _inputs(image, depth, right, depth_model, options)
@@ -246,6 +252,18 @@ def make_folder(image: np.ndarray | PathLike, out: PathLike, *,
             time.perf_counter() - start)
         report("video", 1.0)
     return photo
+
+
+def _check_photo_memory(image: np.ndarray | PathLike, config: Config) -> None:
+    """:func:`photo3d.resources.check_memory` for the photo's own size, read from its
+    file's header: a photo too large for ``config.size`` (``--size 0`` keeps a
+    13000x13000 photo's size) is refused before it is decoded, not after."""
+    from photo3d.io.images import image_shape
+    from photo3d.resources import check_memory
+
+    shape = image_shape(image) if isinstance(image, str | os.PathLike) else None
+    if shape is not None:
+        check_memory(shape, config)
 
 
 def _inputs(image, depth, right, depth_model, options: MakeOptions) -> list[Path]:

@@ -64,7 +64,8 @@ def check_memory(shape: tuple[int, int], config: Config, *, at_least: bool = Fal
     if have is None or need <= have:
         return
     h, w = working_shape(shape, config.size)
-    size = f"--size {config.size}" if at_least else f"a {w}x{h} working size"
+    size = (f"a {w}x{h} working size" if not at_least
+            else f"--size {config.size}" if config.size else "--size 0 (the photo's size)")
     raise ConfigError(f"{size} needs {'at least' if at_least else 'about'} "
                       f"{need / 1e9:.1f} GB of memory but "
                       f"{have / 1e9:.1f} GB are available: use a smaller --size (1024 needs "

@@ -322,6 +322,8 @@ def test_with_a_login_the_page_the_api_and_the_results_need_it(tmp_path):
             url = f"photo3d/file/{server.workspace.publish(folder / 'a.zip')}/a.zip"
         with httpx.Client(base_url=server.url, timeout=60) as http:
             assert http.get("config").status_code == 401
+            for page in ("openapi.json", "docs", "redoc"):  # issue 45: served to anyone
+                assert http.get(page).status_code == 401, page
             assert http.post("gradio_api/upload",
                              files={"files": ("a.png", b"x", "image/png")}).status_code == 401
             assert http.get(url).status_code == 401

@@ -27,7 +27,7 @@ from __future__ import annotations
 import importlib
 import math
 from collections.abc import Callable, Sequence
-from concurrent.futures import Executor, Future, ThreadPoolExecutor
+from concurrent.futures import Executor, Future
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -35,6 +35,7 @@ from typing import TYPE_CHECKING
 from photo3d.errors import ConfigError, InputError, OutputError
 from photo3d.io.npz import ldi_pixels, load_npz
 from photo3d.owned import LDI_FILE, claim_files, record_files
+from photo3d.parallel import thread_pool
 from photo3d.progress import StageProgress
 from photo3d.resources import check_export_memory
 from photo3d.structures.ldi import LDI
@@ -159,6 +160,7 @@ def export_folder(folder: str | Path, formats: Sequence[str], *,
     from photo3d.save_options import SaveOptions
 
     SaveOptions(splats=density, spz_version=spz_version)  # checks both
+    require_extras([f.name for f in chosen], spz_version=spz_version)
     folder = Path(folder)
     if not folder.is_dir():
         raise InputError(f"no 3D photo folder at {folder}")
@@ -175,8 +177,8 @@ def export_folder(folder: str | Path, formats: Sequence[str], *,
         claim_files(folder, [t.name for t in targets])  # before writing anything
     preload(chosen)  # before the writer threads start
     written: list[Path] = []
-    with ThreadPoolExecutor(max_workers=2) as pool:  # zlib, numpy and writes run on
-        jobs = submit_writers(pool, ldi, list(zip(chosen, targets, strict=True)),  # both cores
+    with thread_pool(2, name="export") as pool:  # zlib, numpy and writes release the GIL
+        jobs = submit_writers(pool, ldi, list(zip(chosen, targets, strict=True)),
                               density=density, spz_version=spz_version,
                               light_error=_light_error(meta))
         error = None
@@ -213,7 +215,8 @@ def submit_writers(pool: Executor, ldi: LDI, targets: Sequence[tuple[Format, Pat
     Call :func:`preload` before the pool's threads (or any other) start.
 
     Args:
-        pool: runs the jobs (two threads: the writes, zlib and numpy release the GIL).
+        pool: runs the jobs (:func:`~photo3d.parallel.thread_pool`: the writes, zlib and
+            numpy release the GIL).
         ldi: the 3D photo's layered depth image.
         targets: what to write where (:func:`check_formats`' formats, each once).
         density: splat formats: ``"adaptive"`` or ``"dense"``.
@@ -226,7 +229,8 @@ def submit_writers(pool: Executor, ldi: LDI, targets: Sequence[tuple[Format, Pat
         >>> from photo3d.stages.ldi import from_image
         >>> ldi = from_image(np.full((16, 16, 3), 0.5, np.float32), np.ones((16, 16), np.float32))
         >>> out = pathlib.Path(tempfile.mkdtemp())
-        >>> with ThreadPoolExecutor(2) as pool:
+        >>> from photo3d.parallel import thread_pool
+        >>> with thread_pool(2) as pool:
         ...     jobs = submit_writers(pool, ldi, [(FORMATS["splats.spz"], out / "a.spz"),
         ...                                       (FORMATS["splats.ply"], out / "a.ply")])
         ...     [job.result() for job in jobs]
@@ -280,6 +284,25 @@ def preload(formats: Sequence[Format]) -> None:
                 importlib.import_module(module)
             except ImportError:  # the writer raises MissingExtra naming the extra
                 break
+
+
+def require_extras(formats: Sequence[str], *, spz_version: int = 3) -> None:
+    """Raise :class:`~photo3d.errors.MissingExtra` now if a package that one of
+    ``formats`` needs is missing (``mesh.usdz``: usd-core; ``splats.spz`` of
+    ``spz_version`` 4: zstd), so that ``make``, ``batch`` and ``export`` fail before
+    the work, not after it.
+
+    Example:
+        >>> require_extras(["splats.spz", "quilt"])  # nothing more to install
+    """
+    if "mesh.usdz" in formats:
+        from photo3d.export.usdz import require_usd
+
+        require_usd()
+    if "splats.spz" in formats and spz_version == 4:
+        from photo3d.io.spz import zstd_module
+
+        zstd_module()
 
 
 def _light_error(meta: dict) -> float | None:

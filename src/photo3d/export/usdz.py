@@ -121,9 +121,22 @@ def usd_points(ldi: LDI, vertices: np.ndarray, *, frame_width: float = FRAME_WID
     return ((vertices - origin) * _TO_USD * metres).astype(np.float32)
 
 
+def require_usd() -> None:
+    """Raise :class:`~photo3d.errors.MissingExtra` now if usd-core is not installed
+    (``make``, ``batch`` and ``export`` ask before any work).
+
+    Example:
+        >>> try:
+        ...     require_usd()
+        ... except ImportError as err:  # an extra
+        ...     assert "photo3d[usdz]" in str(err)
+    """
+    require("pxr.UsdUtils", "usdz", purpose="writing USDZ", package="usd-core")
+
+
 def _import_pxr():
     """The pxr modules :func:`write_usdz` uses (usd-core), or MissingExtra."""
-    require("pxr.UsdUtils", "usdz", purpose="writing USDZ", package="usd-core")
+    require_usd()
     from types import SimpleNamespace
 
     from pxr import Gf, Kind, Sdf, Usd, UsdGeom, UsdShade, UsdUtils, Vt
