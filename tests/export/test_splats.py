@@ -225,3 +225,17 @@ def test_a_failing_writer_leaves_the_others_recorded(folder, monkeypatch):
     with pytest.raises(OutputError, match="disk full"):
         export_folder(folder, ["splats.glb", "splats.ply"])
     assert "splats.ply" in recorded_files(folder) and not (folder / "splats.glb").exists()
+
+
+def test_spz_version_4_without_zstd_is_refused_before_the_work(folder, monkeypatch):
+    import sys
+
+    from photo3d.errors import MissingExtra
+
+    for name in ("compression", "compression.zstd", "backports", "backports.zstd"):
+        monkeypatch.setitem(sys.modules, name, None)  # as if neither were installed
+    with pytest.raises(MissingExtra, match=r"photo3d\[spz4\]"):
+        export_folder(folder, ["splats.ply", "splats.spz"], spz_version=4)
+    assert not (folder / "splats.ply").exists()  # nothing written
+    export_folder(folder, ["splats.spz"])  # version 3 needs no zstd
+    assert (folder / "splats.spz").read_bytes()[:2] == b"\x1f\x8b"
