@@ -283,7 +283,7 @@ def test_write_image_errors(tmp_path):
     image = np.zeros((8, 8, 3), np.float32)
     with pytest.raises(OutputError, match=r"unsupported extension '\.bmp'"):
         write_image(tmp_path / "out.bmp", image)
-    with pytest.raises(OutputError, match=r"cannot write image .*missing"):
+    with pytest.raises(OutputError, match=r"cannot write .*missing"):
         write_image(tmp_path / "missing" / "out.png", image)
     with pytest.raises(InputError, match=r"shape \(8, 8, 4\)"):
         write_image(tmp_path / "out.png", np.zeros((8, 8, 4)))

@@ -24,8 +24,10 @@ and the light textured mesh that ``mesh.usdz`` and the quilt are made of.
 
 from __future__ import annotations
 
+import fnmatch
 import importlib
 import math
+import os
 from collections.abc import Callable, Sequence
 from concurrent.futures import Executor, Future
 from dataclasses import dataclass
@@ -33,8 +35,9 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from photo3d.errors import ConfigError, InputError, OutputError
+from photo3d.files.gate import check_target, reading
 from photo3d.io.npz import ldi_pixels, load_npz
-from photo3d.owned import LDI_FILE, claim_files, record_files
+from photo3d.owned import EXPORT_FILES, LDI_FILE, claim_files, record_files
 from photo3d.parallel import thread_pool
 from photo3d.progress import StageProgress
 from photo3d.resources import check_export_memory
@@ -119,7 +122,9 @@ def export_folder(folder: str | Path, formats: Sequence[str], *,
         folder: a 3D photo folder (``photo3d make``'s output).
         formats: names from :data:`FORMATS` (repeats are written once).
         output: write the one format asked for to this file instead of into the
-            folder (nothing is recorded).
+            folder. Inside a 3D photo folder (this one or another) it must be an
+            export file's name, new or recorded there, and it is recorded there;
+            never the photo's own files (``photo3d.npz``, ``config.json``, ...).
         overwrite: replace ``output`` if it exists (files in the folder are
             replaced when photo3d wrote them, whatever this says).
         density: splat formats: ``"adaptive"`` (fewer, larger splats where the
@@ -137,12 +142,15 @@ def export_folder(folder: str | Path, formats: Sequence[str], *,
 
     Raises:
         ConfigError: an unknown format, no format, or several with ``output``; an
-            unknown density or SPZ version.
+            unknown density or SPZ version; not enough memory
+            (:func:`photo3d.resources.check_export_memory`, checked before the 3D
+            photo is read).
         InputError: no 3D photo in ``folder`` (or a damaged one).
-        ConfigError: not enough memory (:func:`photo3d.resources.check_export_memory`,
-            checked before the 3D photo is read).
-        OutputError: a file to write is a symbolic link, or exists and photo3d did
-            not write it (``output``: exists, without ``overwrite``); nothing is
+        MissingExtra: a package a format needs is missing (:func:`require_extras`).
+        OutputError: a file to write is a symbolic link (dangling too), not a
+            regular file, the 3D photo being read, a file of a 3D photo folder that
+            export does not write, or exists and photo3d did not write it
+            (``output`` elsewhere: exists, without ``overwrite``); nothing is
             written then.
 
     Example:
@@ -164,17 +172,48 @@ def export_folder(folder: str | Path, formats: Sequence[str], *,
     folder = Path(folder)
     if not folder.is_dir():
         raise InputError(f"no 3D photo folder at {folder}")
-    if output is not None:
-        output = Path(output)
-        if (output.exists() or output.is_symlink()) and not overwrite:
-            raise OutputError(f"{output} exists; pass overwrite (--overwrite) to replace it")
     if not (folder / LDI_FILE).is_file():
         raise InputError(f"no 3D photo in {folder} (it has no {LDI_FILE})")
-    check_export_memory(ldi_pixels(folder / LDI_FILE), [f.name for f in chosen])
-    ldi, meta = load_npz(folder / LDI_FILE)
+    with reading(folder / LDI_FILE):  # no write may reach it (the gate refuses)
+        record_in = None if output is None else _check_output(Path(output), overwrite)
+        check_export_memory(ldi_pixels(folder / LDI_FILE), [f.name for f in chosen])
+        ldi, meta = load_npz(folder / LDI_FILE)
+        return _export(folder, chosen, ldi, meta, output=output, record_in=record_in,
+                       density=density, spz_version=spz_version, progress=progress)
+
+
+def _check_output(output: Path, overwrite: bool) -> Path | None:
+    """Refuse an ``-o`` photo3d must not write, before the work; returns the 3D photo
+    folder it lies in (where it is recorded), or None.
+
+    In a 3D photo folder (one holding ``photo3d.npz``) ``-o`` may name only an
+    export file (:data:`~photo3d.owned.EXPORT_FILES`), one that is new or that the
+    folder's record lists: never ``photo3d.npz``, ``config.json`` or the meshes.
+    Elsewhere an existing file needs ``overwrite``. Links and inputs are the gate's
+    (:func:`photo3d.files.gate.check_target`)."""
+    check_target(output)
+    photo = output.parent
+    if (photo / LDI_FILE).is_file():
+        if not any(fnmatch.fnmatchcase(output.name, p) for p in EXPORT_FILES):
+            raise OutputError(f"{output} is a file of the 3D photo folder {photo}; export "
+                              "writes there only its own files (" + ", ".join(EXPORT_FILES[:4])
+                              + ", quilts): choose another name")
+        claim_files(photo, [output.name])
+        return photo
+    if os.path.lexists(output) and not overwrite:
+        raise OutputError(f"{output} exists; pass overwrite (--overwrite) to replace it")
+    return None
+
+
+def _export(folder: Path, chosen: list[Format], ldi: LDI, meta: dict, *,
+            output: Path | None, record_in: Path | None, density: str,
+            spz_version: int, progress: StageProgress | None) -> list[Path]:
+    """Write ``chosen`` (:func:`export_folder` once the checks are done)."""
+    output = None if output is None else Path(output)
     targets = [output] if output is not None else [folder / f.filename(ldi) for f in chosen]
     if output is None:
         claim_files(folder, [t.name for t in targets])  # before writing anything
+        record_in = folder
     preload(chosen)  # before the writer threads start
     written: list[Path] = []
     with thread_pool(2, name="export") as pool:  # zlib, numpy and writes release the GIL
@@ -188,8 +227,8 @@ def export_folder(folder: str | Path, formats: Sequence[str], *,
             except BaseException as err:  # noqa: B036 - raised below, once all are done
                 error = error or err
                 continue
-            if output is None:
-                record_files(folder, [target.name])  # as each file is in place
+            if record_in is not None:
+                record_files(record_in, [target.name])  # as each file is in place
             written.append(target)
             if progress:
                 progress("export", len(written) / len(targets))

@@ -34,7 +34,7 @@ import numpy as np
 
 from photo3d.errors import InputError, OutputError, require
 from photo3d.export.quilt import focus_depth
-from photo3d.files.atomic import atomic_path
+from photo3d.files.atomic import atomic_path, open_write
 from photo3d.io.gltf_textured import encode_jpeg
 from photo3d.structures.ldi import LDI
 
@@ -94,8 +94,8 @@ def write_usdz(ldi: LDI, path: str | Path, *, mesh: TexturedMesh | None = None,
         points = usd_points(ldi, vertices, frame_width=frame_width)
         st = np.column_stack([uv[:, 0], 1.0 - uv[:, 1]]).astype(np.float32)  # USD: v up
         layer = Path(work) / "photo3d.usdc"
-        (Path(work) / "texture.jpg").write_bytes(
-            encode_jpeg(np.asarray(mesh.texture), quality=quality))
+        with open_write(Path(work) / "texture.jpg") as file:
+            file.write(encode_jpeg(np.asarray(mesh.texture), quality=quality))
         _write_stage(pxr, layer, points, st, faces)
         if not pxr.UsdUtils.CreateNewARKitUsdzPackage(str(layer), str(tmp)):
             raise OutputError(f"cannot write {path}: usd-core could not make the package")

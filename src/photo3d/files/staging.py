@@ -44,6 +44,7 @@ from pathlib import Path
 
 from photo3d.errors import OutputError
 from photo3d.files.atomic import Pending, is_temp_of, temp_sibling
+from photo3d.files.gate import issue_folder, release_folder
 from photo3d.files.rename import claim, identity, swap
 
 PathLike = str | os.PathLike[str]
@@ -158,6 +159,7 @@ class Staging(Pending):
                               f"{err.strerror or err}") from None
         self._done = True
         _LIVE.discard(self.path)
+        release_folder(self.path)
         return self.final
 
     def discard(self) -> None:
@@ -165,6 +167,7 @@ class Staging(Pending):
         self._done = True
         shutil.rmtree(self.path, ignore_errors=True)
         _LIVE.discard(self.path)
+        release_folder(self.path)
         for parent in reversed(self._made):
             try:
                 parent.rmdir()
@@ -248,6 +251,7 @@ def _stage(out: Path, *, overwrite, inputs, owned, need_bytes) -> Staging:
     if free < need_bytes:
         shutil.rmtree(tmp, ignore_errors=True)
         _LIVE.discard(tmp)
+        release_folder(tmp)
         _remove_empty(made)
         raise OutputError(f"only {_mb(free)} free in {parent}; this output needs about "
                           f"{_mb(need_bytes)}")
@@ -318,6 +322,7 @@ def _make_temp(parent: Path, name: str) -> Path:
         except FileExistsError:
             continue
         _LIVE.add(tmp)
+        issue_folder(tmp)
         return tmp
     raise OSError(errno.EEXIST, "no free temporary name")
 
@@ -347,6 +352,7 @@ def remove_leftovers(out: PathLike) -> list[Path]:
                 and tmp.is_dir() and not tmp.is_symlink()):
             shutil.rmtree(tmp, ignore_errors=True)
             _LIVE.discard(tmp)
+            release_folder(tmp)
             removed.append(tmp)
     return removed
 

@@ -24,6 +24,7 @@ from __future__ import annotations
 import contextlib
 import math
 import os
+import struct
 import sys
 import tempfile
 import warnings
@@ -36,6 +37,7 @@ from PIL import Image, UnidentifiedImageError
 
 from photo3d.config import working_shape
 from photo3d.errors import InputError, OutputError, install_hint, require
+from photo3d.files.atomic import writing
 from photo3d.io.limits import check_available
 
 PathLike = str | os.PathLike[str]
@@ -224,7 +226,8 @@ def write_image(path: PathLike, image: np.ndarray, *, quality: int = 95) -> None
     pixels = _to_uint8(image)
     try:
         options = {"quality": int(quality)} if fmt == "JPEG" else {}
-        Image.fromarray(pixels).save(path, format=fmt, **options)
+        with writing(path) as target:
+            Image.fromarray(pixels).save(target, format=fmt, **options)
     except OSError as err:
         raise OutputError(f"cannot write image {path}: {err.strerror or err}") from err
 
@@ -337,12 +340,16 @@ def _read_pixels(path: Path, working_size: int | None) -> np.ndarray:
             check_available(_decode_bytes(im) * im.size[0] * im.size[1] + returned, what)
             load_pixels(im)
             return _apply_orientation(_resized(im, (rh, rw), box), orientation)
+    except InputError:
+        raise
     except UnidentifiedImageError as err:
         if path.suffix.lower() in _TIFF_EXTENSIONS:
             return _read_tiff_with_tifffile(path, working_size)
         raise InputError("not a recognised image format") from err
-    except (OSError, SyntaxError, Image.DecompressionBombError) as err:
-        raise InputError(str(err)) from err
+    except (OSError, SyntaxError, EOFError, ValueError, struct.error,
+            Image.DecompressionBombError) as err:  # Pillow's words for a damaged file
+        raise InputError(str(err).splitlines()[0] if str(err) else type(err).__name__
+                         ) from err
 
 
 def _note_frames(path: Path, im: Image.Image) -> None:

@@ -16,6 +16,8 @@ import numpy as np
 
 from photo3d.camera import DepthMapping, Intrinsics
 from photo3d.errors import InputError
+from photo3d.files.atomic import open_write
+from photo3d.io.bounded import loads_json
 from photo3d.io.limits import check_available
 from photo3d.io.npy import read_npy, read_npy_header
 from photo3d.structures.ldi import LDI
@@ -49,7 +51,8 @@ def save_npz(ldi: LDI, path: str | Path, *, meta: dict | None = None) -> None:
     # default level is several times slower for a few percent smaller files. The
     # colours are stored: deflate shrinks float32 colours by only a quarter (18.7 to
     # 14 MB for a 1024 px photo) in half the time of the whole file.
-    with zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED, compresslevel=1) as zf:
+    with (open_write(path) as file,
+          zipfile.ZipFile(file, "w", zipfile.ZIP_DEFLATED, compresslevel=1) as zf):
         for name, array in arrays.items():
             zf.compression = zipfile.ZIP_STORED if name == "color" else zipfile.ZIP_DEFLATED
             with zf.open(f"{name}.npy", "w", force_zip64=True) as f:
@@ -180,7 +183,8 @@ def _read_arrays(path: Path) -> tuple[dict[str, np.ndarray], dict]:
     shape are checked (the pixel count within :data:`MAX_LAYERS`) before the arrays'
     data is read."""
     with zipfile.ZipFile(path) as zf:
-        header = json.loads(_read_member(zf, "header", _HEADER_BYTES).tobytes().decode())
+        header = loads_json(_read_member(zf, "header", _HEADER_BYTES).tobytes(),
+                            what="its header")
         if not isinstance(header, dict) or header.get("format") != "photo3d-ldi":
             raise InputError("not a photo3d file (its header is not a photo3d LDI header)")
         w, h, border = _checked_frame(header)

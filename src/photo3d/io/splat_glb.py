@@ -142,8 +142,10 @@ def read_splat_glb(path: PathLike) -> Splats:
                 for name in ("POSITION", ROTATION, SCALE, OPACITY, SH_DC)}
     except InputError:
         raise
-    except (KeyError, IndexError, TypeError, ValueError) as err:
-        raise InputError(f"glTF {path} has an unexpected structure ({err!r})") from err
+    except (KeyError, IndexError, TypeError, ValueError, AttributeError) as err:
+        raise InputError(f"glTF {path} has an unexpected structure ({err!r})"[:300]) from None
+    if not all(np.isfinite(v).all() for v in read.values()):
+        raise InputError(f"glTF {path} has NaN or infinite splat values")
     xyzw = read[ROTATION] * _QUATERNION_FLIP
     return Splats(positions=read["POSITION"] * TO_GLTF,
                   colors=0.5 + SH_C0 * read[SH_DC],

@@ -60,6 +60,7 @@ import zlib
 import numpy as np
 
 from photo3d.errors import InputError, require
+from photo3d.files.atomic import open_write
 from photo3d.structures.splats import SH_C0, Splats
 
 PathLike = str | os.PathLike[str]
@@ -131,7 +132,7 @@ def write_spz(path: PathLike, splats: Splats, *, version: int = DEFAULT_VERSION,
         stream = zlib.compressobj(GZIP_LEVEL if level is None else level, zlib.DEFLATED,
                                   16 + zlib.MAX_WBITS)  # gzip
         data = stream.compress(encode(splats, version=version)) + stream.flush()
-    with open(path, "wb") as file:
+    with open_write(path) as file:
         file.write(data)
 
 
