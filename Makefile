@@ -10,9 +10,14 @@ STAMP := $(VENV)/.installed
 # installed by `make test` when npm is there, skipped (and the test with it) otherwise.
 # A real Gaussian splat renderer, Spark on three.js (npm, 50 MB, served from .node/ to
 # headless Chromium) for tests/export/test_splats_browser.py; the same way.
+# SPZ version 4 readers others wrote, for tests/export/test_spz_readers.py: three.js's
+# SPZLoader (three 0.187, which Spark also runs on) and PlayCanvas's splat-transform
+# on its engine (npm scripts off: splat-transform's optional native WebGPU module
+# would download a binary; the tests use its browser build only).
 NODE_DIR := .node
 VALIDATOR := $(NODE_DIR)/node_modules/gltf-validator
 SPARK := $(NODE_DIR)/node_modules/@sparkjsdev/spark
+SPZ4 := $(NODE_DIR)/node_modules/@playcanvas/splat-transform
 
 .PHONY: demo test lint bench clean
 
@@ -36,7 +41,10 @@ test: $(STAMP)
 	-if command -v npm >/dev/null && ! test -d $(VALIDATOR); then \
 		npm install --prefix $(NODE_DIR) --no-audit --no-fund --silent gltf-validator@2.0.0-dev.3.10; fi
 	-if command -v npm >/dev/null && ! test -d $(SPARK); then \
-		npm install --prefix $(NODE_DIR) --no-audit --no-fund --silent @sparkjsdev/spark@2.2.0 three@0.180.0; fi
+		npm install --prefix $(NODE_DIR) --no-audit --no-fund --silent @sparkjsdev/spark@2.2.0 three@0.187.0; fi
+	-if command -v npm >/dev/null && ! test -d $(SPZ4); then \
+		npm install --prefix $(NODE_DIR) --no-audit --no-fund --silent --ignore-scripts \
+		three@0.187.0 playcanvas@2.23.3 @playcanvas/splat-transform@3.10.2; fi
 	$(BIN)/ruff check src tests benchmarks scripts
 	PHOTO3D_NODE_MODULES=$(CURDIR)/$(NODE_DIR) $(BIN)/python -m pytest -q
 

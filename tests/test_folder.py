@@ -45,6 +45,11 @@ CHANGES = {
     "save.exports": ({"save": SaveOptions(exports=("splats.spz",))},
                      lambda m: m["save"]["exports"] == ["splats.spz"]
                      and m["written"] == ["splats.spz"]),
+    # recorded with splat exports only (what they change); the defaults are adaptive, 3
+    "save.splats": ({"save": SaveOptions(exports=("splats.spz",), splats="dense")},
+                    lambda m: m["save"]["splats"] == "dense"),
+    "save.spz_version": ({"save": SaveOptions(exports=("splats.spz",), spz_version=4)},
+                         lambda m: m["save"]["spz_version"] == 4),
 }
 NOT_RECORDED = {
     "depth_model": "the model for photos without any depth: a depth array is used here "

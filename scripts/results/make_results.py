@@ -25,6 +25,7 @@ from results_speed import (  # noqa: E402
     section_export,
     section_hard_depth,
     section_parts,
+    section_splats,
     section_ui,
     section_videos,
 )
@@ -67,6 +68,7 @@ BENCHMARKS = [
     ["bench_ray.py"],
     ["bench_heldout.py"],
     ["bench_border.py"],
+    ["bench_splats.py"],  # needs PHOTO3D_NODE_MODULES (make test installs .node/)
 ]
 
 
@@ -882,6 +884,7 @@ def main() -> None:
                      "(issue 35)", "python benchmarks/bench_first_run.py"),
         section_ui(load, machine_line, missing),
         section_export(load, machine_line, missing),
+        section_splats(load, machine_line, missing),
         (BENCHMARKS_DIR / "history.md").read_text(),  # measurement history, written by hand
     ]
     (BENCHMARKS_DIR / "RESULTS.md").write_text("\n".join(parts).rstrip() + "\n")

@@ -156,7 +156,7 @@ def prepare(options: MakeOptions) -> Inpainter:
     if save.exports:  # a missing package (usd-core) now, not after the photo is made
         from photo3d.export import require_extras
 
-        require_extras(save.exports)
+        require_extras(save.exports, spz_version=save.spz_version)
     if save.videos and save.render_settings and save.render_settings.backend == "gl":
         from photo3d.render.renderer import select_backend
 

@@ -28,6 +28,8 @@ from uikit import (
     write_sample,
 )
 
+from photo3d.export.splats import build_splats
+from photo3d.io.npz import load_npz
 from photo3d.io.spz import read_spz
 
 gradio_client = pytest.importorskip("gradio_client", reason="needs pip install 'photo3d[ui]'")
@@ -72,7 +74,9 @@ def test_the_sample_and_its_depth_give_a_glb_a_zip_a_depth_map_and_a_video(
     with zipfile.ZipFile(bundle) as z:  # the splats reach the API in the zip
         splats = tmp_path / "splats.spz"
         splats.write_bytes(z.read("splats.spz"))
-    assert len(read_spz(splats)) > 256 * 173  # every pixel, and the hidden layers'
+        (tmp_path / "photo3d.npz").write_bytes(z.read("photo3d.npz"))
+    # the adaptive splats of the 3D photo in the zip, hidden layers included
+    assert len(read_spz(splats)) == len(build_splats(load_npz(tmp_path / "photo3d.npz")[0]))
     assert "mesh.ply" not in names  # off unless asked for
     with zipfile.ZipFile(bundle) as z:
         assert b'"size": 256' in z.read("config.json")

@@ -16,7 +16,7 @@ from pathlib import Path
 from photo3d.cli.progress import download_bar
 from photo3d.config import PRESETS, Config
 from photo3d.errors import ConfigError
-from photo3d.save_options import EXPORT_FORMATS
+from photo3d.save_options import EXPORT_FORMATS, SPLAT_DENSITIES, SPZ_VERSIONS
 
 
 def add_depth_sources(p: argparse.ArgumentParser) -> None:
@@ -149,9 +149,23 @@ def add_make_options(p: argparse.ArgumentParser, *, out_required: bool,
                    metavar="FORMAT",
                    help="also write FORMAT into the folder, as photo3d export does "
                         "(repeatable): " + ", ".join(EXPORT_FORMATS))
+    add_splat_options(p)
     p.add_argument("--overwrite", action="store_true", help=overwrite_help)
     add_video_options(p, command="make")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
+
+
+def add_splat_options(p: argparse.ArgumentParser) -> None:
+    """``--splats`` and ``--spz-version``: how the splat exports are made (``export``,
+    and ``make``, ``demo`` and ``batch`` with ``--export``)."""
+    p.add_argument("--splats", choices=SPLAT_DENSITIES, default=SPLAT_DENSITIES[0],
+                   help="splat exports: adaptive (the default: one splat per pixel where "
+                        "there is texture and at depth edges, fewer and larger where the "
+                        "photo is flat) or dense (one splat per LDI pixel)")
+    p.add_argument("--spz-version", type=int, choices=SPZ_VERSIONS, default=SPZ_VERSIONS[0],
+                   help="splats.spz: version 3 (the default: gzip; Spark 2, three.js, "
+                        "SuperSplat) or 4 (zstd streams; three.js, SuperSplat, PlayCanvas; "
+                        "needs photo3d[spz4])")
 
 
 def video_size(text: str) -> tuple[int, int]:
@@ -285,8 +299,8 @@ def make_options(args: argparse.Namespace):
         >>> options = make_options(args)
         >>> options.save.full_glb, options.save.videos, options.config.size
         (True, (), 512)
-        >>> options.save.exports
-        ('splats.spz',)
+        >>> options.save.exports, options.save.splats, options.save.spz_version
+        (('splats.spz',), 'adaptive', 3)
     """
     from photo3d.folder import MakeOptions
     from photo3d.save_options import SaveOptions
@@ -301,7 +315,8 @@ def make_options(args: argparse.Namespace):
                            full_glb=args.full_glb, viewer=not args.no_viewer,
                            videos=() if args.no_video else tuple(videos_from(args)),
                            render_settings=render_settings_from(args),
-                           exports=tuple(args.exports or ())),
+                           exports=tuple(args.exports or ()),
+                           splats=args.splats, spz_version=args.spz_version),
                        overwrite=args.overwrite)
 
 

@@ -36,10 +36,11 @@ from typing import TYPE_CHECKING
 
 from photo3d.errors import ConfigError, InputError, OutputError
 from photo3d.files.gate import check_target, reading
-from photo3d.io.npz import load_npz
+from photo3d.io.npz import ldi_pixels, load_npz
 from photo3d.owned import EXPORT_FILES, LDI_FILE, claim_files, record_files
 from photo3d.parallel import thread_pool
 from photo3d.progress import StageProgress
+from photo3d.resources import check_export_memory
 from photo3d.structures.ldi import LDI
 
 if TYPE_CHECKING:
@@ -93,13 +94,14 @@ def _named_by(module: str, attribute: str) -> Callable[[LDI], str]:
 
 
 _SPLATS = "photo3d.export.splats"
-_SPLAT_OPTIONS = ("merge", "splats")  # splats: built once for several splat formats
+_SPLAT_OPTIONS = ("density", "splats")  # splats: built once for several splat formats
 _MESH_OPTIONS = ("mesh",)  # the light textured mesh, built once for all that take it
 _USD = ("pxr.Gf", "pxr.Kind", "pxr.Sdf", "pxr.Usd", "pxr.UsdGeom", "pxr.UsdShade",
         "pxr.UsdUtils", "pxr.Vt")  # what write_usdz imports (usd-core)
 FORMATS: dict[str, Format] = {
     "splats.ply": Format("splats.ply", _SPLATS, "write_ply", _fixed("splats.ply"), _SPLAT_OPTIONS),
-    "splats.spz": Format("splats.spz", _SPLATS, "write_spz", _fixed("splats.spz"), _SPLAT_OPTIONS),
+    "splats.spz": Format("splats.spz", _SPLATS, "write_spz", _fixed("splats.spz"),
+                         (*_SPLAT_OPTIONS, "spz_version")),
     "splats.glb": Format("splats.glb", _SPLATS, "write_glb", _fixed("splats.glb"), _SPLAT_OPTIONS),
     "mesh.usdz": Format("mesh.usdz", "photo3d.export.usdz", "write_usdz",
                         _named_by("photo3d.export.usdz", "USDZ_NAME"), _MESH_OPTIONS, _USD),
@@ -112,7 +114,8 @@ FORMATS: dict[str, Format] = {
 
 def export_folder(folder: str | Path, formats: Sequence[str], *,
                   output: str | Path | None = None, overwrite: bool = False,
-                  merge: bool = False, progress: StageProgress | None = None) -> list[Path]:
+                  density: str = "adaptive", spz_version: int = 3,
+                  progress: StageProgress | None = None) -> list[Path]:
     """Write ``formats`` of the 3D photo saved in ``folder``.
 
     Args:
@@ -124,8 +127,10 @@ def export_folder(folder: str | Path, formats: Sequence[str], *,
             never the photo's own files (``photo3d.npz``, ``config.json``, ...).
         overwrite: replace ``output`` if it exists (files in the folder are
             replaced when photo3d wrote them, whatever this says).
-        merge: splat formats: join flat, smooth areas into larger splats
-            (:func:`photo3d.export.splats.build_splats`).
+        density: splat formats: ``"adaptive"`` (fewer, larger splats where the
+            photo is flat) or ``"dense"`` (one per LDI pixel;
+            :func:`photo3d.export.splats.build_splats`).
+        spz_version: ``splats.spz``'s version, 3 (gzip) or 4 (zstd streams).
         progress: ``progress("export", fraction)`` after each file.
 
     The files are written two at a time (the machine's cores), each atomically, and
@@ -136,8 +141,12 @@ def export_folder(folder: str | Path, formats: Sequence[str], *,
         The files written, in the order of ``formats``.
 
     Raises:
-        ConfigError: an unknown format, no format, or several with ``output``.
+        ConfigError: an unknown format, no format, or several with ``output``; an
+            unknown density or SPZ version; not enough memory
+            (:func:`photo3d.resources.check_export_memory`, checked before the 3D
+            photo is read).
         InputError: no 3D photo in ``folder`` (or a damaged one).
+        MissingExtra: a package a format needs is missing (:func:`require_extras`).
         OutputError: a file to write is a symbolic link (dangling too), not a
             regular file, the 3D photo being read, a file of a 3D photo folder that
             export does not write, or exists and photo3d did not write it
@@ -156,7 +165,10 @@ def export_folder(folder: str | Path, formats: Sequence[str], *,
         ['splats.ply', 'splats.spz']
     """
     chosen = check_formats(formats, output=output)
-    require_extras([f.name for f in chosen])
+    from photo3d.save_options import SaveOptions
+
+    SaveOptions(splats=density, spz_version=spz_version)  # checks both
+    require_extras([f.name for f in chosen], spz_version=spz_version)
     folder = Path(folder)
     if not folder.is_dir():
         raise InputError(f"no 3D photo folder at {folder}")
@@ -164,9 +176,10 @@ def export_folder(folder: str | Path, formats: Sequence[str], *,
         raise InputError(f"no 3D photo in {folder} (it has no {LDI_FILE})")
     with reading(folder / LDI_FILE):  # no write may reach it (the gate refuses)
         record_in = None if output is None else _check_output(Path(output), overwrite)
+        check_export_memory(ldi_pixels(folder / LDI_FILE), [f.name for f in chosen])
         ldi, meta = load_npz(folder / LDI_FILE)
         return _export(folder, chosen, ldi, meta, output=output, record_in=record_in,
-                       merge=merge, progress=progress)
+                       density=density, spz_version=spz_version, progress=progress)
 
 
 def _check_output(output: Path, overwrite: bool) -> Path | None:
@@ -193,8 +206,8 @@ def _check_output(output: Path, overwrite: bool) -> Path | None:
 
 
 def _export(folder: Path, chosen: list[Format], ldi: LDI, meta: dict, *,
-            output: Path | None, record_in: Path | None, merge: bool,
-            progress: StageProgress | None) -> list[Path]:
+            output: Path | None, record_in: Path | None, density: str,
+            spz_version: int, progress: StageProgress | None) -> list[Path]:
     """Write ``chosen`` (:func:`export_folder` once the checks are done)."""
     output = None if output is None else Path(output)
     targets = [output] if output is not None else [folder / f.filename(ldi) for f in chosen]
@@ -205,7 +218,8 @@ def _export(folder: Path, chosen: list[Format], ldi: LDI, meta: dict, *,
     written: list[Path] = []
     with thread_pool(2, name="export") as pool:  # zlib, numpy and writes release the GIL
         jobs = submit_writers(pool, ldi, list(zip(chosen, targets, strict=True)),
-                              merge=merge, light_error=_light_error(meta))
+                              density=density, spz_version=spz_version,
+                              light_error=_light_error(meta))
         error = None
         for job, target in zip(jobs, targets, strict=True):
             try:
@@ -224,7 +238,8 @@ def _export(folder: Path, chosen: list[Format], ldi: LDI, meta: dict, *,
 
 
 def submit_writers(pool: Executor, ldi: LDI, targets: Sequence[tuple[Format, Path]], *,
-                   merge: bool = False, mesh: TexturedMesh | None = None,
+                   density: str = "adaptive", spz_version: int = 3,
+                   mesh: TexturedMesh | None = None,
                    light_error: float | None = None) -> list[Future]:
     """Have ``pool`` write each ``(format, path)`` of ``targets``; returns the writers'
     futures, in the order of ``targets``.
@@ -243,7 +258,8 @@ def submit_writers(pool: Executor, ldi: LDI, targets: Sequence[tuple[Format, Pat
             numpy release the GIL).
         ldi: the 3D photo's layered depth image.
         targets: what to write where (:func:`check_formats`' formats, each once).
-        merge: splat formats: join flat, smooth areas into larger splats.
+        density: splat formats: ``"adaptive"`` or ``"dense"``.
+        spz_version: ``splats.spz``'s version (3 or 4).
         mesh: the light textured mesh of ``ldi`` if already built.
         light_error: its error bound when it is built here (pixels).
 
@@ -261,11 +277,11 @@ def submit_writers(pool: Executor, ldi: LDI, targets: Sequence[tuple[Format, Pat
         >>> sorted(p.name for p in out.iterdir())
         ['a.ply', 'a.spz']
     """
-    options: dict[str, object] = {"merge": merge}
+    options: dict[str, object] = {"density": density, "spz_version": spz_version}
     if sum(f.module == _SPLATS for f, _ in targets) > 1:  # build the splats once
         from photo3d.export.splats import build_splats
 
-        options["splats"] = build_splats(ldi, merge=merge)
+        options["splats"] = build_splats(ldi, density=density)
     light: Future | None = None
     if mesh is None and any("mesh" in f.options for f, _ in targets):
         from photo3d.mesh.light import LIGHT_ERROR, build_light_mesh
@@ -309,10 +325,11 @@ def preload(formats: Sequence[Format]) -> None:
                 break
 
 
-def require_extras(formats: Sequence[str]) -> None:
+def require_extras(formats: Sequence[str], *, spz_version: int = 3) -> None:
     """Raise :class:`~photo3d.errors.MissingExtra` now if a package that one of
-    ``formats`` needs is missing (``mesh.usdz``: usd-core), so that ``make``,
-    ``batch`` and ``export`` fail before the work, not after it.
+    ``formats`` needs is missing (``mesh.usdz``: usd-core; ``splats.spz`` of
+    ``spz_version`` 4: zstd), so that ``make``, ``batch`` and ``export`` fail before
+    the work, not after it.
 
     Example:
         >>> require_extras(["splats.spz", "quilt"])  # nothing more to install
@@ -321,6 +338,10 @@ def require_extras(formats: Sequence[str]) -> None:
         from photo3d.export.usdz import require_usd
 
         require_usd()
+    if "splats.spz" in formats and spz_version == 4:
+        from photo3d.io.spz import zstd_module
+
+        zstd_module()
 
 
 def _light_error(meta: dict) -> float | None:

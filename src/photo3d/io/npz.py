@@ -152,6 +152,32 @@ def _reason(err: BaseException) -> str:
     return f"not a valid photo3d file ({type(err).__name__}: {err})"
 
 
+def ldi_pixels(path: str | Path) -> int:
+    """The number of LDI pixels a ``photo3d.npz`` declares, read from its header only
+    (what the memory checks of ``export`` need before the file is loaded).
+
+    Raises:
+        InputError: not a readable photo3d file.
+
+    Example:
+        >>> import numpy as np, pathlib, tempfile
+        >>> from photo3d.stages.ldi import from_image
+        >>> ldi = from_image(np.zeros((4, 6, 3), np.float32), np.ones((4, 6), np.float32))
+        >>> path = pathlib.Path(tempfile.mkdtemp()) / "photo3d.npz"
+        >>> save_npz(ldi, path)
+        >>> ldi_pixels(path)
+        24
+    """
+    try:
+        with zipfile.ZipFile(path) as zf, zf.open("y.npy") as f:
+            shape, _, _ = read_npy_header(f)
+    except (OSError, KeyError, zipfile.BadZipFile) as err:
+        raise InputError(f"cannot read {path}: {_reason(err)}") from None
+    if len(shape) != 1:
+        raise InputError(f"{path}: y has shape {shape}, expected one dimension")
+    return int(shape[0])
+
+
 def _read_arrays(path: Path) -> tuple[dict[str, np.ndarray], dict]:
     """The six arrays and the header of a photo3d zip; the header and every declared
     shape are checked (the pixel count within :data:`MAX_LAYERS`) before the arrays'
