@@ -85,6 +85,24 @@ def temp_sibling(path: PathLike) -> Path:
     return path.with_name(f".{path.name[:64]}.{secrets.token_hex(4)}.tmp")
 
 
+def temp_entries(path: PathLike, *, suffixed: bool = True) -> list[Path]:
+    """What lies beside ``path`` (symbolic links resolved) under one of its temporary
+    names (:func:`is_temp_of`); ``[]`` if its folder cannot be listed.
+
+    Example:
+        >>> import pathlib, tempfile
+        >>> target = pathlib.Path(tempfile.mkdtemp()) / "a.png"
+        >>> temp_entries(target)
+        []
+    """
+    final = Path(os.path.realpath(path))
+    try:
+        entries = list(final.parent.iterdir())
+    except OSError:
+        return []
+    return [e for e in entries if is_temp_of(e.name, final.name, suffixed=suffixed)]
+
+
 def is_temp_of(name: str, target: str, *, suffixed: bool = True) -> bool:
     """True if ``name`` is a temporary name photo3d gives to a writer of ``target``.
 
@@ -501,14 +519,9 @@ def remove_temp_files(path: PathLike) -> list[Path]:
         >>> [p == pending.path for p in remove_temp_files(target)], pending.path.exists()
         ([True], False)
     """
-    final = Path(os.path.realpath(path))
-    try:
-        entries = list(final.parent.iterdir())
-    except OSError:
-        return []
     removed = []
-    for entry in entries:
-        if is_temp_of(entry.name, final.name) and entry.is_file() and not entry.is_symlink():
+    for entry in temp_entries(path):
+        if entry.is_file() and not entry.is_symlink():
             with contextlib.suppress(FileNotFoundError):
                 entry.unlink()
             _LIVE.discard(entry)
@@ -635,15 +648,9 @@ def remove_orphan_files(path: PathLike) -> list[Path]:
         >>> remove_orphan_files(target)
         []
     """
-    final = Path(os.path.realpath(path))
-    try:
-        entries = list(final.parent.iterdir())
-    except OSError:
-        return []
     removed = []
-    for entry in entries:
-        if (is_temp_of(entry.name, final.name) and entry.is_file()
-                and entry not in _LIVE and orphaned(entry)):
+    for entry in temp_entries(path):
+        if entry.is_file() and entry not in _LIVE and orphaned(entry):
             with contextlib.suppress(FileNotFoundError):
                 entry.unlink()
             removed.append(entry)

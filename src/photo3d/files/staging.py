@@ -47,7 +47,14 @@ from collections.abc import Callable, Iterable, Mapping, Sequence
 from pathlib import Path
 
 from photo3d.errors import OutputError
-from photo3d.files.atomic import Pending, hold, is_temp_of, orphaned, release, temp_sibling
+from photo3d.files.atomic import (
+    Pending,
+    hold,
+    orphaned,
+    release,
+    temp_entries,
+    temp_sibling,
+)
 from photo3d.files.gate import issue_folder, release_folder
 from photo3d.files.rename import claim, identity, swap
 
@@ -352,15 +359,9 @@ def remove_orphans(out: PathLike) -> list[Path]:
         ([], True)
         >>> staging.discard()
     """
-    final = Path(os.path.realpath(out))
     removed = []
-    try:
-        entries = list(final.parent.iterdir())
-    except OSError:
-        return removed
-    for tmp in entries:
-        if (is_temp_of(tmp.name, final.name, suffixed=False) and tmp.is_dir()
-                and not tmp.is_symlink() and orphaned(tmp)):
+    for tmp in temp_entries(out, suffixed=False):
+        if tmp.is_dir() and not tmp.is_symlink() and orphaned(tmp):
             shutil.rmtree(tmp, ignore_errors=True)
             removed.append(tmp)
     return removed
@@ -380,15 +381,9 @@ def remove_leftovers(out: PathLike) -> list[Path]:
         >>> [p == staging.path for p in remove_leftovers(out)], staging.path.exists()
         ([True], False)
     """
-    final = Path(os.path.realpath(out))
     removed = []
-    try:
-        entries = list(final.parent.iterdir())
-    except OSError:
-        return removed
-    for tmp in entries:
-        if (is_temp_of(tmp.name, final.name, suffixed=False)
-                and tmp.is_dir() and not tmp.is_symlink()):
+    for tmp in temp_entries(out, suffixed=False):
+        if tmp.is_dir() and not tmp.is_symlink():
             shutil.rmtree(tmp, ignore_errors=True)
             _LIVE.discard(tmp)
             release_folder(tmp)
