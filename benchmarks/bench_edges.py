@@ -36,8 +36,13 @@ names (this tree with other settings; ``VARIANTS``). Each version runs every inp
 in one child process; the children alternate, the renders are scored here. Writes
 ``benchmarks/results/edges.json`` (``--out``).
 
+``--time N`` instead times ``make`` of the motorcycle sample at 1024 px with the
+defaults (``_make_child.py``: wall and CPU seconds around ``photo3d.make``, its
+``preprocess`` stage) for ``ref`` and ``new``, alternating, one unmeasured run of
+each first, ``N`` runs each, medians; writes ``benchmarks/results/edges_time.json``.
+
 Usage: python benchmarks/bench_edges.py [--ref e951c93] [--variants exact,grow0]
-           [--scenes 3] [--no-pair]
+           [--scenes 3] [--no-pair] [--src SRC] [--time N]
 """
 
 from __future__ import annotations
@@ -53,7 +58,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).parent))
-from _machine import git_src, save_record, timed_python  # noqa: E402
+from _machine import MAKE_CHILD, git_src, save_record, timed_python  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 PATH_SCALE = 7.0  # the paths' shifts (normalised units) -> metres for these scenes
@@ -256,8 +261,18 @@ def main() -> None:
     parser.add_argument("--variants", default="", help=f"of {', '.join(VARIANTS)}")
     parser.add_argument("--scenes", type=int, default=3)
     parser.add_argument("--no-pair", action="store_true", help="skip the motorcycle pair")
-    parser.add_argument("--out", type=Path, default=ROOT / "benchmarks/results/edges.json")
+    parser.add_argument("--src", type=Path, default=ROOT / "src",
+                        help="the new version's src folder (default: this tree's)")
+    parser.add_argument("--time", type=int, default=0, metavar="N",
+                        help="time make on the sample instead, N alternating runs each")
+    parser.add_argument("--out", type=Path, default=None)
     args = parser.parse_args()
+    if args.time:
+        out = args.out or ROOT / "benchmarks/results/edges_time.json"
+        save_record(time_make(args.ref, args.src, args.time), out, "edges_time",
+                    "bench_edges.py")
+        return
+    args.out = args.out or ROOT / "benchmarks/results/edges.json"
 
     sys.path.insert(0, str(ROOT / "src"))
     jobs, truths = scene_inputs(args.scenes)
@@ -270,9 +285,9 @@ def main() -> None:
         tmp = Path(tmp)
         if args.ref:
             versions["ref"] = (git_src(args.ref, tmp / "ref"), {})
-        versions["new"] = (ROOT / "src", {})
+        versions["new"] = (args.src, {})
         for v in filter(None, args.variants.split(",")):
-            versions[v] = (ROOT / "src", VARIANTS[v])
+            versions[v] = (args.src, VARIANTS[v])
         job_file = tmp / "jobs.pkl"
         job_file.write_bytes(pickle.dumps(jobs))
         results: dict[str, dict] = {}
@@ -294,6 +309,30 @@ def main() -> None:
     record = {"size": "scenes 480x320, motorcycle 741x500 (make at the input size)",
               "conditions": list(CONDITIONS), "ref": args.ref, "versions": results}
     save_record(record, args.out, "edges", "bench_edges.py")
+
+
+def time_make(ref: str, src: Path, runs: int) -> dict:
+    """``make`` of the sample at 1024 px, ``ref`` and ``src`` alternating (see the
+    module docstring)."""
+    with tempfile.TemporaryDirectory() as tmp:
+        trees = {"ref": git_src(ref, Path(tmp) / "ref"), "new": src}
+        times: dict[str, list[dict]] = {name: [] for name in trees}
+        for i in range(runs + 1):
+            for name, tree in trees.items():
+                run = timed_python([str(MAKE_CHILD), "1024"], src=tree)
+                child = json.loads(run["stdout"].strip().splitlines()[-1])
+                if i:  # the first of each: numba's cache, the page cache
+                    times[name].append({"make_s": child["make_s"], "cpu_s": child["cpu_s"],
+                                        "preprocess_s": child["stages"]["preprocess"],
+                                        "load_1min": run["load_1min"]})
+    medians = {name: {k: statistics.median(r[k] for r in rs)
+                      for k in ("make_s", "cpu_s", "preprocess_s")}
+               for name, rs in times.items()}
+    ratio = medians["new"]["make_s"] / medians["ref"]["make_s"]
+    print(f"make 1024 px: ref {medians['ref']['make_s']:.2f} s, new "
+          f"{medians['new']['make_s']:.2f} s ({ratio:.2f}x); preprocess "
+          f"{medians['ref']['preprocess_s']:.2f} -> {medians['new']['preprocess_s']:.2f} s")
+    return {"ref": ref, "runs": times, "median": medians, "ratio_make": ratio}
 
 
 def print_summary(name: str, summary: dict) -> None:

@@ -26,7 +26,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from photo3d.stages.filters import _weighted_median, spread_above
+from photo3d.stages.filters import _weighted_median
 
 
 def _offsets(radius: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -112,6 +112,27 @@ by :func:`photo3d.kernels.compile_kernels` (``tests/test_kernels.py`` checks ``m
 gives no others)."""
 
 
+def _near_steps(disparity: np.ndarray, radius: int, threshold: float) -> np.ndarray:
+    """``(H, W) bool``: pixels within ``radius`` (Chebyshev) of a pixel that differs from
+    a 4-neighbour by more than ``threshold`` (a smooth slope has none)."""
+    step = np.zeros(disparity.shape, bool)
+    jump = np.abs(np.diff(disparity, axis=1)) > threshold
+    step[:, 1:] |= jump
+    step[:, :-1] |= jump
+    jump = np.abs(np.diff(disparity, axis=0)) > threshold
+    step[1:] |= jump
+    step[:-1] |= jump
+    near = step.copy()
+    for k in range(1, radius + 1):  # grown along the rows' axis, then the columns'
+        near[k:] |= step[:-k]
+        near[:-k] |= step[k:]
+    grown = near.copy()
+    for k in range(1, radius + 1):
+        grown[:, k:] |= near[:, :-k]
+        grown[:, :-k] |= near[:, k:]
+    return grown
+
+
 def align_edges(
     image: np.ndarray,
     disparity: np.ndarray,
@@ -123,8 +144,8 @@ def align_edges(
 ) -> np.ndarray:
     """Move the steps of ``disparity`` onto the colour edges of ``image``.
 
-    Only pixels within ``radius`` of a step (a window spanning more than
-    ``threshold``) change; each of ``iterations`` passes gives them the colour-guided
+    Only pixels within ``radius`` of a step (4-neighbours more than ``threshold``
+    apart) change; each of ``iterations`` passes gives them the colour-guided
     weighted median of their ``2 radius + 1`` window (module docstring), all at once.
 
     Args:
@@ -153,8 +174,7 @@ def align_edges(
     if radius < 1 or iterations < 1:
         return out
     guide = np.ascontiguousarray(image, dtype=np.float32)
-    band = spread_above(out, 2 * radius + 1, threshold)
-    ys, xs = np.nonzero(band)
+    ys, xs = np.nonzero(_near_steps(out, radius, threshold))
     if ys.size == 0:
         return out
     ys, xs = ys.astype(np.int64), xs.astype(np.int64)
