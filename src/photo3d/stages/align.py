@@ -26,7 +26,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from photo3d.stages.filters import _weighted_median
+from photo3d.stages.filters import weighted_median
 
 
 def _offsets(radius: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -51,15 +51,16 @@ def _offsets(radius: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 @numba.njit(cache=True, nogil=True, parallel=True)
 def _joint_median_at(disp, image, ys, xs, dys, dxs, parents, sigma_s, sigma_c,
-                     out):  # pragma: no cover - jit
+                     min_contrast, out):  # pragma: no cover - jit
     """Fill ``out (K,) float32`` with the colour-weighted median of the window of each
     pixel ``(ys[k], xs[k])`` of ``disp (H, W) float32``, guided by ``image (H, W, 3)
     float32``: the neighbours at offsets ``dys, dxs`` (nearest first; ``parents``:
     each offset's neighbour one step nearer the centre, -1 = the centre, see
     :func:`_offsets`), each weighted by its distance and by the largest colour
     difference from the centre met on the straight line to it (a neighbour behind a
-    colour edge does not vote). A pixel whose neighbours all weigh nothing keeps its
-    value."""
+    colour edge does not vote). A pixel keeps its value when its neighbours all weigh
+    nothing or none differs from it in colour by ``min_contrast`` or more (no colour
+    edge to follow: a flat photo leaves the map as it is)."""
     h, w = disp.shape
     inv_s = 1.0 / (2.0 * sigma_s * sigma_s)
     inv_c = 1.0 / (2.0 * sigma_c * sigma_c)
@@ -73,6 +74,7 @@ def _joint_median_at(disp, image, ys, xs, dys, dxs, parents, sigma_s, sigma_c,
         n = 0
         total = 0.0
         top = disp[y, x]
+        contrast = 0.0  # the largest squared colour difference seen
         for i in range(m):
             yy, xx = y + dys[i], x + dxs[i]
             if yy < 0 or yy >= h or xx < 0 or xx >= w:
@@ -86,6 +88,7 @@ def _joint_median_at(disp, image, ys, xs, dys, dxs, parents, sigma_s, sigma_c,
             if p >= 0 and seen[p] > c2:
                 c2 = seen[p]
             seen[i] = c2
+            contrast = max(contrast, c2)
             wt = np.float32(np.exp(-(dys[i] * dys[i] + dxs[i] * dxs[i]) * inv_s - c2 * inv_c))
             v = disp[yy, xx]
             vals[n] = v
@@ -93,10 +96,10 @@ def _joint_median_at(disp, image, ys, xs, dys, dxs, parents, sigma_s, sigma_c,
             n += 1
             total += wt
             top = max(top, v)
-        if total < 1e-12:
-            out[k] = disp[y, x]
+        if total < 1e-12 or contrast < min_contrast * min_contrast:
+            out[k] = disp[y, x]  # no colour edge to follow
         else:
-            out[k] = _weighted_median(vals, wts, n, 0.5 * total, top)
+            out[k] = weighted_median(vals, wts, n, 0.5 * total, top)
 
 
 MIN_RADIUS = 3
@@ -106,7 +109,7 @@ on a small photo)."""
 
 KERNELS = ((_joint_median_at, "(float32[:, ::1], float32[:, :, ::1], int64[::1], int64[::1], "
                               "int64[::1], int64[::1], int64[::1], float64, float64, "
-                              "float32[::1])"),)
+                              "float64, float32[::1])"),)
 """The kernels ``make`` runs here and the argument types it gives them, compiled ahead
 by :func:`photo3d.kernels.compile_kernels` (``tests/test_kernels.py`` checks ``make``
 gives no others)."""
@@ -145,7 +148,8 @@ def align_edges(
     """Move the steps of ``disparity`` onto the colour edges of ``image``.
 
     Only pixels within ``radius`` of a step (4-neighbours more than ``threshold``
-    apart) change; each of ``iterations`` passes gives them the colour-guided
+    apart) with a colour difference of ``2 sigma_color`` or more in their window
+    change; each of ``iterations`` passes gives them the colour-guided
     weighted median of their ``2 radius + 1`` window (module docstring), all at once.
 
     Args:
@@ -182,7 +186,7 @@ def align_edges(
     dys, dxs, parents = _offsets(int(radius))
     for _ in range(iterations):
         _joint_median_at(out, guide, ys, xs, dys, dxs, parents, float(radius),
-                         float(sigma_color), medians)
+                         float(sigma_color), 2.0 * float(sigma_color), medians)
         if np.array_equal(out[ys, xs], medians):
             break
         out[ys, xs] = medians
