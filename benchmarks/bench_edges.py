@@ -34,7 +34,9 @@ Versions: ``ref`` (commit ``--ref``, default e951c93, extracted with ``git
 archive``), this tree with its defaults (``new``) and the variants ``--variants``
 names (this tree with other settings; ``VARIANTS``). Each version runs every input
 in one child process; the children alternate, the renders are scored here. Writes
-``benchmarks/results/edges.json`` (``--out``).
+``benchmarks/results/edges.json`` (``--out``). ``--no-new``, ``--ref ''`` and
+``--variants`` run a part of the versions (several parts can run at once, as separate
+processes); ``--merge A.json B.json`` joins such parts into one result.
 
 ``--time N`` instead times ``make`` of the motorcycle sample at 1024 px with the
 defaults (``_make_child.py``: wall and CPU seconds around ``photo3d.make``, its
@@ -42,7 +44,8 @@ defaults (``_make_child.py``: wall and CPU seconds around ``photo3d.make``, its
 each first, ``N`` runs each, medians; writes ``benchmarks/results/edges_time.json``.
 
 Usage: python benchmarks/bench_edges.py [--ref e951c93] [--variants exact,grow0]
-           [--scenes 3] [--no-pair] [--src SRC] [--time N]
+           [--scenes 3] [--no-pair] [--src SRC] [--no-new] [--time N]
+       python benchmarks/bench_edges.py --merge PART.json ... [--out OUT]
 """
 
 from __future__ import annotations
@@ -263,6 +266,11 @@ def main() -> None:
     parser.add_argument("--no-pair", action="store_true", help="skip the motorcycle pair")
     parser.add_argument("--src", type=Path, default=ROOT / "src",
                         help="the new version's src folder (default: this tree's)")
+    parser.add_argument("--no-new", action="store_true",
+                        help="skip this tree's defaults (ref and variants only)")
+    parser.add_argument("--merge", nargs="+", type=Path, metavar="JSON",
+                        help="join the versions of these results (runs of this script on "
+                             "parts of the versions) into --out instead of running")
     parser.add_argument("--time", type=int, default=0, metavar="N",
                         help="time make on the sample instead, N alternating runs each")
     parser.add_argument("--out", type=Path, default=None)
@@ -273,6 +281,14 @@ def main() -> None:
                     "bench_edges.py")
         return
     args.out = args.out or ROOT / "benchmarks/results/edges.json"
+    if args.merge:
+        parts = [json.loads(p.read_text()) for p in args.merge]
+        record = {k: v for k, v in parts[0].items() if k not in ("benchmark", "machine")}
+        record["versions"] = {n: v for p in parts for n, v in p["versions"].items()}
+        record["ref"] = next((p["ref"] for p in parts if "ref" in p["versions"]), args.ref)
+        record["parts"] = [p["command"] for p in parts]
+        save_record(record, args.out, "edges", "bench_edges.py")
+        return
 
     sys.path.insert(0, str(ROOT / "src"))
     jobs, truths = scene_inputs(args.scenes)
@@ -285,7 +301,8 @@ def main() -> None:
         tmp = Path(tmp)
         if args.ref:
             versions["ref"] = (git_src(args.ref, tmp / "ref"), {})
-        versions["new"] = (args.src, {})
+        if not args.no_new:
+            versions["new"] = (args.src, {})
         for v in filter(None, args.variants.split(",")):
             versions[v] = (args.src, VARIANTS[v])
         job_file = tmp / "jobs.pkl"

@@ -4,6 +4,7 @@ import json
 
 import numpy as np
 import pytest
+from test_edges_pole import pole_scene
 
 import photo3d
 from photo3d.config import Config, PreprocessConfig
@@ -11,7 +12,6 @@ from photo3d.errors import ConfigError
 from photo3d.stages.align import align_edges
 from photo3d.stages.preprocess import preprocess
 
-POLE = np.array([0.9, 0.1, 0.9], np.float32)  # magenta
 SKY = np.array([0.2, 0.45, 0.8], np.float32)
 
 
@@ -25,38 +25,8 @@ def _textured(h: int, w: int, seed: int = 0) -> np.ndarray:
     return np.clip(img, 0, 1).astype(np.float32)
 
 
-def _pole_scene(width: int, spread: int, h: int = 64, w: int = 96):
-    """A vertical pole ``width`` px wide in front of a textured wall; the depth map's
-    pole is ``spread`` px wider on each side (onto the far side)."""
-    img = _textured(h, w)
-    c = w // 2
-    img[:, c:c + width] = POLE
-    disp = np.full((h, w), 0.2, np.float32)
-    disp[:, c - spread:c + width + spread] = 1.0
-    return img, disp, slice(c, c + width)
-
-
-def _pole_coloured(colors: np.ndarray) -> np.ndarray:
-    return np.abs(colors - POLE).max(axis=1) < 0.3
-
-
-@pytest.mark.parametrize("width", [2, 4])
-def test_a_spread_pole_leaves_no_pole_colour_behind_and_takes_no_wall_with_it(width):
-    """A 2 px spread map around a thin pole: no pole-coloured pixel on the background
-    layer, and no wall-coloured photo pixel on the pole's layer (today's code, commit
-    e951c93, cuts at the depth map's step plus ``grow_foreground``: the pole's layer
-    carries 3 px of wall on each side into every novel view)."""
-    img, disp, _ = _pole_scene(width, spread=2)
-    ldi = photo3d.make(img, depth=disp, config=Config(size=None)).ldi
-    near = ldi.disparity > 0.5 * (ldi.disparity.max() + ldi.disparity.min())
-    original = ldi.label == 1
-    assert not (~near & _pole_coloured(ldi.color)).any()
-    assert (near & original).sum() == width * img.shape[0]
-    assert _pole_coloured(ldi.color[near & original]).all()
-
-
 def test_exact_edges_keep_the_depth_maps_steps():
-    img, disp, _ = _pole_scene(4, spread=2)
+    img, disp, _ = pole_scene(4, spread=2)
     ldi = photo3d.make(img, depth=disp, config=Config(size=None, edges="exact")).ldi
     near = (ldi.disparity > 0.5 * (ldi.disparity.max() + ldi.disparity.min())) & (ldi.label == 1)
     assert near.sum() > 4 * img.shape[0]  # the spread band stays on the pole's layer
@@ -64,7 +34,7 @@ def test_exact_edges_keep_the_depth_maps_steps():
 
 @pytest.mark.parametrize("spread", [1, 2, 3])
 def test_a_fat_step_moves_onto_the_colour_edge(spread):
-    img, disp, cols = _pole_scene(10, spread=spread)
+    img, disp, cols = pole_scene(10, spread=spread)
     out = align_edges(img, disp, radius=4, iterations=4)
     expected = np.full(disp.shape, 0.2, np.float32)
     expected[:, cols] = 1.0
@@ -76,7 +46,7 @@ def test_a_fat_step_moves_onto_the_colour_edge(spread):
 
 
 def test_a_shrunk_step_grows_back_onto_the_colour_edge():
-    img, disp, cols = _pole_scene(10, spread=0)
+    img, disp, cols = pole_scene(10, spread=0)
     disp[:, cols.start:cols.start + 2] = 0.2  # the depth map misses 2 px of the pole
     out = align_edges(img, disp, radius=4, iterations=4)
     assert np.all(out[:, cols] == 1.0) and (out > 0.5).sum() == 10 * img.shape[0]
@@ -120,7 +90,7 @@ def test_shapes_must_agree():
 
 
 def test_preprocess_aligns_by_default_and_not_with_exact():
-    img, disp, cols = _pole_scene(6, spread=2)
+    img, disp, cols = pole_scene(6, spread=2)
     pre = PreprocessConfig(grow_foreground=0.0)
     aligned = preprocess(img, disp, config=Config(size=None, preprocess=pre)).disparity
     exact = preprocess(img, disp, config=Config(size=None, edges="exact",
