@@ -58,7 +58,8 @@ def _joint_median_at(disp, image, ys, xs, dys, dxs, parents, sigma_s, sigma_c,
     each offset's neighbour one step nearer the centre, -1 = the centre, see
     :func:`_offsets`), each weighted by its distance and by the largest colour
     difference from the centre met on the straight line to it (a neighbour behind a
-    colour edge does not vote). A pixel keeps its value when its neighbours all weigh
+    colour edge does not vote; nor does one whose weight is below ``exp(-16)``). A
+    pixel keeps its value when its neighbours all weigh
     nothing or none differs from it in colour by ``min_contrast`` or more (no colour
     edge to follow: a flat photo leaves the map as it is)."""
     h, w = disp.shape
@@ -89,7 +90,10 @@ def _joint_median_at(disp, image, ys, xs, dys, dxs, parents, sigma_s, sigma_c,
                 c2 = seen[p]
             seen[i] = c2
             contrast = max(contrast, c2)
-            wt = np.float32(np.exp(-(dys[i] * dys[i] + dxs[i] * dxs[i]) * inv_s - c2 * inv_c))
+            e = (dys[i] * dys[i] + dxs[i] * dxs[i]) * inv_s + c2 * inv_c
+            if e > 16.0:  # a weight below 1e-7 of the nearest neighbour's: no vote
+                continue
+            wt = np.float32(np.exp(-e))
             v = disp[yy, xx]
             vals[n] = v
             wts[n] = wt
@@ -101,11 +105,6 @@ def _joint_median_at(disp, image, ys, xs, dys, dxs, parents, sigma_s, sigma_c,
         else:
             out[k] = weighted_median(vals, wts, n, 0.5 * total, top)
 
-
-MIN_RADIUS = 3
-"""The smallest window radius ``make`` uses, working pixels (the configured radius
-scales with the working size; a depth map's error does not shrink below a few pixels
-on a small photo)."""
 
 KERNELS = ((_joint_median_at, "(float32[:, ::1], float32[:, :, ::1], int64[::1], int64[::1], "
                               "int64[::1], int64[::1], int64[::1], float64, float64, "
@@ -125,10 +124,15 @@ def _near_steps(disparity: np.ndarray, radius: int, threshold: float) -> np.ndar
     jump = np.abs(np.diff(disparity, axis=0)) > threshold
     step[1:] |= jump
     step[:-1] |= jump
-    near = step.copy()
-    for k in range(1, radius + 1):  # grown along the rows' axis, then the columns'
-        near[k:] |= step[:-k]
-        near[:-k] |= step[k:]
+    return _grow(step, radius)
+
+
+def _grow(mask: np.ndarray, radius: int) -> np.ndarray:
+    """``mask (H, W) bool`` grown by ``radius`` pixels (a square: Chebyshev distance)."""
+    near = mask.copy()
+    for k in range(1, radius + 1):  # along the rows' axis, then the columns'
+        near[k:] |= mask[:-k]
+        near[:-k] |= mask[k:]
     grown = near.copy()
     for k in range(1, radius + 1):
         grown[:, k:] |= near[:, :-k]
@@ -150,7 +154,9 @@ def align_edges(
     Only pixels within ``radius`` of a step (4-neighbours more than ``threshold``
     apart) with a colour difference of ``2 sigma_color`` or more in their window
     change; each of ``iterations`` passes gives them the colour-guided
-    weighted median of their ``2 radius + 1`` window (module docstring), all at once.
+    weighted median of their ``2 radius + 1`` window (module docstring), all at once,
+    where it differs from their value by more than ``threshold`` (the pixel moves to
+    the other side of a step; smaller changes are not taken).
 
     Args:
         image: ``(H, W, 3) float32`` photo in [0, 1] (the guide).
@@ -182,12 +188,20 @@ def align_edges(
     if ys.size == 0:
         return out
     ys, xs = ys.astype(np.int64), xs.astype(np.int64)
-    medians = np.empty(ys.size, np.float32)
     dys, dxs, parents = _offsets(int(radius))
     for _ in range(iterations):
+        medians = np.empty(ys.size, np.float32)
         _joint_median_at(out, guide, ys, xs, dys, dxs, parents, float(radius),
                          float(sigma_color), 2.0 * float(sigma_color), medians)
-        if np.array_equal(out[ys, xs], medians):
+        changed = np.abs(medians - out[ys, xs]) > threshold  # across a step: moved
+        if not changed.any():
             break
-        out[ys, xs] = medians
+        out[ys[changed], xs[changed]] = medians[changed]
+        # next pass: only the pixels whose window changed (the others would give the
+        # same median again); a smaller change (a slope's pixel taking a neighbour's
+        # value) is not taken: this moves steps, the bilateral median filters
+        moved = np.zeros(out.shape, bool)
+        moved[ys[changed], xs[changed]] = True
+        again = _grow(moved, radius)[ys, xs]
+        ys, xs = ys[again], xs[again]
     return out

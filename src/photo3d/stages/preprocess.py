@@ -9,7 +9,7 @@ from PIL import Image
 
 from photo3d.config import Config, working_shape
 from photo3d.depth.normalize import normalize
-from photo3d.stages.align import MIN_RADIUS, align_edges
+from photo3d.stages.align import align_edges
 from photo3d.stages.edges import DepthEdges, link_edges
 from photo3d.stages.filters import bilateral_median
 
@@ -126,8 +126,7 @@ def preprocess(image: np.ndarray, disparity: np.ndarray, *, config: Config) -> P
         threshold=pre.discontinuity,
     )
     if config.edges == "align":
-        radius = max(MIN_RADIUS, config.spatial(pre.align_radius, working))
-        filtered = align_edges(img, filtered, radius=radius,
+        filtered = align_edges(img, filtered, radius=pre.align_radius,
                                iterations=pre.align_iterations,
                                sigma_color=pre.align_sigma_color, threshold=pre.discontinuity)
     if pre.grow_foreground > 0:
