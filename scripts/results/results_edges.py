@@ -21,7 +21,12 @@ def section_edges(load, machine_line, missing) -> str:
         return "\n".join(out) + "\n" + missing("python benchmarks/bench_edges.py")
     versions = rec["versions"]
     others = ", ".join(f"`{k}`: {v['overrides']}" for k, v in versions.items() if v["overrides"])
-    out += [f"Command: `{rec['command']}`. Machine: {machine_line(rec)}. Sizes: {rec['size']}. "
+    if rec.get("parts"):  # several processes at once, joined by --merge
+        runs = "; ".join(f"`{c}`" for c in rec["parts"])
+        command = f"{runs}, joined by `{rec['command']}`"
+    else:
+        command = f"`{rec['command']}`"
+    out += [f"Command: {command}. Machine: {machine_line(rec)}. Sizes: {rec['size']}. "
             f"`ref` is commit `{rec['ref']}` (the code before issue 44), `new` this tree's "
             "defaults, other columns this tree with other settings "
             f"({others}). "
