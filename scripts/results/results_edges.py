@@ -57,6 +57,8 @@ def section_edges(load, machine_line, missing) -> str:
                 f"alternating runs each, medians; load average {load0:.1f} at the start): "
                 f"ref {m['ref']['make_s']:.2f} s (preprocess "
                 f"{m['ref']['preprocess_s']:.2f} s), new {m['new']['make_s']:.2f} s (preprocess "
-                f"{m['new']['preprocess_s']:.2f} s): {t['ratio_make']:.2f}x (target <= 1.15x).",
+                f"{m['new']['preprocess_s']:.2f} s): {t['ratio_make']:.2f}x (target <= 1.15x); "
+                f"CPU time {m['ref']['cpu_s']:.2f} -> {m['new']['cpu_s']:.2f} s "
+                f"({m['new']['cpu_s'] / m['ref']['cpu_s']:.2f}x).",
                 ""]
     return "\n".join(out)
