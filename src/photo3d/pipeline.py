@@ -63,7 +63,8 @@ def make(
             (``config.depth_kind``); NaN/inf/negative values are filled. Or a
             :class:`~photo3d.depth.normalize.DepthInput` already prepared for that kind
             (:attr:`~photo3d.depth.sources.DepthEstimate.prepared`).
-        config: :class:`Config` (defaults: 1024 px, structured inpainting). With
+        config: :class:`Config` (defaults: 1024 px, structured inpainting, depth steps
+            moved onto the photo's colour edges: ``edges="align"``). With
             ``config.metric`` (and ``depth_kind="depth"``) the geometry keeps the
             depth's own units instead of the authors' [1/3, 20] range.
         intrinsics: the camera of the input image (at the input's resolution; it is
