@@ -14,7 +14,16 @@ NODE_DIR := .node
 VALIDATOR := $(NODE_DIR)/node_modules/gltf-validator
 SPARK := $(NODE_DIR)/node_modules/@sparkjsdev/spark
 
-.PHONY: demo test lint bench clean
+# A release (docs/development.md#releases): `make wheel` builds dist/photo3d-VERSION-py3-none-any.whl
+# holding make's, render's and export's numba kernels compiled for a portable x86-64 CPU
+# (build/kernels, rebuilt when a source changes: scripts/release/build_kernels.py, one
+# set per Python 3.11+ on PATH), `make sdist` the source archive; twine checks both.
+KERNELS := build/kernels
+KERNEL_CPUS ?= generic
+RELEASE_STAMP := $(VENV)/.installed-release
+KERNEL_SOURCES := $(shell find src/photo3d -name '*.py') scripts/release/build_kernels.py
+
+.PHONY: demo test lint bench clean kernels wheel sdist
 
 $(DEMO_STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -40,8 +49,30 @@ test: $(STAMP)
 	$(BIN)/ruff check src tests benchmarks scripts
 	PHOTO3D_NODE_MODULES=$(CURDIR)/$(NODE_DIR) $(BIN)/python -m pytest -q
 
+$(RELEASE_STAMP): $(DEMO_STAMP)
+	$(BIN)/pip install --quiet --disable-pip-version-check -e '.[sample,release]'
+	touch $(RELEASE_STAMP)
+
+$(KERNELS)/manifest.json: $(DEMO_STAMP) $(KERNEL_SOURCES)
+	$(BIN)/python scripts/release/build_kernels.py --out $(KERNELS) --all-pythons \
+		$(foreach cpu,$(KERNEL_CPUS),--cpu $(cpu))
+
+kernels: $(KERNELS)/manifest.json
+
+# setup.py checks the caches are current (fails otherwise) and pins numba to theirs.
+wheel: $(KERNELS)/manifest.json $(RELEASE_STAMP)
+	rm -rf build/lib build/bdist.* dist/photo3d-*.whl
+	PHOTO3D_KERNEL_CACHE=$(CURDIR)/$(KERNELS) $(BIN)/python -m build --wheel --no-isolation \
+		--outdir dist .
+	$(BIN)/twine check --strict dist/photo3d-*.whl
+
+sdist: $(RELEASE_STAMP)
+	rm -f dist/photo3d-*.tar.gz
+	$(BIN)/python -m build --sdist --no-isolation --outdir dist .
+	$(BIN)/twine check --strict dist/photo3d-*.tar.gz
+
 bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_make.py
 
 clean:
-	rm -rf $(VENV) out .pytest_cache $(NODE_DIR)
+	rm -rf $(VENV) out .pytest_cache $(NODE_DIR) build dist

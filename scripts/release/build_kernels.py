@@ -19,16 +19,19 @@ run. Last, photo3d's cache files are copied into ``OUT`` with ``manifest.json``
 as ``photo3d/_kernel_cache`` (``setup.py``, with ``PHOTO3D_KERNEL_CACHE=OUT``).
 
 Every Python must have photo3d's dependencies (with the ``sample`` extra) and the
-same numba as this one: the wheel pins one numba version.
+same numba as this one: the wheel pins one numba version. ``--all-pythons`` adds one
+set for each other ``python3.N`` (3.11 or later) on ``PATH``, each in a virtual
+environment of its own under ``build/`` with those dependencies and this numba.
 
 Usage: python scripts/release/build_kernels.py --out build/kernels [--cpu generic]
-       [--python PY ...]
+       [--python PY ...] [--all-pythons]
 """
 
 from __future__ import annotations
 
 import argparse
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -84,6 +87,33 @@ def numba_version(python: str) -> str:
                           capture_output=True, text=True, check=True).stdout.strip()
 
 
+def other_pythons() -> list[str]:
+    """A Python of its own (a virtual environment under ``build/``, made here, with
+    photo3d's dependencies and this numba) for each other ``python3.N`` (N >= 11) on
+    ``PATH``."""
+    import llvmlite
+    import numba
+
+    minors = set()
+    for folder in os.environ.get("PATH", "").split(os.pathsep):
+        for path in Path(folder).glob("python3.*") if Path(folder).is_dir() else ():
+            match = re.fullmatch(r"python3\.(\d+)", path.name)
+            if match and int(match[1]) >= 11 and int(match[1]) != sys.version_info[1]:
+                minors.add(int(match[1]))
+    pythons = []
+    for minor in sorted(minors):
+        venv = ROOT / "build" / f"venv-3.{minor}"
+        python = venv / "bin" / "python"
+        if not python.exists():
+            subprocess.run([f"python3.{minor}", "-m", "venv", str(venv)], check=True)
+        subprocess.run([str(python), "-m", "pip", "install", "--quiet",
+                        f"numba=={numba.__version__}", f"llvmlite=={llvmlite.__version__}",
+                        "numpy>=1.26", "scipy>=1.11", "pillow>=10.0", "tqdm>=4.60", "av>=14",
+                        "scikit-image>=0.22"], check=True)
+        pythons.append(str(python))
+    return pythons
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, required=True)
@@ -91,9 +121,13 @@ def main() -> None:
                         help="a CPU name to build for (repeat; most capable first)")
     parser.add_argument("--python", action="append",
                         help="an interpreter to build with (repeat; default this one)")
+    parser.add_argument("--all-pythons", action="store_true",
+                        help="also every other python3.N (N >= 11) on PATH")
     args = parser.parse_args()
     cpus = args.cpu or ["generic"]
     pythons = args.python or [sys.executable]
+    if args.all_pythons:
+        pythons += other_pythons()
     import numba
 
     for python in pythons:

@@ -82,10 +82,12 @@ def adopt(shipped: Path | None = None) -> int:
     manifest = read_manifest(shipped)
     if manifest is None:
         return 0
+    import llvmlite
     import numba
 
-    if manifest.get("numba") != numba.__version__:
-        return 0
+    if (manifest.get("numba"), manifest.get("llvmlite")) != (numba.__version__,
+                                                             llvmlite.__version__):
+        return 0  # numba reads only its own caches; LLVM its own version's bitcode
     host = host_target()
     target = choose_target(manifest, host)
     if target is None:
@@ -379,9 +381,11 @@ def collect(raw: Path, shipped: Path, package: Path, *, cpu: str) -> dict:
 
 
 def write_manifest(shipped: Path, targets: list[dict], package: Path) -> dict:
-    """Write :data:`MANIFEST` into ``shipped``: numba's version, the target triple,
+    """Write :data:`MANIFEST` into ``shipped``: numba's and llvmlite's versions, the
+    target triple,
     the sets (most capable first, as :func:`choose_target` tries them), every
     file's SHA-256 and every source's SHA-256; returns it."""
+    import llvmlite
     import numba
 
     shipped = Path(shipped)
@@ -391,7 +395,8 @@ def write_manifest(shipped: Path, targets: list[dict], package: Path) -> dict:
     triples = {t["triple"] for t in targets if "triple" in t}
     if len(triples) != 1:
         raise ValueError(f"the sets are for {sorted(triples)}: need exactly one triple")
-    manifest = {"format": FORMAT, "numba": numba.__version__, "triple": triples.pop(),
+    manifest = {"format": FORMAT, "numba": numba.__version__,
+                "llvmlite": llvmlite.__version__, "triple": triples.pop(),
                 "pythons": sorted({f["python"] for t in targets for f in t["functions"]}),
                 "targets": targets, "files": files,
                 "sources": {s: sha256(Path(package).parent / s) for s in sources}}
