@@ -105,6 +105,8 @@ def other_pythons() -> list[str]:
         venv = ROOT / "build" / f"venv-3.{minor}"
         python = venv / "bin" / "python"
         if not python.exists():
+            if subprocess.run([f"python3.{minor}", "-c", ""], capture_output=True).returncode:
+                continue  # a name that does not run (a pyenv shim of an inactive version)
             subprocess.run([f"python3.{minor}", "-m", "venv", str(venv)], check=True)
         subprocess.run([str(python), "-m", "pip", "install", "--quiet",
                         f"numba=={numba.__version__}", f"llvmlite=={llvmlite.__version__}",
