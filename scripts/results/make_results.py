@@ -885,7 +885,9 @@ def main() -> None:
         section_videos(load, machine_line, missing),
         section_parts(load, machine_line, missing),
         section_json("first_run.json", "The first run: an empty numba cache against a warm one "
-                     "(issue 35)", "python benchmarks/bench_first_run.py"),
+                     "(issues 35 and 47)", "python benchmarks/bench_first_run.py --wheel auto"),
+        section_json("portable.json", "The wheel's portable kernels against kernels compiled "
+                     "for this CPU (issue 47)", "python benchmarks/bench_portable.py"),
         section_ui(load, machine_line, missing),
         section_export(load, machine_line, missing),
         (BENCHMARKS_DIR / "history.md").read_text(),  # measurement history, written by hand

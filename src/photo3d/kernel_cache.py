@@ -343,6 +343,12 @@ def collect(raw: Path, shipped: Path, package: Path, *, cpu: str) -> dict:
         ``{"cpu", "triple", "features", "functions": [{"index", "data", "source",
         "python"}]}``, paths relative to ``shipped``, sources relative to
         ``package``'s parent.
+
+    Example:
+        >>> import tempfile
+        >>> raw = Path(tempfile.mkdtemp())   # a cache with nothing of photo3d's
+        >>> collect(raw, raw / "shipped", Path(__file__).parent, cpu="generic")
+        {'cpu': 'generic', 'functions': []}
     """
     import shutil
 
@@ -384,7 +390,16 @@ def write_manifest(shipped: Path, targets: list[dict], package: Path) -> dict:
     """Write :data:`MANIFEST` into ``shipped``: numba's and llvmlite's versions, the
     target triple,
     the sets (most capable first, as :func:`choose_target` tries them), every
-    file's SHA-256 and every source's SHA-256; returns it."""
+    file's SHA-256 and every source's SHA-256; returns it.
+
+    Example:
+        >>> import tempfile
+        >>> target = {"cpu": "generic", "triple": "x86_64-unknown-linux-gnu",
+        ...           "features": "", "functions": []}
+        >>> m = write_manifest(Path(tempfile.mkdtemp()), [target], Path(__file__).parent)
+        >>> m["format"], m["targets"][0]["cpu"], m["files"]
+        (1, 'generic', {})
+    """
     import llvmlite
     import numba
 
