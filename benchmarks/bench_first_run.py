@@ -73,7 +73,8 @@ class WheelPath:
     def timed(self, home: Path, out: Path, *, quiet: bool = True) -> tuple[float, float, str]:
         """:data:`COMMAND` with ``home`` as the user's home and cache folder: (wall
         seconds, CPU seconds, what it printed on stderr)."""
-        _wheel.user_folder(out)
+        # photo3d stages its output beside the folder: the user must own the parent
+        out = _wheel.user_folder(out) / "demo"
         command = COMMAND if quiet else [c for c in COMMAND if c != "-q"]
         result = timed_python([*command, "-o", str(out)], src=None, python=self.python,
                               env=_wheel.user_env(home), prefix=self.prefix)
