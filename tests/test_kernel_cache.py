@@ -105,8 +105,7 @@ def test_a_generic_cache_loads_on_this_cpu_without_compiling(pkg, tmp_path):
                                             "misses": 0}
 
 
-def test_without_adopting_the_kernel_compiles(pkg, tmp_path, monkeypatch):
-    monkeypatch.setenv(kernel_cache.OFF_ENV, "0")
+def test_without_adopting_the_kernel_compiles(pkg, tmp_path):
     out = subprocess.run([sys.executable, "-c", RUN], capture_output=True, text=True,
                          env=dict(_env(pkg, NUMBA_CACHE_DIR=str(tmp_path / "c")),
                                   **{kernel_cache.OFF_ENV: "0"}), check=True)
@@ -114,7 +113,7 @@ def test_without_adopting_the_kernel_compiles(pkg, tmp_path, monkeypatch):
     assert got == {"adopted": 0, "result": 5.0, "hits": 0, "misses": 1}
 
 
-@pytest.mark.parametrize("damage", ["truncated data", "altered data", "truncated index"])
+@pytest.mark.parametrize("damage", ["truncated data", "altered index"])
 def test_a_damaged_shipped_file_is_left_out_and_the_kernel_compiles(pkg, tmp_path, damage):
     shipped, _ = shipped_files(pkg)
     kind = "*.nbi" if "index" in damage else "*.nbc"
