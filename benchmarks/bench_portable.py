@@ -3,17 +3,18 @@
 
 The wheel (``--wheel``, default the newest ``dist/photo3d-*.whl``) is installed into a
 fresh virtual environment (``_wheel.py``; with the ``usdz`` extra when it installs).
-Two numba caches, each warmed by one unmeasured run of every command:
+One numba cache per kind, each warmed by one unmeasured run of every command:
 
-* ``portable``: the shipped kernels, adopted into an empty ``NUMBA_CACHE_DIR``
-  (``photo3d.kernel_cache``);
+* one per set the wheel ships (``generic``, and ``x86-64-v3`` if it has one): that
+  set's kernels alone, adopted into an empty ``NUMBA_CACHE_DIR``
+  (``PHOTO3D_SHIPPED_KERNELS=<cpu>``, ``photo3d.kernel_cache``);
 * ``native``: ``PHOTO3D_SHIPPED_KERNELS=0``, the kernels compiled for this CPU into
   another ``NUMBA_CACHE_DIR`` (what a clone runs).
 
 Then, ``--runs`` times, each command once with each cache, alternated: ``photo3d demo
 --no-video`` (make: the sample to its files), ``photo3d render`` of that folder (one
 240-frame 1280x720 video, ``--path circle``), ``photo3d export`` of every format.
-Whole processes; medians of wall and CPU seconds and portable / native. The
+Whole processes; medians of wall and CPU seconds and each set / native. The
 machine may be shared: the CPU seconds compare best. Writes
 ``benchmarks/results/portable.json``.
 
@@ -23,6 +24,7 @@ Usage: python benchmarks/bench_portable.py [--runs 3] [--wheel PATH]
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import shutil
 import statistics
@@ -63,10 +65,13 @@ def main() -> None:
             shutil.rmtree(work / "venv", ignore_errors=True)
             python = _wheel.fresh_venv(wheel, work / "venv")
             usdz = False
-        _wheel.installed_package(python)
+        package = _wheel.installed_package(python)
+        manifest = json.loads((package / "_kernel_cache" / "manifest.json").read_text())
+        sets = [target["cpu"] for target in manifest["targets"]]
         kinds = {"native": {"NUMBA_CACHE_DIR": str(work / "native"),
-                            "PHOTO3D_SHIPPED_KERNELS": "0"},
-                 "portable": {"NUMBA_CACHE_DIR": str(work / "portable")}}
+                            "PHOTO3D_SHIPPED_KERNELS": "0"}}
+        for cpu in sets:
+            kinds[cpu] = {"NUMBA_CACHE_DIR": str(work / cpu), "PHOTO3D_SHIPPED_KERNELS": cpu}
         cmds = commands(work / "out", usdz)
 
         def timed(name: str, kind: str) -> dict:
@@ -81,30 +86,38 @@ def main() -> None:
             for name in cmds:
                 for kind in kinds:
                     result = timed(name, kind)
-                    got = times.setdefault(f"{name} {kind}", {"wall_s": [], "cpu_s": []})
+                    got = times.setdefault(f"{name} {kind}",
+                                           {"wall_s": [], "cpu_s": [], "load": []})
                     got["wall_s"].append(result["wall_s"])
                     got["cpu_s"].append(result["cpu_s"])
+                    got["load"].append(os.getloadavg()[0])
                     print(f"run {run + 1}: {name} {kind}: {result['wall_s']:.2f} s wall, "
                           f"{result['cpu_s']:.2f} s CPU (load {os.getloadavg()[0]:.1f})",
                           flush=True)
     finally:
         shutil.rmtree(work, ignore_errors=True)
     med = {k: {m: statistics.median(v[m]) for m in v} for k, v in times.items()}
-    rows = ["| command | native (this CPU) | portable (shipped, generic) | portable / native, "
-            "wall | CPU |", "| --- | --- | --- | --- | --- |"]
-    cost = {}
+    rows = ["| command | " + " | ".join(["native (this CPU)", *sets]) + " | "
+            + " | ".join(f"{cpu} / native, CPU (wall)" for cpu in sets) + " |",
+            "| --- " * (2 + 2 * len(sets)) + "|"]
+    cost: dict[str, dict[str, dict[str, float]]] = {}
     for name in cmds:
-        nat, por = med[f"{name} native"], med[f"{name} portable"]
-        cost[name] = {m: por[m] / nat[m] for m in ("wall_s", "cpu_s")}
-        rows.append(f"| {name} | {nat['wall_s']:.2f} s ({nat['cpu_s']:.2f} s CPU) | "
-                    f"{por['wall_s']:.2f} s ({por['cpu_s']:.2f} s CPU) | "
-                    f"{cost[name]['wall_s']:.3f}x | {cost[name]['cpu_s']:.3f}x |")
+        nat = med[f"{name} native"]
+        cost[name] = {cpu: {m: med[f"{name} {cpu}"][m] / nat[m] for m in ("wall_s", "cpu_s")}
+                      for cpu in sets}
+        cells = [f"{med[f'{name} {k}']['wall_s']:.2f} s ({med[f'{name} {k}']['cpu_s']:.2f} s "
+                 "CPU)" for k in kinds]
+        ratios = [f"{cost[name][cpu]['cpu_s']:.3f}x ({cost[name][cpu]['wall_s']:.3f}x)"
+                  for cpu in sets]
+        rows.append(f"| {name} | " + " | ".join(cells + ratios) + " |")
     note = (f"\nWhole processes from the wheel `{wheel.name}` in a fresh venv, median of "
-            f"{args.runs} runs per cell, native and portable alternated. make: `photo3d demo "
+            f"{args.runs} runs per cell, the kinds alternated. make: `photo3d demo "
             "--no-video`; render: `photo3d render DIR --path circle` (240 frames, 1280x720); "
             f"export: `photo3d export DIR {' '.join(cmds['export'][4:-1])}`.")
+    loads = [load for v in times.values() for load in v.get("load", [])]
+    note += f" Load average (1 min) during the runs: {min(loads):.1f}-{max(loads):.1f}."
     record = {"wheel": wheel.name, "runs": args.runs, "times": times, "median": med,
-              "portable_over_native": cost, "usdz": usdz,
+              "set_over_native": cost, "usdz": usdz,
               "markdown": "\n".join(rows) + "\n" + note}
     save_record(record, args.out, "portable", "bench_portable.py")
     print("\n".join(rows) + "\n" + note)

@@ -48,7 +48,8 @@ MANIFEST = "manifest.json"
 FORMAT = 1
 """The manifest's format version (another one is not read)."""
 OFF_ENV = "PHOTO3D_SHIPPED_KERNELS"
-"""Set to ``0`` to never adopt the shipped caches."""
+"""Set to ``0`` to never adopt the shipped caches, or to a CPU name of :data:`TARGETS`
+to adopt only that set (if this CPU can run it: for measuring one set)."""
 TARGETS = {"generic": (), "x86-64-v3": ("avx", "avx2", "bmi", "bmi2", "f16c", "fma",
                                          "lzcnt", "movbe")}
 """The portable CPU names a set may be built for, and the LLVM features a CPU must
@@ -69,14 +70,16 @@ def adopt(shipped: Path | None = None) -> int:
 
     Returns:
         How many functions' caches were copied now (0: nothing shipped, nothing fits,
-        all copied by an earlier run, or turned off by ``PHOTO3D_SHIPPED_KERNELS=0``).
+        all copied by an earlier run, or turned off by ``PHOTO3D_SHIPPED_KERNELS=0``;
+        ``PHOTO3D_SHIPPED_KERNELS=generic`` takes only the ``generic`` set).
 
     Example:
         >>> adopt(Path("/nonexistent"))
         0
     """
     shipped = SHIPPED if shipped is None else Path(shipped)
-    if os.environ.get(OFF_ENV, "1").strip() == "0" or str(shipped) in _ADOPTED:
+    wanted = os.environ.get(OFF_ENV, "").strip()
+    if wanted == "0" or str(shipped) in _ADOPTED:
         return 0
     _ADOPTED.add(str(shipped))
     manifest = read_manifest(shipped)
@@ -89,6 +92,9 @@ def adopt(shipped: Path | None = None) -> int:
                                                              llvmlite.__version__):
         return 0  # numba reads only its own caches; LLVM its own version's bitcode
     host = host_target()
+    if wanted in TARGETS:  # only that set
+        manifest = {**manifest, "targets": [t for t in manifest.get("targets", [])
+                                            if t.get("cpu") == wanted]}
     target = choose_target(manifest, host)
     if target is None:
         return 0
