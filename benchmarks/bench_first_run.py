@@ -97,18 +97,23 @@ def which_photo3d(src: Path) -> str:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--runs", type=int, default=3)
-    parser.add_argument("--ref", default="HEAD", help="the reference commit")
+    parser.add_argument("--ref", default="HEAD",
+                        help="the reference commit ('none': this tree alone)")
     parser.add_argument("--wheel", type=Path, default=None,
                         help="also the wheel path: a wheel, or 'auto' (newest in dist/)")
     parser.add_argument("--out", type=Path,
                         default=Path(__file__).parent / "results" / "first_run.json")
     args = parser.parse_args()
-    ref_commit = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", args.ref],
-                                capture_output=True, text=True, check=True).stdout.strip()
+    ref_commit = None if args.ref == "none" else subprocess.run(
+        ["git", "-C", str(ROOT), "rev-parse", "--short", args.ref],
+        capture_output=True, text=True, check=True).stdout.strip()
     work = Path(tempfile.mkdtemp(prefix="bench_first_run."))
     try:
         srcs = {"ref": work / "ref", "now": work / "now"}
-        git_src(args.ref, srcs["ref"])
+        if ref_commit is None:
+            del srcs["ref"]
+        else:
+            git_src(args.ref, srcs["ref"])
         shutil.copytree(ROOT / "src", srcs["now"] / "src",
                         ignore=shutil.ignore_patterns("__pycache__", "*.egg-info"))
         for version, folder in srcs.items():
@@ -144,9 +149,11 @@ def main() -> None:
                         wall, cpu = timed(srcs[version], cache, work / "out")
                         if mode == "cold":
                             shutil.rmtree(cache, ignore_errors=True)
-                    got = times.setdefault(f"{version} {mode}", {"wall_s": [], "cpu_s": []})
+                    got = times.setdefault(f"{version} {mode}",
+                                           {"wall_s": [], "cpu_s": [], "load": []})
                     got["wall_s"].append(wall)
                     got["cpu_s"].append(cpu)
+                    got["load"].append(os.getloadavg()[0])
                     print(f"run {run + 1}: {version} {mode}: {wall:.1f} s wall, {cpu:.1f} s CPU"
                           f" (load {os.getloadavg()[0]:.1f})", flush=True)
         if wheel is not None:
@@ -160,7 +167,8 @@ def main() -> None:
              for v in versions}
     rows = ["| version | cold (empty numba cache) | warm | cold / warm | cold / warm, CPU |",
             "| --- | --- | --- | --- | --- |"]
-    labels = [("ref", f"clone, before (`{ref_commit}`)"), ("now", "clone, now")]
+    labels = [("ref", f"clone, before (`{ref_commit}`)"), ("now", "clone, now")][
+        1 if ref_commit is None else 0:]
     if wheel is not None:
         labels.append(("wheel", f"wheel (`{wheel.wheel.name}`, fresh venv, read-only)"))
     for version, label in labels:
@@ -168,12 +176,16 @@ def main() -> None:
         rows.append(f"| {label} | {cold['wall_s']:.1f} s ({cold['cpu_s']:.1f} s CPU) | "
                     f"{warm['wall_s']:.1f} s ({warm['cpu_s']:.1f} s CPU) | "
                     f"{ratio[version]['wall_s']:.2f}x | {ratio[version]['cpu_s']:.2f}x |")
-    speed = {m: med[f"now {m}"]["wall_s"] / med[f"ref {m}"]["wall_s"] for m in ("cold", "warm")}
     note = (f"\n`photo3d demo --no-video`, whole process, median of {args.runs} runs per "
-            "cell, the four kinds alternated; cold: a new empty `NUMBA_CACHE_DIR` per run. "
-            f"Now against before: cold {speed['cold']:.2f}x, warm {speed['warm']:.2f}x. The "
-            "machine (2 cores) may be shared with other jobs: compare the ratios (on a busy "
-            "machine the CPU seconds, which its load does not stretch).")
+            "cell, the kinds alternated; clone cold: a new empty `NUMBA_CACHE_DIR` per run. ")
+    if ref_commit is not None:
+        speed = {m: med[f"now {m}"]["wall_s"] / med[f"ref {m}"]["wall_s"]
+                 for m in ("cold", "warm")}
+        note += (f"Now against before: cold {speed['cold']:.2f}x, warm {speed['warm']:.2f}x. ")
+    loads = [load for v in times.values() for load in v.get("load", [])]
+    note += (f"Load average (1 min) during the runs: {min(loads):.1f}-{max(loads):.1f}. The "
+             "machine (2 cores) may be shared with other jobs: compare the ratios (on a busy "
+             "machine the CPU seconds, which its load does not stretch).")
     if wheel is not None:
         note += (f" Wheel: installed into a fresh venv, run as {checks['run_as']}; cold: a new "
                  "empty user cache (`XDG_CACHE_HOME`) per run, so the shipped kernels are "
