@@ -888,6 +888,10 @@ def main() -> None:
                      "(issues 35 and 47)", "python benchmarks/bench_first_run.py --wheel auto"),
         section_json("portable.json", "The wheel's portable kernels against kernels compiled "
                      "for this CPU (issue 47)", "python benchmarks/bench_portable.py"),
+        section_json("portable_render.json", "The wheel's kernel sets in `render` against "
+                     "kernels compiled for this CPU (issue 47)",
+                     "python benchmarks/bench_portable.py --commands render "
+                     "--out benchmarks/results/portable_render.json"),
         section_ui(load, machine_line, missing),
         section_export(load, machine_line, missing),
         (BENCHMARKS_DIR / "history.md").read_text(),  # measurement history, written by hand
