@@ -15,11 +15,12 @@ VALIDATOR := $(NODE_DIR)/node_modules/gltf-validator
 SPARK := $(NODE_DIR)/node_modules/@sparkjsdev/spark
 
 # A release (docs/development.md#releases): `make wheel` builds dist/photo3d-VERSION-py3-none-any.whl
-# holding make's, render's and export's numba kernels compiled for a portable x86-64 CPU
+# holding make's, render's and export's numba kernels compiled for portable x86-64 CPUs
 # (build/kernels, rebuilt when a source changes: scripts/release/build_kernels.py, one
 # set per Python 3.11+ on PATH), `make sdist` the source archive; twine checks both.
 KERNELS := build/kernels
-KERNEL_CPUS ?= generic
+# x86-64-v3 (AVX2, FMA) first, for the CPUs that have it; generic for every other x86-64 CPU
+KERNEL_CPUS ?= x86-64-v3 generic
 RELEASE_STAMP := $(VENV)/.installed-release
 KERNEL_SOURCES := $(shell find src/photo3d -name '*.py') scripts/release/build_kernels.py
 

@@ -65,6 +65,7 @@ class WheelPath:
     def __init__(self, wheel: Path, work: Path) -> None:
         self.wheel = _wheel.find_wheel(None if str(wheel) == "auto" else wheel)
         self.work = work
+        work.parent.chmod(0o755)  # mkdtemp's 0700 would keep the user out of the venv
         self.python = _wheel.fresh_venv(self.wheel, work / "venv")
         self.package = _wheel.installed_package(self.python)
         self.prefix = _wheel.as_user(self.package)
