@@ -28,7 +28,8 @@ checks that no run wrote a cache file into the installed package, and that a col
 run without ``-q`` shows no "compiling, once" step. Writes
 ``benchmarks/results/first_run.json``.
 
-Usage: python benchmarks/bench_first_run.py [--runs 3] [--ref HEAD] [--wheel auto|PATH]
+Usage: python benchmarks/bench_first_run.py [--runs 3] [--ref HEAD|none]
+       [--wheel auto|PATH [--no-clone]]
 """
 
 from __future__ import annotations
@@ -100,6 +101,8 @@ def main() -> None:
     parser.add_argument("--runs", type=int, default=3)
     parser.add_argument("--ref", default="HEAD",
                         help="the reference commit ('none': this tree alone)")
+    parser.add_argument("--no-clone", action="store_true",
+                        help="the wheel path alone (with --wheel)")
     parser.add_argument("--wheel", type=Path, default=None,
                         help="also the wheel path: a wheel, or 'auto' (newest in dist/)")
     parser.add_argument("--out", type=Path,
@@ -111,12 +114,15 @@ def main() -> None:
     work = Path(tempfile.mkdtemp(prefix="bench_first_run."))
     try:
         srcs = {"ref": work / "ref", "now": work / "now"}
-        if ref_commit is None:
+        if ref_commit is None or args.no_clone:
             del srcs["ref"]
         else:
             git_src(args.ref, srcs["ref"])
-        shutil.copytree(ROOT / "src", srcs["now"] / "src",
-                        ignore=shutil.ignore_patterns("__pycache__", "*.egg-info"))
+        if args.no_clone:
+            del srcs["now"]
+        else:
+            shutil.copytree(ROOT / "src", srcs["now"] / "src",
+                            ignore=shutil.ignore_patterns("__pycache__", "*.egg-info"))
         for version, folder in srcs.items():
             srcs[version] = folder / "src"
             found = which_photo3d(srcs[version])
@@ -168,8 +174,8 @@ def main() -> None:
              for v in versions}
     rows = ["| version | cold (empty numba cache) | warm | cold / warm | cold / warm, CPU |",
             "| --- | --- | --- | --- | --- |"]
-    labels = [("ref", f"clone, before (`{ref_commit}`)"), ("now", "clone, now")][
-        1 if ref_commit is None else 0:]
+    labels = [(v, label) for v, label in (("ref", f"clone, before (`{ref_commit}`)"),
+                                          ("now", "clone, now")) if v in srcs]
     if wheel is not None:
         labels.append(("wheel", f"wheel (`{wheel.wheel.name}`, fresh venv, read-only)"))
     for version, label in labels:
@@ -179,7 +185,7 @@ def main() -> None:
                     f"{ratio[version]['wall_s']:.2f}x | {ratio[version]['cpu_s']:.2f}x |")
     note = (f"\n`photo3d demo --no-video`, whole process, median of {args.runs} runs per "
             "cell, the kinds alternated; clone cold: a new empty `NUMBA_CACHE_DIR` per run. ")
-    if ref_commit is not None:
+    if "ref" in srcs:
         speed = {m: med[f"now {m}"]["wall_s"] / med[f"ref {m}"]["wall_s"]
                  for m in ("cold", "warm")}
         note += (f"Now against before: cold {speed['cold']:.2f}x, warm {speed['warm']:.2f}x. ")
