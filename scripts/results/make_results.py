@@ -885,7 +885,11 @@ def main() -> None:
         section_videos(load, machine_line, missing),
         section_parts(load, machine_line, missing),
         section_json("first_run.json", "The first run: an empty numba cache against a warm one "
-                     "(issues 35 and 47)", "python benchmarks/bench_first_run.py --wheel auto"),
+                     "(issue 35)", "python benchmarks/bench_first_run.py"),
+        section_json("first_run_wheel.json", "The first run from the release wheel: shipped "
+                     "kernels, fresh venv, read-only (issue 47)",
+                     "python benchmarks/bench_first_run.py --wheel auto --no-clone --ref none "
+                     "--out benchmarks/results/first_run_wheel.json"),
         section_json("portable.json", "The wheel's portable kernels against kernels compiled "
                      "for this CPU (issue 47)", "python benchmarks/bench_portable.py"),
         section_json("portable_render.json", "The wheel's kernel sets in `render` against "
