@@ -39,6 +39,7 @@ import os
 import pickle
 import re
 import sys
+import threading
 from pathlib import Path
 
 SHIPPED = Path(__file__).with_name("_kernel_cache")
@@ -56,6 +57,7 @@ TARGETS = {"generic": (), "x86-64-v3": ("avx", "avx2", "bmi", "bmi2", "f16c", "f
 have to run its code (none for ``generic``: any x86-64)."""
 
 _ADOPTED: set[str] = set()  # shipped folders adopted in this process
+_LOCK = threading.Lock()
 _MARKER = ".photo3d-shipped.json"  # in a cache folder: what was adopted into it
 
 
@@ -79,9 +81,17 @@ def adopt(shipped: Path | None = None) -> int:
     """
     shipped = SHIPPED if shipped is None else Path(shipped)
     wanted = os.environ.get(OFF_ENV, "").strip()
-    if wanted == "0" or str(shipped) in _ADOPTED:
+    if wanted == "0":
         return 0
-    _ADOPTED.add(str(shipped))
+    with _LOCK:  # a second caller (another thread) waits until the files are in place
+        if str(shipped) in _ADOPTED:
+            return 0
+        _ADOPTED.add(str(shipped))
+        return _adopt(shipped, wanted)
+
+
+def _adopt(shipped: Path, wanted: str) -> int:
+    """:func:`adopt`'s work, once per process and shipped folder."""
     manifest = read_manifest(shipped)
     if manifest is None:
         return 0
