@@ -885,6 +885,16 @@ def main() -> None:
         section_parts(load, machine_line, missing),
         section_json("first_run.json", "The first run: an empty numba cache against a warm one "
                      "(issue 35)", "python benchmarks/bench_first_run.py"),
+        section_json("first_run_wheel.json", "The first run from the release wheel: shipped "
+                     "kernels, fresh venv, read-only (issue 47)",
+                     "python benchmarks/bench_first_run.py --wheel auto --no-clone --ref none "
+                     "--out benchmarks/results/first_run_wheel.json"),
+        section_json("portable.json", "The wheel's portable kernels against kernels compiled "
+                     "for this CPU (issue 47)", "python benchmarks/bench_portable.py"),
+        section_json("portable_render.json", "The wheel's kernel sets in `render` against "
+                     "kernels compiled for this CPU (issue 47)",
+                     "python benchmarks/bench_portable.py --commands render "
+                     "--out benchmarks/results/portable_render.json"),
         section_ui(load, machine_line, missing),
         section_export(load, machine_line, missing),
         section_splats(load, machine_line, missing),

@@ -71,9 +71,12 @@ def compile_kernels(progress: Callable[[float], None] | None = None, *,
     Returns:
         How many kernels this process compiled (0: all loaded from the cache).
     """
+    from photo3d.kernel_cache import adopt
+
     todo = kernels()
     if not todo or not hasattr(todo[0][0], "compile"):  # NUMBA_DISABLE_JIT
         return 0
+    adopt()  # the wheel's compiled kernels, if they fit: then nothing compiles here
     claims: Path | None = None
     proc = None
     compiled = 0

@@ -84,9 +84,12 @@ def make(
         >>> photo.stats["edges"][0] > 0, photo.ldi.size > 64 * 96
         (True, True)
     """
+    from photo3d.kernel_cache import adopt
+
     config = config or Config()
     backend = inpainter or get_inpainter(config.inpainter)
     report = progress or (lambda stage, fraction: None)
+    adopt()  # the wheel's compiled kernels, if they fit (once per process)
     timings: dict[str, float] = {}
     t = time.perf_counter()
 
