@@ -19,7 +19,17 @@ VALIDATOR := $(NODE_DIR)/node_modules/gltf-validator
 SPARK := $(NODE_DIR)/node_modules/@sparkjsdev/spark
 SPZ4 := $(NODE_DIR)/node_modules/@playcanvas/splat-transform
 
-.PHONY: demo test lint bench clean
+# A release (docs/development.md#releases): `make wheel` builds dist/photo3d-VERSION-py3-none-any.whl
+# holding make's, render's and export's numba kernels compiled for portable x86-64 CPUs
+# (build/kernels, rebuilt when a source changes: scripts/release/build_kernels.py, one
+# set per Python 3.11+ on PATH), `make sdist` the source archive; twine checks both.
+KERNELS := build/kernels
+# x86-64-v3 (AVX2, FMA) first, for the CPUs that have it; generic for every other x86-64 CPU
+KERNEL_CPUS ?= x86-64-v3 generic
+RELEASE_STAMP := $(VENV)/.installed-release
+KERNEL_SOURCES := $(shell find src/photo3d -name '*.py') scripts/release/build_kernels.py
+
+.PHONY: demo test lint bench clean kernels wheel sdist
 
 $(DEMO_STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -48,8 +58,30 @@ test: $(STAMP)
 	$(BIN)/ruff check src tests benchmarks scripts
 	PHOTO3D_NODE_MODULES=$(CURDIR)/$(NODE_DIR) $(BIN)/python -m pytest -q
 
+$(RELEASE_STAMP): $(DEMO_STAMP)
+	$(BIN)/pip install --quiet --disable-pip-version-check -e '.[sample,release]'
+	touch $(RELEASE_STAMP)
+
+$(KERNELS)/manifest.json: $(DEMO_STAMP) $(KERNEL_SOURCES)
+	$(BIN)/python scripts/release/build_kernels.py --out $(KERNELS) --all-pythons \
+		$(foreach cpu,$(KERNEL_CPUS),--cpu $(cpu))
+
+kernels: $(KERNELS)/manifest.json
+
+# setup.py checks the caches are current (fails otherwise) and pins numba to theirs.
+wheel: $(KERNELS)/manifest.json $(RELEASE_STAMP)
+	rm -rf build/lib build/bdist.* dist/photo3d-*.whl
+	PHOTO3D_KERNEL_CACHE=$(CURDIR)/$(KERNELS) $(BIN)/python -m build --wheel --no-isolation \
+		--outdir dist .
+	$(BIN)/twine check --strict dist/photo3d-*.whl
+
+sdist: $(RELEASE_STAMP)
+	rm -f dist/photo3d-*.tar.gz
+	$(BIN)/python -m build --sdist --no-isolation --outdir dist .
+	$(BIN)/twine check --strict dist/photo3d-*.tar.gz
+
 bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_make.py
 
 clean:
-	rm -rf $(VENV) out .pytest_cache $(NODE_DIR)
+	rm -rf $(VENV) out .pytest_cache $(NODE_DIR) build dist

@@ -20,6 +20,7 @@ import numpy as np
 
 HERE = Path(__file__).parent
 sys.path.insert(0, str(HERE))
+from results_edges import section_edges  # noqa: E402
 from results_light import section_light  # noqa: E402
 from results_speed import (  # noqa: E402
     section_export,
@@ -62,6 +63,8 @@ BENCHMARKS = [
     ["bench_edge_crops.py"],
     ["bench_later_passes.py"],
     ["bench_stereo.py"],
+    ["bench_edges.py"],
+    ["bench_edges.py", "--time", "3"],
     ["bench_viewer.py"],
     ["bench_memory.py"],
     ["bench_batch.py"],
@@ -858,7 +861,7 @@ def main() -> None:
         section_edge_crops(),
         section_later_passes(),
         section_compact_quality(),
-        section_stereo(), section_viewer(),
+        section_stereo(), section_edges(load, machine_line, missing), section_viewer(),
         section_json("memory.json", "Peak memory of make (what --size can fit)",
                      "python benchmarks/bench_memory.py"),
         section_batch(),
@@ -882,6 +885,16 @@ def main() -> None:
         section_parts(load, machine_line, missing),
         section_json("first_run.json", "The first run: an empty numba cache against a warm one "
                      "(issue 35)", "python benchmarks/bench_first_run.py"),
+        section_json("first_run_wheel.json", "The first run from the release wheel: shipped "
+                     "kernels, fresh venv, read-only (issue 47)",
+                     "python benchmarks/bench_first_run.py --wheel auto --no-clone --ref none "
+                     "--out benchmarks/results/first_run_wheel.json"),
+        section_json("portable.json", "The wheel's portable kernels against kernels compiled "
+                     "for this CPU (issue 47)", "python benchmarks/bench_portable.py"),
+        section_json("portable_render.json", "The wheel's kernel sets in `render` against "
+                     "kernels compiled for this CPU (issue 47)",
+                     "python benchmarks/bench_portable.py --commands render "
+                     "--out benchmarks/results/portable_render.json"),
         section_ui(load, machine_line, missing),
         section_export(load, machine_line, missing),
         section_splats(load, machine_line, missing),

@@ -327,9 +327,11 @@ def write_videos(photo: SavedPhoto, mesh, folder: Path, videos: Sequence[VideoSp
     before anything is rendered. The videos written are added to that list.
     """
     from photo3d.files.atomic import refuse_symlink
+    from photo3d.kernel_cache import adopt
     from photo3d.render.animate import render_video
     from photo3d.render.renderer import Renderer
 
+    adopt()  # the wheel's compiled kernels, if they fit (once per process)
     refuse_symlink(folder / "video")
     names = [f"video/{spec.name}.{spec.format}" for spec in videos]
     claim_files(folder, names)

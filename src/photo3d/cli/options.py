@@ -14,7 +14,7 @@ import sys
 from pathlib import Path
 
 from photo3d.cli.progress import download_bar
-from photo3d.config import PRESETS, Config
+from photo3d.config import EDGES, PRESETS, Config
 from photo3d.errors import ConfigError
 from photo3d.save_options import EXPORT_FORMATS, SPLAT_DENSITIES, SPZ_VERSIONS
 
@@ -125,6 +125,11 @@ def add_make_options(p: argparse.ArgumentParser, *, out_required: bool,
                    "(default 1024; 0 keeps the input size)")
     p.add_argument("--inpainter", help="inpainting backend: structured (default), diffusion "
                    "or learned")
+    p.add_argument("--edges", choices=EDGES,
+                   help="where the depth edges go: align (default) moves each depth step "
+                        "onto the photo's colour edge within a few pixels (depth from "
+                        "networks and stereo is fat or smooth at silhouettes); exact keeps "
+                        "them where the depth map puts them")
     p.add_argument("--weights", type=weights_arg, metavar="DIR|authors|compact",
                    help="weights of the learned inpainter: a folder with the authors' "
                         "edge-model.pth, depth-model.pth, color-model.pth or photo3d "
@@ -211,12 +216,14 @@ def add_video_options(p: argparse.ArgumentParser, *, command: str) -> None:
 
 
 def config_from(args: argparse.Namespace, **changes) -> Config:
-    """The :class:`Config` of ``--preset``, ``--size`` and ``--inpainter``."""
+    """The :class:`Config` of ``--preset``, ``--size``, ``--inpainter`` and ``--edges``."""
     cfg = PRESETS[args.preset]
     if args.size is not None:
         changes["size"] = None if args.size == 0 else args.size
     if args.inpainter:
         changes["inpainter"] = args.inpainter
+    if getattr(args, "edges", None):
+        changes["edges"] = args.edges
     return cfg.with_(**changes)
 
 

@@ -164,11 +164,14 @@ def export_folder(folder: str | Path, formats: Sequence[str], *,
         >>> sorted(recorded_files(out))
         ['splats.ply', 'splats.spz']
     """
+    from photo3d.kernel_cache import adopt
+
     chosen = check_formats(formats, output=output)
     from photo3d.save_options import SaveOptions
 
     SaveOptions(splats=density, spz_version=spz_version)  # checks both
     require_extras([f.name for f in chosen], spz_version=spz_version)
+    adopt()  # the wheel's compiled kernels, if they fit (once per process)
     folder = Path(folder)
     if not folder.is_dir():
         raise InputError(f"no 3D photo folder at {folder}")
