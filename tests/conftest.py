@@ -45,7 +45,7 @@ def exact_config(**regions) -> Config:
     fill (smooth, exact answers)."""
     base = dict(synthesis_iterations=6, context_iterations=10, edge_dilation=0, border=0)
     base.update(regions)
-    return Config(size=None, spatial_scale=1.0, inpainter="diffusion",
+    return Config(size=None, spatial_scale=1.0, inpainter="diffusion", edges="exact",
                   preprocess=PreprocessConfig(min_edge_length=5, grow_foreground=0.0),
                   regions=RegionConfig(**base))
 

@@ -137,11 +137,12 @@ def test_malformed_requests_get_one_line_and_leave_no_traceback(server, tmp_path
     photo = tmp_path / "photo.png"
     Image.new("RGB", (64, 48), "gray").save(photo)
     sent = uploaded(server, photo)
-    rest = [None, None, 256, "diffusion", "auto", "disparity", False, ["circle"], False]
+    rest = [None, None, 256, "diffusion", "auto", "disparity", False, ["circle"], False,
+            "align"]
     capfd.readouterr()
     for data, message in [
         ([sent], "bad request: An event handler (make) didn't receive enough input values "
-                 "(needed: 10, got: 1)."),
+                 "(needed: 11, got: 1)."),
         ([sent["path"], *rest], "bad request: a file must be sent as an uploaded file"),
         ([{**sent, "path": "/etc/passwd"}, *rest],
          "bad request: a file was not uploaded to this server"),
@@ -157,7 +158,7 @@ def test_malformed_requests_get_one_line_and_leave_no_traceback(server, tmp_path
 def test_results_are_addresses_and_only_they_are_served(server, sample, tmp_path):
     photo, depth = sample
     data = [uploaded(server, photo), uploaded(server, depth), None, 256, "diffusion", "auto",
-            "disparity", False, ["circle"], False]
+            "disparity", False, ["circle"], False, "align"]
     kind, payload = call(server, data)
     assert kind == "complete"
     for folder in (server.workspace.root, server.workspace.root.parent):
@@ -210,7 +211,8 @@ def test_a_path_the_client_names_is_never_opened(server, tmp_path):
     secret = tmp_path / "secret.png"
     Image.new("RGB", (64, 48), "red").save(secret)  # a valid photo, outside the uploads
     fake = {"path": str(secret), "meta": {"_type": "gradio.FileData"}, "orig_name": "p.png"}
-    data = [fake, None, None, 256, "diffusion", "auto", "disparity", False, ["circle"], False]
+    data = [fake, None, None, 256, "diffusion", "auto", "disparity", False, ["circle"], False,
+            "align"]
     before = set(server.workspace.root.glob("request-*"))
     with httpx.Client(base_url=server.url, timeout=60) as http:
         event = http.post("gradio_api/call/make", json={"data": data}).json()["event_id"]

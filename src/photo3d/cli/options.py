@@ -125,7 +125,7 @@ def add_make_options(p: argparse.ArgumentParser, *, out_required: bool,
                    "(default 1024; 0 keeps the input size)")
     p.add_argument("--inpainter", help="inpainting backend: structured (default), diffusion "
                    "or learned")
-    p.add_argument("--edges", choices=EDGES,
+    p.add_argument("--edges", choices=EDGES, default="align",
                    help="where the depth edges go: align (default) moves each depth step "
                         "onto the photo's colour edge within a few pixels (depth from "
                         "networks and stereo is fat or smooth at silhouettes); exact keeps "
