@@ -121,11 +121,12 @@ def missing() -> str | None:
 
 
 @contextmanager
-def _served(splat_file: Path):
-    """A local HTTP server for the page, the splat file and node_modules."""
+def served(splat_file: Path, page: str = PAGE):
+    """A local HTTP server for ``page`` (as ``index.html``), the splat file and
+    node_modules (also for spz_readers' page)."""
     with tempfile.TemporaryDirectory() as root:
         root = Path(root)
-        (root / "index.html").write_text(PAGE)
+        (root / "index.html").write_text(page)
         os.symlink(Path(NODE_DIR).resolve() / "node_modules", root / "node_modules")
         os.symlink(Path(splat_file).resolve(), root / splat_file.name)
         handler = functools.partial(_Quiet, directory=str(root))
@@ -170,7 +171,7 @@ def spark_page(splat_file: Path, width: int, height: int, vfov: float, *, browse
                             timeout=timeout) as page:
                 yield page
         return
-    with _served(Path(splat_file)) as url:
+    with served(Path(splat_file)) as url:
         page = browser.new_page(viewport={"width": width, "height": height},
                                 device_scale_factor=1)
         try:

@@ -13,17 +13,11 @@ decoded, as numpy arrays. Nothing is fetched from the network: the modules come 
 from __future__ import annotations
 
 import base64
-import functools
-import http.server
 import json
-import os
-import tempfile
-import threading
-from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
-from spark_renderer import CHROMIUM, NODE_DIR
+from spark_renderer import CHROMIUM, NODE_DIR, served
 
 PACKAGES = ("three", "playcanvas", "@playcanvas/splat-transform")
 
@@ -120,29 +114,6 @@ def missing() -> str | None:
     return None
 
 
-@contextmanager
-def _served(splat_file: Path):
-    with tempfile.TemporaryDirectory() as root:
-        root = Path(root)
-        (root / "index.html").write_text(PAGE)
-        os.symlink(Path(NODE_DIR).resolve() / "node_modules", root / "node_modules")
-        os.symlink(Path(splat_file).resolve(), root / Path(splat_file).name)
-        handler = functools.partial(_Quiet, directory=str(root))
-        server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), handler)
-        thread = threading.Thread(target=server.serve_forever, daemon=True)
-        thread.start()
-        try:
-            yield f"http://127.0.0.1:{server.server_address[1]}"
-        finally:
-            server.shutdown()
-            server.server_close()
-
-
-class _Quiet(http.server.SimpleHTTPRequestHandler):
-    def log_message(self, *args) -> None:
-        pass
-
-
 def read_with(reader: str, splat_file: Path, browser) -> dict[str, np.ndarray]:
     """What ``reader`` decodes from ``splat_file``: ``"three"`` (an ``.spz``) and
     ``"three_glb"`` (a ``.glb``, through ``GLTFLoader`` with
@@ -151,7 +122,7 @@ def read_with(reader: str, splat_file: Path, browser) -> dict[str, np.ndarray]:
     ``.spz``), splat-transform: one ``(N,)`` array per column (``x``,
     ``f_dc_0``, ``opacity``, ``scale_0``, ``rot_0``, ...: the 3DGS PLY's). The
     reader's errors raise AssertionError."""
-    with _served(Path(splat_file)) as url:
+    with served(Path(splat_file), PAGE) as url:
         page = browser.new_page()
         try:
             errors = []
