@@ -154,3 +154,21 @@ def test_a_broken_start_beside_working_actors_costs_no_photo(tmp_path):
     results: list[PhotoResult] = []
     pool(ray, 2).run(jobs(5), tmp_path, results.append)
     assert [r.status for r in results] == ["ok"] * 5
+
+
+def test_a_new_local_ray_is_started_even_beside_a_running_one(monkeypatch):
+    # ray.init() without an address joins a Ray already running on the machine (and
+    # then refuses num_cpus): photo3d asks for a new local one ("local")
+    from types import SimpleNamespace
+
+    from photo3d.batch import ray_engine
+
+    calls = []
+    fake = SimpleNamespace(is_initialized=lambda: False,
+                           init=lambda **kwargs: calls.append(kwargs))
+    monkeypatch.setattr(ray_engine, "require_ray", lambda: fake)
+    monkeypatch.delenv("RAY_ADDRESS", raising=False)
+    assert ray_engine.connect(local_cpus=2) == "local"
+    assert calls[0]["address"] == "local" and calls[0]["num_cpus"] == 2
+    assert ray_engine.connect("10.0.0.1:6379") == "10.0.0.1:6379"
+    assert calls[1]["address"] == "10.0.0.1:6379" and "num_cpus" not in calls[1]

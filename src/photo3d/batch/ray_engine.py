@@ -124,7 +124,10 @@ def connect(address: str | None = None, *, local_cpus: int | None = None) -> str
         if address:
             ray.init(address=address, **options)
             return address
-        ray.init(num_cpus=local_cpus, object_store_memory=200 * 1024**2, **options)
+        # "local": a new Ray of this process's own, even where another Ray runs on this
+        # machine (ray.init would join that one, and refuse num_cpus)
+        ray.init(address="local", num_cpus=local_cpus, object_store_memory=200 * 1024**2,
+                 **options)
     except (ConnectionError, RuntimeError, ValueError) as err:
         text = " ".join(str(err).split())[:200]
         raise Photo3DError(f"cannot connect to Ray at {address or 'a new local Ray'}: "
