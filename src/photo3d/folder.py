@@ -219,9 +219,10 @@ def make_folder(image: np.ndarray | PathLike, out: PathLike, *,
     from photo3d import pipeline
     from photo3d.depth.sources import read_photo, resolve_depth
     from photo3d.output import stage_photo
+    from photo3d.pipeline import check_photo_memory
 
     options = options or MakeOptions()
-    _check_photo_memory(image, options.config)  # from the header, before any decoding
+    check_photo_memory(image, options.config)  # from the header, before any decoding
     report = progress or (lambda stage, fraction: None)
     backend = inpainter or options.inpainter()
     inputs = _inputs(image, depth, right, depth_model, options)
@@ -252,18 +253,6 @@ def make_folder(image: np.ndarray | PathLike, out: PathLike, *,
             time.perf_counter() - start)
         report("video", 1.0)
     return photo
-
-
-def _check_photo_memory(image: np.ndarray | PathLike, config: Config) -> None:
-    """:func:`photo3d.resources.check_memory` for the photo's own size, read from its
-    file's header: a photo too large for ``config.size`` (``--size 0`` keeps a
-    13000x13000 photo's size) is refused before it is decoded, not after."""
-    from photo3d.io.images import image_shape
-    from photo3d.resources import check_memory
-
-    shape = image_shape(image) if isinstance(image, str | os.PathLike) else None
-    if shape is not None:
-        check_memory(shape, config)
 
 
 def _inputs(image, depth, right, depth_model, options: MakeOptions) -> list[Path]:

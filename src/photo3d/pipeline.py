@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import time
 from collections.abc import Iterator
 from concurrent.futures import Future
@@ -164,9 +165,7 @@ def _load(image: np.ndarray | str | Path, depth: np.ndarray | str | Path | Depth
           config: Config) -> tuple[np.ndarray, DepthInput]:
     """The photo and its prepared depth, the photo's size and the memory checked (for a
     file, from its header first: before a pixel is decoded)."""
-    shape = image_shape(image) if isinstance(image, str | Path) else None
-    if shape is not None:
-        check_memory(shape, config)
+    check_photo_memory(image, config)
     img = read_photo(image)
     if min(img.shape[:2]) < MIN_SIDE:
         raise InputError(f"image is {img.shape[1]}x{img.shape[0]} pixels; photo3d needs at "
@@ -193,6 +192,19 @@ def _first_pass_input(pre: Preprocessed, shape: tuple[int, int], config: Config,
         lo, hi = pre.disparity_range  # of 1 / z: normalised d maps back to z exactly
         mapping = DepthMapping.from_inverse_depth(lo, hi)
     return start(pre, config=config, intrinsics=intrinsics, mapping=mapping)
+
+
+def check_photo_memory(image: np.ndarray | str | Path, config: Config) -> None:
+    """:func:`photo3d.resources.check_memory` for a photo file's own size, read from its
+    header (nothing for an array): a photo too large for ``config.size`` (``--size 0``
+    keeps a 13000x13000 photo's size) is refused before it is decoded, not after.
+
+    Example:
+        >>> check_photo_memory(np.zeros((8, 8, 3)), Config())  # an array: nothing to do
+    """
+    shape = image_shape(image) if isinstance(image, str | os.PathLike) else None
+    if shape is not None:
+        check_memory(shape, config)
 
 
 def fill_pass(state: PassInput, plan: PassPlan, backend: Inpainter, *, pass_index: int = 0,
