@@ -31,7 +31,7 @@ from photo3d.io.gltf_textured import write_textured_glb
 from photo3d.io.npz import load_npz, save_npz
 from photo3d.io.ply import write_ply
 from photo3d.mesh.light import LIGHT_ERROR, build_light_mesh
-from photo3d.owned import FINISHED_FILES, LDI_FILE, claim_files, owned_photo, record_files
+from photo3d.owned import FINISHED_FILES, LDI_FILE, claim_files, owned_photo, recording
 from photo3d.parallel import thread_pool
 from photo3d.save_options import SaveOptions
 from photo3d.structures.ldi import LDI
@@ -324,7 +324,8 @@ def write_videos(photo: SavedPhoto, mesh, folder: Path, videos: Sequence[VideoSp
     Nothing is written through a symbolic link, and no file photo3d did not write is
     replaced: a ``video`` that is a link, or a video name that is a link or a file
     ``config.json`` does not list (:mod:`photo3d.owned`), is refused (OutputError)
-    before anything is rendered. The videos written are added to that list.
+    before anything is rendered. Each video is added to that list as it is moved
+    into place (:func:`photo3d.owned.recording`).
     """
     from photo3d.files.atomic import refuse_symlink
     from photo3d.kernel_cache import adopt
@@ -341,7 +342,7 @@ def write_videos(photo: SavedPhoto, mesh, folder: Path, videos: Sequence[VideoSp
         if mesh is None:
             mesh = _video_mesh(photo, None, None, SaveOptions(render_settings=settings),
                                folder=folder)
-        with Renderer(mesh, settings) as renderer:
+        with Renderer(mesh, settings) as renderer, recording(folder):  # each as it lands
             for i, spec in enumerate(videos):
                 def on_frame(done: int, total: int, i: int = i) -> None:
                     if progress:
@@ -350,7 +351,6 @@ def write_videos(photo: SavedPhoto, mesh, folder: Path, videos: Sequence[VideoSp
                 target = folder / "video" / f"{spec.name}.{spec.format}"
                 written.append(render_video(renderer, photo.ldi, spec, target,
                                             progress=on_frame))
-        record_files(folder, names)
     except OSError as err:
         raise OutputError(f"cannot write videos in {folder}: {err.strerror or err}") from None
     return written

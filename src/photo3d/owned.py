@@ -15,15 +15,16 @@ Folders saved before the list existed: their videos are the ones ``config.json``
 
 from __future__ import annotations
 
+import contextlib
 import fnmatch
 import os
-from collections.abc import Iterable
+from collections.abc import Iterable, Iterator
 from pathlib import Path
 
 from photo3d.errors import InputError, OutputError
-from photo3d.files.atomic import refuse_symlink, write_json
+from photo3d.files.atomic import on_commit, refuse_symlink, write_json
 from photo3d.files.gate import locked
-from photo3d.files.staging import owned_by_names
+from photo3d.files.staging import owned_by_names, remove_orphans_in
 from photo3d.io.bounded import read_json
 
 LDI_FILE = "photo3d.npz"
@@ -96,7 +97,9 @@ def owned_photo(folder: Path) -> list[str]:
 
 
 def claim_files(folder: str | Path, names: Iterable[str]) -> None:
-    """Check before rendering that photo3d may write ``names`` (relative to ``folder``).
+    """Check before rendering that photo3d may write ``names`` (relative to ``folder``),
+    after removing the temporary files killed writers left in it
+    (:func:`photo3d.files.staging.remove_orphans_in`).
 
     Raises:
         OutputError: one of them is a symbolic link, or exists and photo3d did not
@@ -114,6 +117,7 @@ def claim_files(folder: str | Path, names: Iterable[str]) -> None:
         True
     """
     folder = Path(folder)
+    remove_orphans_in(folder)  # what killed writers left there (their writers are gone)
     mine = recorded_files(folder)
     targets = {name: refuse_symlink(folder / name) for name in names}  # links first
     for name, target in targets.items():
@@ -148,6 +152,35 @@ def record_files(folder: str | Path, names: Iterable[str]) -> None:
             meta = {}
         meta["written"] = sorted(recorded_files(folder) | set(names))
         write_json(path, meta)
+
+
+@contextlib.contextmanager
+def recording(folder: str | Path) -> Iterator[None]:
+    """Inside the block, each file this thread moves into place in ``folder`` (or its
+    ``video/``) that ``config.json`` must list (:data:`RECORDED`) is recorded there
+    (:func:`record_files`) in the same step as its move: a Ctrl-C or SIGTERM never
+    leaves a file in place that the record does not list.
+
+    Example:
+        >>> import pathlib, tempfile
+        >>> from photo3d.files.atomic import write_bytes
+        >>> folder = pathlib.Path(tempfile.mkdtemp())
+        >>> with recording(folder):
+        ...     _ = write_bytes(folder / "splats.ply", b"ply")
+        >>> sorted(recorded_files(folder))
+        ['splats.ply']
+    """
+    root = os.path.realpath(folder)
+
+    def record(final: Path) -> None:
+        parent = os.path.realpath(final.parent)
+        name = final.name if parent == root else (
+            f"video/{final.name}" if parent == os.path.join(root, "video") else None)
+        if name is not None and any(fnmatch.fnmatchcase(name, p) for p in RECORDED):
+            record_files(folder, [name])
+
+    with on_commit(record):
+        yield
 
 
 def _recordable(folder: Path) -> list[str]:

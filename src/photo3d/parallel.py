@@ -405,10 +405,7 @@ def thread_pool(most: int | None = None, *, name: str = "work") -> Executor | In
     size = width(most)
     if size == 1:
         return Inline()
-    from concurrent.futures import ThreadPoolExecutor
-
-    return ThreadPoolExecutor(size, thread_name_prefix=f"photo3d-{name}", initializer=_enter,
-                              initargs=(worker_share(size),))
+    return _pool(size, name, worker_share(size))
 
 
 def map_ordered(fn: Callable[[T], R], items: Sequence[T], *,
@@ -463,10 +460,41 @@ def overlap(*, name: str = "overlap") -> Executor | Inline:
     """
     if threads() < 2:
         return Inline()
+    return _pool(1, name, 1)
+
+
+def _pool(size: int, name: str, share_each: int) -> Executor:
+    """A thread pool that stops with the process (:mod:`photo3d.files.signals`): each
+    task first checks that no signal asked the process to stop, and leaving its
+    ``with`` block by an exception (Ctrl-C, an error) cancels the tasks not started,
+    then waits for the running ones, which stop at their next check."""
+    return _stopping_pool()(size, thread_name_prefix=f"photo3d-{name}", initializer=_enter,
+                            initargs=(share_each,))
+
+
+@functools.cache
+def _stopping_pool() -> type:
+    """:func:`_pool`'s executor class (made when first needed: ``concurrent.futures``
+    loads then)."""
     from concurrent.futures import ThreadPoolExecutor
 
-    return ThreadPoolExecutor(1, thread_name_prefix=f"photo3d-{name}", initializer=_enter,
-                              initargs=(1,))
+    class StoppingPool(ThreadPoolExecutor):
+        def submit(self, fn, /, *args, **kwargs):
+            return super().submit(_checked, fn, *args, **kwargs)
+
+        def __exit__(self, exc_type, exc, traceback):
+            self.shutdown(wait=True, cancel_futures=exc_type is not None)
+            return False
+
+    return StoppingPool
+
+
+def _checked(fn: Callable[..., T], /, *args: Any, **kwargs: Any) -> T:
+    """``fn(*args, **kwargs)`` unless a signal asked the process to stop."""
+    from photo3d.files.signals import check
+
+    check()
+    return fn(*args, **kwargs)
 
 
 def ahead(items: Iterator[T], *, name: str = "ahead") -> Iterator[T]:

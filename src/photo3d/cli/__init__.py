@@ -72,13 +72,7 @@ def main(argv: list[str] | None = None) -> int:
                 process_threads()  # a bad PHOTO3D_THREADS is told before any work
             warnings.showwarning = show
             with reading(*command_inputs(args)):  # no write may reach them
-                status = args.run(args)
-            if argv is None:  # the photo3d command: the process ends next
-                # Python's last garbage collections at exit walk numba's object graph
-                # and free what they find (0.2-0.4 s after a make); frozen objects are
-                # left to the operating system (the files are written and closed)
-                gc.freeze()
-            return status
+                return args.run(args)
         except Photo3DError as err:  # also MissingExtra: an optional package is missing
             print(f"photo3d: error: {err}", file=sys.stderr)
             return 2
@@ -92,6 +86,14 @@ def main(argv: list[str] | None = None) -> int:
             name = "" if signum == signal.SIGINT else f" ({signal.Signals(signum).name})"
             print(f"photo3d: interrupted{name}", file=sys.stderr)
             return 128 + signum
+        finally:
+            if argv is None:  # the photo3d command: the process ends next
+                # Python's last garbage collections at exit walk numba's and torch's
+                # object graphs and free what they find (0.2-0.4 s after a make, 2.4 s
+                # after an interrupted train); frozen objects are left to the
+                # operating system (the files are written and closed, the temporary
+                # ones removed)
+                gc.freeze()
 
 
 def command_inputs(args: argparse.Namespace) -> list[Path]:

@@ -74,7 +74,7 @@ def _check_memory(args: argparse.Namespace, photo, videos) -> None:
 def _still(args: argparse.Namespace, photo, spec) -> int:
     from photo3d.files.atomic import atomic_path, check_writable
     from photo3d.io.images import write_image
-    from photo3d.owned import claim_files, record_files
+    from photo3d.owned import claim_files, recording
     from photo3d.render.animate import render_still
     from photo3d.render.renderer import Renderer
 
@@ -84,9 +84,8 @@ def _still(args: argparse.Namespace, photo, spec) -> int:
     check_writable(path, follow_symlinks=False)  # before rendering
     with Renderer(photo.mesh(), render_settings_from(args)) as renderer:
         image = render_still(renderer, photo.ldi, spec)
-    with atomic_path(path, follow_symlinks=False) as tmp:
-        write_image(tmp, image)
-    record_files(args.photo, [name])
+    with recording(args.photo), atomic_path(path, follow_symlinks=False) as tmp:
+        write_image(tmp, image)  # recorded as it is moved into place
     if not args.quiet:
         print(f"wrote {path} ({image.shape[1]}x{image.shape[0]})")
     return 0

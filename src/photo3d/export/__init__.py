@@ -24,6 +24,7 @@ and the light textured mesh that ``mesh.usdz`` and the quilt are made of.
 
 from __future__ import annotations
 
+import contextlib
 import fnmatch
 import importlib
 import math
@@ -37,7 +38,7 @@ from typing import TYPE_CHECKING
 from photo3d.errors import ConfigError, InputError, OutputError
 from photo3d.files.gate import check_target, reading
 from photo3d.io.npz import ldi_pixels, load_npz
-from photo3d.owned import EXPORT_FILES, LDI_FILE, claim_files, record_files
+from photo3d.owned import EXPORT_FILES, LDI_FILE, claim_files, recording
 from photo3d.parallel import thread_pool
 from photo3d.progress import StageProgress
 from photo3d.resources import check_export_memory
@@ -134,8 +135,10 @@ def export_folder(folder: str | Path, formats: Sequence[str], *,
         progress: ``progress("export", fraction)`` after each file.
 
     The files are written two at a time (the machine's cores), each atomically, and
-    recorded as each is in place, so an error leaves the files finished before it
-    recorded and nothing half-written.
+    recorded in the same step as it is moved into place, so an error, Ctrl-C or
+    SIGTERM leaves the files finished before it recorded and nothing half-written;
+    after a signal the writers stop at their next check
+    (:func:`photo3d.files.signals.check`) and no file is moved into place.
 
     Returns:
         The files written, in the order of ``formats``.
@@ -219,22 +222,24 @@ def _export(folder: Path, chosen: list[Format], ldi: LDI, meta: dict, *,
         record_in = folder
     preload(chosen)  # before the writer threads start
     written: list[Path] = []
+    error = None
     with thread_pool(2, name="export") as pool:  # zlib, numpy and writes release the GIL
         jobs = submit_writers(pool, ldi, list(zip(chosen, targets, strict=True)),
                               density=density, spz_version=spz_version,
-                              light_error=_light_error(meta))
-        error = None
+                              light_error=_light_error(meta), record_in=record_in)
         for job, target in zip(jobs, targets, strict=True):
-            try:
-                job.result()
-            except BaseException as err:  # noqa: B036 - raised below, once all are done
-                error = error or err
-                continue
-            if record_in is not None:
-                record_files(record_in, [target.name])  # as each file is in place
-            written.append(target)
-            if progress:
-                progress("export", len(written) / len(targets))
+            while True:  # every job ends (after a signal, at its next check) before
+                try:     # this returns or raises: none moves a file in place later
+                    job.result()
+                except BaseException as err:  # noqa: B036 - raised below, once all ended
+                    error = error or err
+                    if not job.done():  # a signal interrupted the wait: wait again
+                        continue
+                    break
+                written.append(target)
+                if progress and error is None:
+                    progress("export", len(written) / len(targets))
+                break
     if error is not None:
         raise error
     return written
@@ -243,7 +248,8 @@ def _export(folder: Path, chosen: list[Format], ldi: LDI, meta: dict, *,
 def submit_writers(pool: Executor, ldi: LDI, targets: Sequence[tuple[Format, Path]], *,
                    density: str = "adaptive", spz_version: int = 3,
                    mesh: TexturedMesh | None = None,
-                   light_error: float | None = None) -> list[Future]:
+                   light_error: float | None = None,
+                   record_in: Path | None = None) -> list[Future]:
     """Have ``pool`` write each ``(format, path)`` of ``targets``; returns the writers'
     futures, in the order of ``targets``.
 
@@ -265,6 +271,8 @@ def submit_writers(pool: Executor, ldi: LDI, targets: Sequence[tuple[Format, Pat
         spz_version: ``splats.spz``'s version (3 or 4).
         mesh: the light textured mesh of ``ldi`` if already built.
         light_error: its error bound when it is built here (pixels).
+        record_in: a 3D photo folder whose ``config.json`` records each file as it
+            is moved into place (:func:`photo3d.owned.recording`); None: no record.
 
     Example:
         >>> import numpy as np, pathlib, tempfile
@@ -296,7 +304,8 @@ def submit_writers(pool: Executor, ldi: LDI, targets: Sequence[tuple[Format, Pat
         given = {k: options[k] for k in fmt.options if k in options}
         if "mesh" in fmt.options:
             given["mesh"] = mesh if light is None else light.result()
-        fmt.load()(ldi, path, **given)
+        with recording(record_in) if record_in is not None else contextlib.nullcontext():
+            fmt.load()(ldi, path, **given)
 
     jobs = {i: pool.submit(write, fmt, path) for i, (fmt, path) in enumerate(targets)
             if "mesh" not in fmt.options}  # the splat files first: they need nothing more
@@ -305,9 +314,17 @@ def submit_writers(pool: Executor, ldi: LDI, targets: Sequence[tuple[Format, Pat
     return [jobs[i] for i in range(len(targets))]
 
 
+_MESH_KERNELS = ("photo3d.mesh._faces", "photo3d.mesh._planar", "photo3d.mesh._charts",
+                 "photo3d.mesh._collapse")
+"""The kernel modules of the light mesh (:func:`preload` loads them)."""
+
+
 def preload(formats: Sequence[Format]) -> None:
     """Import the modules of ``formats`` that must not be imported while other
-    threads run; call it before the writer threads start.
+    threads run; call it before the writer threads start. The light mesh's numba
+    kernels are loaded too (:func:`photo3d.kernels.load_kernels`), here in the
+    calling thread, where a signal stops the loading at once (in a writer thread it
+    could not: the process would stop a second later).
 
     usd-core's libraries, as they load, take the GIL back while the dynamic loader's
     lock is held; a thread running numpy meanwhile holds the GIL and waits for that
@@ -320,6 +337,10 @@ def preload(formats: Sequence[Format]) -> None:
     Example:
         >>> preload([FORMATS["splats.spz"]])  # nothing to import
     """
+    if any("mesh" in fmt.options for fmt in formats):
+        from photo3d.kernels import load_kernels
+
+        load_kernels(*_MESH_KERNELS)
     for fmt in formats:
         for module in fmt.preload:
             try:

@@ -49,14 +49,17 @@ import contextlib
 import errno
 import json
 import os
+import re
 import secrets
+import threading
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import IO, Any
 
 from photo3d.errors import OutputError
 from photo3d.files.gate import check_target, in_issued_folder
+from photo3d.files.signals import check, deferred
 
 PathLike = str | os.PathLike[str]
 
@@ -101,6 +104,20 @@ def temp_entries(path: PathLike, *, suffixed: bool = True) -> list[Path]:
     except OSError:
         return []
     return [e for e in entries if is_temp_of(e.name, final.name, suffixed=suffixed)]
+
+
+def is_temp_name(name: str) -> bool:
+    """True if ``name`` is a temporary name photo3d gives to a writer of any target:
+    ``.TARGET.XXXXXXXX.tmp``, with at most one suffix after it (:func:`is_temp_of`).
+
+    Example:
+        >>> [is_temp_name(n) for n in (".a.png.0123abcd.tmp.png", ".out.0123abcd.tmp", "a.tmp")]
+        [True, True, False]
+    """
+    return _TEMP_NAME.fullmatch(name) is not None
+
+
+_TEMP_NAME = re.compile(r"\..+\.[0-9a-f]{8}\.tmp(?:\.[^.]+)?")
 
 
 def is_temp_of(name: str, target: str, *, suffixed: bool = True) -> bool:
@@ -201,6 +218,7 @@ class PendingFile(Pending):
                  follow_symlinks: bool = False) -> None:
         self.target = Path(path)
         self._done = False
+        check()  # a worker thread starts no write once a signal asked to stop
         self.final = check_target(self.target, follow_symlinks=follow_symlinks)
         try:
             _check_target(self.final, self.target)
@@ -224,13 +242,22 @@ class PendingFile(Pending):
             b''
         """
         try:
-            os.replace(self.path, self.final)
-        except OSError as err:
+            check()  # a worker thread moves nothing into place once a signal asked to stop
+        except BaseException:
             self.discard()
-            raise OutputError(f"cannot write {self.target}: {err.strerror or err}") from None
-        self._done = True
-        _LIVE.discard(self.path)
-        release(self.path)
+            raise
+        with deferred():  # in place and recorded (on_commit), or neither
+            try:
+                os.replace(self.path, self.final)
+            except OSError as err:
+                self.discard()
+                raise OutputError(f"cannot write {self.target}: "
+                                  f"{err.strerror or err}") from None
+            self._done = True
+            _LIVE.discard(self.path)
+            release(self.path)
+            for hook in list(getattr(_COMMITS, "hooks", ())):
+                hook(self.final)
         return self.target
 
     def discard(self) -> None:
@@ -248,6 +275,31 @@ class PendingFile(Pending):
             os.unlink(self.path)
         _LIVE.discard(self.path)
         release(self.path)
+
+
+_COMMITS = threading.local()  # .hooks: on_commit()'s, of this thread
+
+
+@contextlib.contextmanager
+def on_commit(hook: Callable[[Path], None]) -> Iterator[None]:
+    """Inside the block, call ``hook(final)`` as each file this thread writes is moved
+    into place (:meth:`PendingFile.commit`), in the same step: a signal cannot land
+    between the two (:func:`photo3d.files.signals.deferred`). For a record of what was
+    written (:func:`photo3d.owned.recording`).
+
+    Example:
+        >>> import pathlib, tempfile
+        >>> target = pathlib.Path(tempfile.mkdtemp()) / "a.txt"
+        >>> with on_commit(lambda final: print(final.name)):
+        ...     _ = write_text(target, "hi")
+        a.txt
+    """
+    hooks = _COMMITS.__dict__.setdefault("hooks", [])
+    hooks.append(hook)
+    try:
+        yield
+    finally:
+        hooks.remove(hook)
 
 
 @contextlib.contextmanager
@@ -610,7 +662,8 @@ def release(path: Path, *, keep: bool = False) -> None:
 
 def orphaned(path: Path, *, age: float | None = None) -> bool:
     """True if the temporary file or folder ``path`` (not a link) was made more than
-    ``age`` seconds ago (default :data:`ORPHAN_AGE_S`) and no process holds it
+    ``age`` seconds ago (default :data:`ORPHAN_AGE_S`; a file that holds bytes, at
+    any age: its writer locked it before writing) and no process holds it
     (:func:`hold`; a folder without its :data:`WRITER_MARK` is being moved into
     place, or is not photo3d's: never an orphan): its writer is gone."""
     try:
@@ -627,8 +680,10 @@ def orphaned(path: Path, *, age: float | None = None) -> bool:
     except OSError:  # gone, no mark
         return False
     try:
-        if time.time() - os.fstat(fd).st_ctime < (ORPHAN_AGE_S if age is None else age):
-            return False
+        st = os.fstat(fd)
+        young = time.time() - st.st_ctime < (ORPHAN_AGE_S if age is None else age)
+        if young and (target != path or st.st_size == 0):  # a writer locks a file
+            return False  # before its first byte: one with bytes is not being created
         fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)  # free: its writer is gone
         return True
     except OSError:  # held: its writer is alive

@@ -10,6 +10,14 @@ Ctrl-C and on termination alike. The batch's pool workers use
 lands inside a C callback is raised again once the C code returns
 (:func:`redeliver_swallowed`), and a signal repeated while the first one unwinds
 does not interrupt the cleanup.
+
+A signal also asks the whole process to stop (:func:`stopping`): the threads of
+:mod:`photo3d.parallel`'s pools call :func:`check` before each task, and long work
+calls it between chunks, so worker threads stop at their next check while the main
+thread unwinds; a file is never moved into place by a worker thread after a signal
+(:class:`photo3d.files.atomic.PendingFile` checks). :func:`deferred` keeps a short
+step whole (a file moved into place and recorded): a signal that lands inside it
+is raised when it ends.
 """
 
 from __future__ import annotations
@@ -18,9 +26,8 @@ import contextlib
 import os
 import signal
 import sys
+import threading
 from collections.abc import Callable, Iterator
-
-from photo3d.parallel import later
 
 
 class Interrupted(KeyboardInterrupt):
@@ -66,6 +73,8 @@ def redeliver_swallowed(kinds: tuple[type[BaseException], ...],
             if signum is None:
                 return
             # later, so that it does not land in this hook again
+            from photo3d.parallel import later  # here: parallel's pools import this module
+
             try:
                 later(_REDELIVER_S, os.kill, os.getpid(), signum)
                 return
@@ -84,6 +93,67 @@ def redeliver_swallowed(kinds: tuple[type[BaseException], ...],
 
 _REDELIVER_S = 0.05
 _REDELIVER_TRIES = 3
+
+
+_stop: int | None = None
+"""The signal that asked this process to stop (:func:`stopping`), or None."""
+_local = threading.local()  # .deferred: depth of deferred() blocks; .pending: a signal held
+
+
+def stopping() -> int | None:
+    """The signal that asked this process to stop, or None: set when
+    :func:`handle_signals` (or :func:`worker_signals`) receives one, cleared when the
+    outermost :func:`handle_signals` block ends.
+
+    Example:
+        >>> stopping() is None
+        True
+    """
+    return _stop
+
+
+def check() -> None:
+    """In a worker thread, raise the interruption (:class:`KeyboardInterrupt` for
+    SIGINT, :class:`Interrupted` otherwise) once a signal asked the process to stop;
+    call it between chunks of long work. Does nothing in the main thread (its signal
+    handler raised already, and its cleanup must run) and inside :func:`deferred`.
+
+    Example:
+        >>> check()  # no signal: nothing happens
+    """
+    if _stop is None or getattr(_local, "deferred", 0):
+        return
+    if threading.current_thread() is threading.main_thread():
+        return
+    _raise_for(_stop)
+
+
+@contextlib.contextmanager
+def deferred() -> Iterator[None]:
+    """A step that a signal must not cut in two (a file moved into place, then
+    recorded): inside the block :func:`check` does not raise, and in the main thread
+    a signal is held and raised when the block ends. Keep it short: the process
+    stops only after it.
+
+    Example:
+        >>> with deferred():
+        ...     pass
+    """
+    _local.deferred = getattr(_local, "deferred", 0) + 1
+    try:
+        yield
+    finally:
+        _local.deferred -= 1
+        pending = getattr(_local, "pending", None)
+        if not _local.deferred and pending is not None:
+            _local.pending = None
+            if sys.exc_info()[1] is None:  # else that exception unwinds already
+                _raise_for(pending)
+
+
+def _request_stop(signum: int | None) -> None:
+    global _stop
+    _stop = signum
 
 
 class SignalGuard:
@@ -148,6 +218,10 @@ def handle_signals() -> Iterator[SignalGuard]:
                 signal.signal(number, old)
             return
         guard.signum = signum
+        _request_stop(signum)  # worker threads stop at their next check()
+        if getattr(_local, "deferred", 0):  # raised when the deferred step ends
+            _local.pending = signum
+            return
         _raise_for(signum)
 
     wanted = [signal.SIGINT, signal.SIGTERM] + ([signal.SIGHUP] if hasattr(signal, "SIGHUP")
@@ -159,6 +233,7 @@ def handle_signals() -> Iterator[SignalGuard]:
         return signum
 
     restore = redeliver_swallowed((KeyboardInterrupt,), rearm) if previous else None
+    outer = _stop is None
     try:
         yield guard
     finally:
@@ -166,6 +241,8 @@ def handle_signals() -> Iterator[SignalGuard]:
             signal.signal(signum, old)
         if restore is not None:
             restore()
+        if outer:
+            _request_stop(None)
 
 
 def worker_signals(busy: Callable[[], bool]) -> SignalGuard:
@@ -200,6 +277,7 @@ def worker_signals(busy: Callable[[], bool]) -> SignalGuard:
     def handler(signum, frame):
         signal.signal(signal.SIGTERM, signal.SIG_IGN)  # once is enough (see above)
         guard.signum = signum
+        _request_stop(signum)  # the worker's own threads stop at their next check()
         if not busy():
             os._exit(0)
         _raise_for(signum)

@@ -39,6 +39,7 @@ Example:
 from __future__ import annotations
 
 import atexit
+import contextlib
 import errno
 import fnmatch
 import os
@@ -50,6 +51,7 @@ from photo3d.errors import OutputError
 from photo3d.files.atomic import (
     Pending,
     hold,
+    is_temp_name,
     orphaned,
     release,
     temp_entries,
@@ -285,6 +287,7 @@ def _check_existing(final: Path, out: Path, *, overwrite: bool,
         return
     if not overwrite:
         raise OutputError(f"output folder {out} exists and is not empty (use --overwrite)")
+    remove_orphans_in(final)  # what killed writers left inside: not the user's files
     foreign = owned(final) if owned else ["is not empty"]
     if foreign:
         raise OutputError(f"--overwrite only replaces a folder photo3d wrote, but {out} "
@@ -364,6 +367,52 @@ def remove_orphans(out: PathLike) -> list[Path]:
         if tmp.is_dir() and not tmp.is_symlink() and orphaned(tmp):
             shutil.rmtree(tmp, ignore_errors=True)
             removed.append(tmp)
+    return removed
+
+
+def remove_orphans_in(folder: PathLike) -> list[Path]:
+    """Remove the temporary files and folders of any name (:func:`is_temp_name`) in
+    ``folder`` and in its subfolders (not links) whose writer is gone
+    (:func:`~photo3d.files.atomic.orphaned`): what a killed command left in a folder
+    it wrote into. Safe while other processes write there. Returns what was removed.
+
+    Example:
+        >>> import pathlib, tempfile
+        >>> folder = pathlib.Path(tempfile.mkdtemp())
+        >>> _ = (folder / ".splats.ply.0123abcd.tmp.ply").write_bytes(b"ply")  # nobody holds it
+        >>> [p.name for p in remove_orphans_in(folder)], list(folder.iterdir())
+        (['.splats.ply.0123abcd.tmp.ply'], [])
+    """
+    removed = []
+    try:
+        entries = sorted(Path(folder).iterdir())
+    except OSError:
+        return removed
+    for entry in entries:
+        if entry.is_symlink():
+            continue
+        if is_temp_name(entry.name) and orphaned(entry):
+            if entry.is_dir():
+                shutil.rmtree(entry, ignore_errors=True)
+            else:
+                with contextlib.suppress(FileNotFoundError):
+                    entry.unlink()
+            removed.append(entry)
+        elif entry.is_dir() and not is_temp_name(entry.name):  # a live writer's: its own
+            removed += _orphan_files(entry)
+    return removed
+
+
+def _orphan_files(folder: Path) -> list[Path]:
+    """:func:`remove_orphans_in` one level down (files only)."""
+    removed = []
+    with contextlib.suppress(OSError):
+        for entry in sorted(folder.iterdir()):
+            if is_temp_name(entry.name) and entry.is_file() and not entry.is_symlink() \
+                    and orphaned(entry):
+                with contextlib.suppress(FileNotFoundError):
+                    entry.unlink()
+                removed.append(entry)
     return removed
 
 

@@ -23,6 +23,7 @@ import numpy as np
 
 from photo3d.camera import Camera, Intrinsics
 from photo3d.errors import ConfigError, require
+from photo3d.files.signals import check
 from photo3d.holes import fill_holes
 from photo3d.parallel import thread_safe_kernels, threads
 from photo3d.render._resolve import grow_fill, grow_fill_far, holes_to_rgb8, to_rgb8
@@ -199,7 +200,10 @@ class Renderer:
         self.close()
 
     def render(self, camera: Camera) -> View:
-        """Render ``camera`` (its intrinsics give the output size)."""
+        """Render ``camera`` (its intrinsics give the output size). In a worker thread,
+        raises the interruption first once a signal asked the process to stop
+        (:func:`photo3d.files.signals.check`: each view is a chunk of the work)."""
+        check()
         s = self.settings
         k = self._intrinsics(camera)
         f = s.ssaa
