@@ -491,7 +491,7 @@ def _stopping_pool() -> type:
 
 def _checked(fn: Callable[..., T], /, *args: Any, **kwargs: Any) -> T:
     """``fn(*args, **kwargs)`` unless a signal asked the process to stop."""
-    from photo3d.files.signals import check
+    from photo3d.files.stop import check
 
     check()
     return fn(*args, **kwargs)

@@ -11,7 +11,8 @@ import time
 
 import pytest
 
-from photo3d.files.signals import Interrupted, handle_signals
+from photo3d.files.signals import handle_signals
+from photo3d.files.stop import Interrupted
 
 pytestmark = pytest.mark.skipif(sys.platform == "win32", reason="POSIX signals")
 
@@ -115,7 +116,8 @@ def test_an_interrupt_while_the_redelivery_thread_starts_is_sent_again(monkeypat
 
 _WORKER = """
 import os, signal, sys, time
-from photo3d.files.signals import Interrupted, worker_signals
+from photo3d.files.signals import worker_signals
+from photo3d.files.stop import Interrupted
 
 busy = sys.argv[1] == "busy"
 guard = worker_signals(busy=lambda: busy)

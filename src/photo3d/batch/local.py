@@ -36,7 +36,8 @@ from pathlib import Path
 from photo3d.batch.jobs import MakeOptions, PhotoJob
 from photo3d.batch.manifest import PhotoResult
 from photo3d.batch.worker import PhotoMaker, discard_partial, one_line
-from photo3d.files.signals import Interrupted, sigint_ignored, worker_signals
+from photo3d.files.signals import sigint_ignored, worker_signals
+from photo3d.files.stop import Interrupted
 from photo3d.parallel import active_children, process_pool, start_thread
 
 _PR_SET_PDEATHSIG = 1  # linux/prctl.h

@@ -59,7 +59,7 @@ from typing import IO, Any
 
 from photo3d.errors import OutputError
 from photo3d.files.gate import check_target, in_issued_folder
-from photo3d.files.signals import check, deferred
+from photo3d.files.stop import check, deferred
 
 PathLike = str | os.PathLike[str]
 

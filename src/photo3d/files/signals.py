@@ -26,20 +26,10 @@ import contextlib
 import os
 import signal
 import sys
-import threading
 from collections.abc import Callable, Iterator
 
-
-class Interrupted(KeyboardInterrupt):
-    """Raised inside :func:`handle_signals` when a termination signal arrives.
-
-    Attributes:
-        signum: the signal number (``signal.SIGTERM``, ``signal.SIGHUP``, ...).
-    """
-
-    def __init__(self, signum: int) -> None:
-        super().__init__(signal.Signals(signum).name)
-        self.signum = signum
+from photo3d.files.stop import Interrupted, held, raise_for, request_stop, stopping
+from photo3d.parallel import later
 
 
 def redeliver_swallowed(kinds: tuple[type[BaseException], ...],
@@ -73,8 +63,6 @@ def redeliver_swallowed(kinds: tuple[type[BaseException], ...],
             if signum is None:
                 return
             # later, so that it does not land in this hook again
-            from photo3d.parallel import later  # here: parallel's pools import this module
-
             try:
                 later(_REDELIVER_S, os.kill, os.getpid(), signum)
                 return
@@ -95,79 +83,11 @@ _REDELIVER_S = 0.05
 _REDELIVER_TRIES = 3
 
 
-_stop: int | None = None
-"""The signal that asked this process to stop (:func:`stopping`), or None."""
-_local = threading.local()  # .deferred: depth of deferred() blocks; .pending: a signal held
-
-
-def stopping() -> int | None:
-    """The signal that asked this process to stop, or None: set when
-    :func:`handle_signals` (or :func:`worker_signals`) receives one, cleared when the
-    outermost :func:`handle_signals` block ends.
-
-    Example:
-        >>> stopping() is None
-        True
-    """
-    return _stop
-
-
-def check() -> None:
-    """In a worker thread, raise the interruption (:class:`KeyboardInterrupt` for
-    SIGINT, :class:`Interrupted` otherwise) once a signal asked the process to stop;
-    call it between chunks of long work. Does nothing in the main thread (its signal
-    handler raised already, and its cleanup must run) and inside :func:`deferred`.
-
-    Example:
-        >>> check()  # no signal: nothing happens
-    """
-    if _stop is None or getattr(_local, "deferred", 0):
-        return
-    if threading.current_thread() is threading.main_thread():
-        return
-    _raise_for(_stop)
-
-
-@contextlib.contextmanager
-def deferred() -> Iterator[None]:
-    """A step that a signal must not cut in two (a file moved into place, then
-    recorded): inside the block :func:`check` does not raise, and in the main thread
-    a signal is held and raised when the block ends. Keep it short: the process
-    stops only after it.
-
-    Example:
-        >>> with deferred():
-        ...     pass
-    """
-    _local.deferred = getattr(_local, "deferred", 0) + 1
-    try:
-        yield
-    finally:
-        _local.deferred -= 1
-        pending = getattr(_local, "pending", None)
-        if not _local.deferred and pending is not None:
-            _local.pending = None
-            if sys.exc_info()[1] is None:  # else that exception unwinds already
-                _raise_for(pending)
-
-
-def _request_stop(signum: int | None) -> None:
-    global _stop
-    _stop = signum
-
-
 class SignalGuard:
     """What :func:`handle_signals` (or :func:`worker_signals`) saw: ``signum`` is the
     first signal received, or None."""
 
     signum: int | None = None
-
-
-def _raise_for(signum: int) -> None:
-    """The exception a signal becomes: KeyboardInterrupt for SIGINT, as Python does."""
-    if signum == signal.SIGINT:
-        raise KeyboardInterrupt
-    raise Interrupted(signum)
 
 
 def _install(handler: Callable, signums: list[int]) -> dict[int, object]:
@@ -218,11 +138,10 @@ def handle_signals() -> Iterator[SignalGuard]:
                 signal.signal(number, old)
             return
         guard.signum = signum
-        _request_stop(signum)  # worker threads stop at their next check()
-        if getattr(_local, "deferred", 0):  # raised when the deferred step ends
-            _local.pending = signum
+        request_stop(signum)  # worker threads stop at their next check()
+        if held(signum):  # inside deferred(): raised when that step ends
             return
-        _raise_for(signum)
+        raise_for(signum)
 
     wanted = [signal.SIGINT, signal.SIGTERM] + ([signal.SIGHUP] if hasattr(signal, "SIGHUP")
                                                 else [])
@@ -233,7 +152,7 @@ def handle_signals() -> Iterator[SignalGuard]:
         return signum
 
     restore = redeliver_swallowed((KeyboardInterrupt,), rearm) if previous else None
-    outer = _stop is None
+    outer = stopping() is None
     try:
         yield guard
     finally:
@@ -242,7 +161,7 @@ def handle_signals() -> Iterator[SignalGuard]:
         if restore is not None:
             restore()
         if outer:
-            _request_stop(None)
+            request_stop(None)
 
 
 def worker_signals(busy: Callable[[], bool]) -> SignalGuard:
@@ -277,10 +196,10 @@ def worker_signals(busy: Callable[[], bool]) -> SignalGuard:
     def handler(signum, frame):
         signal.signal(signal.SIGTERM, signal.SIG_IGN)  # once is enough (see above)
         guard.signum = signum
-        _request_stop(signum)  # the worker's own threads stop at their next check()
+        request_stop(signum)  # the worker's own threads stop at their next check()
         if not busy():
             os._exit(0)
-        _raise_for(signum)
+        raise_for(signum)
 
     def rearm() -> int:  # the exception was swallowed: arm again, have it sent again
         signal.signal(signal.SIGTERM, handler)

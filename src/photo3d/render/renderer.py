@@ -23,7 +23,7 @@ import numpy as np
 
 from photo3d.camera import Camera, Intrinsics
 from photo3d.errors import ConfigError, require
-from photo3d.files.signals import check
+from photo3d.files.stop import check
 from photo3d.holes import fill_holes
 from photo3d.parallel import thread_safe_kernels, threads
 from photo3d.render._resolve import grow_fill, grow_fill_far, holes_to_rgb8, to_rgb8
