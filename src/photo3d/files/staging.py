@@ -44,11 +44,13 @@ import errno
 import fnmatch
 import os
 import shutil
+import time
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from pathlib import Path
 
 from photo3d.errors import OutputError
 from photo3d.files.atomic import (
+    ORPHAN_AGE_S,
     Pending,
     hold,
     is_temp_name,
@@ -383,7 +385,7 @@ def remove_orphans_in(folder: PathLike) -> list[Path]:
         >>> [p.name for p in remove_orphans_in(folder)], list(folder.iterdir())
         (['.splats.ply.0123abcd.tmp.ply'], [])
     """
-    removed = []
+    removed, unsure = [], []
     try:
         entries = sorted(Path(folder).iterdir())
     except OSError:
@@ -392,15 +394,32 @@ def remove_orphans_in(folder: PathLike) -> list[Path]:
         if entry.is_symlink():
             continue
         if is_temp_name(entry.name) and orphaned(entry):
-            if entry.is_dir():
-                shutil.rmtree(entry, ignore_errors=True)
-            else:
-                with contextlib.suppress(FileNotFoundError):
-                    entry.unlink()
+            _remove(entry)
             removed.append(entry)
+        elif is_temp_name(entry.name) and orphaned(entry, age=0):
+            unsure.append(entry)  # unlocked but young and empty: made a moment ago?
         elif entry.is_dir() and not is_temp_name(entry.name):  # a live writer's: its own
             removed += _orphan_files(entry)
+    if unsure:  # a writer locks its file a moment after making it: wait that out once
+        made = []
+        for entry in unsure:
+            with contextlib.suppress(OSError):
+                made.append(entry.stat().st_ctime)
+        time.sleep(min(ORPHAN_AGE_S, max(0.0, ORPHAN_AGE_S - time.time() + max(made, default=0))))
+        for entry in unsure:
+            if orphaned(entry):
+                _remove(entry)
+                removed.append(entry)
     return removed
+
+
+def _remove(entry: Path) -> None:
+    """Remove the temporary file or folder ``entry`` (gone already: nothing)."""
+    if entry.is_dir():
+        shutil.rmtree(entry, ignore_errors=True)
+    else:
+        with contextlib.suppress(FileNotFoundError):
+            entry.unlink()
 
 
 def _orphan_files(folder: Path) -> list[Path]:
