@@ -74,3 +74,60 @@ def rasterize(order: np.ndarray, u: np.ndarray, v: np.ndarray, cov: np.ndarray,
     n = _draw(order, u, v, cov, alpha, width, height, cutoff2, min_alpha, floor, rows,
               cols, vals)
     return rows[:n], cols[:n], vals[:n]
+
+
+@njit(cache=True, nogil=True)
+def project(positions, scales, rotations, rot, t, f, width, height, blur):
+    """Each splat on the image as Spark places it: ``(u, v, cov (N, 3) a b d,
+    compensation, distance)``; ``z <= 0`` gives ``compensation = 0``
+    (:func:`photo3d.export.spark_model.projected` documents the rest)."""
+    n = len(positions)
+    u = np.zeros(n)
+    v = np.zeros(n)
+    cov = np.ones((n, 3))
+    comp = np.zeros(n)
+    dist = np.zeros(n)
+    r = np.empty((3, 3))
+    m = np.empty((3, 3))
+    for i in range(n):
+        p0 = rot[0, 0] * positions[i, 0] + rot[0, 1] * positions[i, 1] + rot[0, 2] * positions[i, 2] + t[0]
+        p1 = rot[1, 0] * positions[i, 0] + rot[1, 1] * positions[i, 1] + rot[1, 2] * positions[i, 2] + t[1]
+        p2 = rot[2, 0] * positions[i, 0] + rot[2, 1] * positions[i, 1] + rot[2, 2] * positions[i, 2] + t[2]
+        dist[i] = math.sqrt(p0 * p0 + p1 * p1 + p2 * p2)
+        if p2 <= 0.0:
+            continue
+        w, x, y, z = rotations[i, 0], rotations[i, 1], rotations[i, 2], rotations[i, 3]
+        r[0, 0] = 1 - 2 * (y * y + z * z)
+        r[0, 1] = 2 * (x * y - w * z)
+        r[0, 2] = 2 * (x * z + w * y)
+        r[1, 0] = 2 * (x * y + w * z)
+        r[1, 1] = 1 - 2 * (x * x + z * z)
+        r[1, 2] = 2 * (y * z - w * x)
+        r[2, 0] = 2 * (x * z - w * y)
+        r[2, 1] = 2 * (y * z + w * x)
+        r[2, 2] = 1 - 2 * (x * x + y * y)
+        # m = rot @ r @ diag(scales): the Gaussian's axes in camera axes
+        for a in range(3):
+            for b in range(3):
+                m[a, b] = (rot[a, 0] * r[0, b] + rot[a, 1] * r[1, b]
+                           + rot[a, 2] * r[2, b]) * scales[i, b]
+        # J (2 x 3) @ m, J = [[f/z, 0, -f x/z²], [0, f/z, -f y/z²]]
+        j00, j02, j12 = f / p2, -f * p0 / (p2 * p2), -f * p1 / (p2 * p2)
+        a0 = j00 * m[0, 0] + j02 * m[2, 0]
+        a1 = j00 * m[0, 1] + j02 * m[2, 1]
+        a2 = j00 * m[0, 2] + j02 * m[2, 2]
+        b0 = j00 * m[1, 0] + j12 * m[2, 0]
+        b1 = j00 * m[1, 1] + j12 * m[2, 1]
+        b2 = j00 * m[1, 2] + j12 * m[2, 2]
+        ca = a0 * a0 + a1 * a1 + a2 * a2
+        cb = a0 * b0 + a1 * b1 + a2 * b2
+        cd = b0 * b0 + b1 * b1 + b2 * b2
+        det0 = ca * cd - cb * cb
+        ca += blur
+        cd += blur
+        det = ca * cd - cb * cb
+        u[i] = width / 2 + f * p0 / p2
+        v[i] = height / 2 + f * p1 / p2
+        cov[i, 0], cov[i, 1], cov[i, 2] = ca, cb, cd
+        comp[i] = math.sqrt(max(0.0, det0 / det))
+    return u, v, cov, comp, dist

@@ -115,17 +115,6 @@ def spark_quantized(splats: Splats, camera: Camera) -> Splats:
     return Splats(centres, colors, alpha, scales, q)
 
 
-def covariances(splats: Splats) -> np.ndarray:
-    """``(N, 3, 3) float64`` the splats' 3D covariances ``R S² R^T``."""
-    w, x, y, z = np.asarray(splats.rotations, np.float64).T
-    r = np.empty((len(w), 3, 3))
-    r[:, 0] = np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], 1)
-    r[:, 1] = np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], 1)
-    r[:, 2] = np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], 1)
-    rs = r * np.asarray(splats.scales, np.float64)[:, None, :]
-    return rs @ rs.transpose(0, 2, 1)
-
-
 def projected(splats: Splats, camera: Camera) -> tuple[np.ndarray, ...]:
     """The splats on ``camera``'s image as Spark places them.
 
@@ -135,33 +124,27 @@ def projected(splats: Splats, camera: Camera) -> tuple[np.ndarray, ...]:
         ``(a, b, d)`` in px², ``(N,)`` peak opacity after Spark's compensation
         (0 for a dropped splat), ``(N,)`` distance from the camera (the sort key).
     """
+    from photo3d.export._spark_raster import project
+
     k = camera.intrinsics
     f = 0.5 * k.height / np.tan(0.5 * k.fov[1])
-    rot, t = camera.pose[:3, :3], camera.pose[:3, 3]
-    p = np.asarray(splats.positions, np.float64) @ rot.T + t
-    cov = rot @ covariances(splats) @ rot.T
-    z = p[:, 2]
-    zs = np.where(z > 0, z, 1.0)
-    u = k.width / 2 + f * p[:, 0] / zs
-    v = k.height / 2 + f * p[:, 1] / zs
-    j = np.zeros((len(p), 2, 3))
-    j[:, 0, 0] = j[:, 1, 1] = f / zs
-    j[:, 0, 2] = -f * p[:, 0] / zs**2
-    j[:, 1, 2] = -f * p[:, 1] / zs**2
-    c2 = j @ cov @ j.transpose(0, 2, 1)
-    a, b, d = c2[:, 0, 0], c2[:, 0, 1], c2[:, 1, 1]
-    det0 = a * d - b * b
-    a, d = a + BLUR, d + BLUR
-    alpha = np.asarray(splats.opacity, np.float64) * np.sqrt(np.maximum(0, det0 / (a * d - b * b)))
+    rot = np.ascontiguousarray(camera.pose[:3, :3], np.float64)
+    t = np.ascontiguousarray(camera.pose[:3, 3], np.float64)
+    u, v, cov, comp, distance = project(
+        np.ascontiguousarray(splats.positions, np.float64),
+        np.ascontiguousarray(splats.scales, np.float64),
+        np.ascontiguousarray(splats.rotations, np.float64), rot, t, f, k.width, k.height,
+        BLUR)
+    z = np.asarray(splats.positions, np.float64) @ rot[2] + t[2]
+    alpha = np.asarray(splats.opacity, np.float64) * comp
     visible = ((z > NEAR) & (z < FAR) & (np.abs(u - k.width / 2) <= CLIP_XY * k.width / 2)
                & (np.abs(v - k.height / 2) <= CLIP_XY * k.height / 2) & (alpha >= MIN_ALPHA))
-    alpha = np.where(visible, alpha, 0.0)
-    return u, v, np.stack([a, b, d], 1), alpha, np.linalg.norm(p, axis=1)
+    return u, v, cov, np.where(visible, alpha, 0.0), distance
 
 
 def spark_weights(splats: Splats, camera: Camera, *, quantize: bool = True):
     """The weights of Spark's image of ``splats`` from ``camera``: a
-    ``scipy.sparse.csr_matrix`` of shape ``(H * W, N)`` (pixels row-major, row 0 at
+    ``scipy.sparse.csc_matrix`` of shape ``(H * W, N)`` (pixels row-major, row 0 at
     the top) with ``image = weights @ colors`` (premultiplied over nothing) and
     ``coverage = weights.sum(1)`` (the alpha channel).
 
@@ -180,5 +163,13 @@ def spark_weights(splats: Splats, camera: Camera, *, quantize: bool = True):
     order = order[alpha[order] > 0]
     rows, cols, vals = rasterize(order, u, v, cov, alpha, k.width, k.height, CUTOFF2,
                                  MIN_ALPHA, WEIGHT_FLOOR)
-    return scipy.sparse.csr_matrix((vals, (rows, cols)), shape=(k.width * k.height,
-                                                                 len(splats)))
+    # the fragments come grouped by splat: gathered into columns without a sort
+    n = len(splats)
+    counts = np.bincount(cols, minlength=n)
+    indptr = np.zeros(n + 1, np.int64)
+    np.cumsum(counts, out=indptr[1:])
+    first = np.zeros(n, np.int64)
+    first[cols[::-1]] = np.arange(len(cols) - 1, -1, -1)
+    gather = np.repeat(first - indptr[:-1], counts) + np.arange(len(cols))
+    return scipy.sparse.csc_matrix((vals[gather], rows[gather], indptr),
+                                   shape=(k.width * k.height, n))
