@@ -22,25 +22,25 @@ def _footprint(u, v, a, b, d, width, height, cutoff2):
 
 
 @njit(cache=True, nogil=True)
-def _count(order, u, v, cov, alpha, width, height, cutoff2):
-    total = 0
-    for i in order:
-        x0, x1, y0, y1 = _footprint(u[i], v[i], cov[i, 0], cov[i, 1], cov[i, 2], width,
-                                    height, cutoff2)
-        if x1 >= x0 and y1 >= y0:
-            total += (x1 - x0 + 1) * (y1 - y0 + 1)
-    return total
-
-
-@njit(cache=True, nogil=True)
-def _draw(order, u, v, cov, alpha, width, height, cutoff2, min_alpha, floor, rows, cols,
-          vals):
+def _draw(order, u, v, cov, alpha, width, height, cutoff2, min_alpha, floor, capacity):
     trans = np.ones(width * height)
+    rows = np.empty(capacity, np.int32)
+    vals = np.empty(capacity, np.float32)
+    counts = np.zeros(len(order), np.int64)
     n = 0
-    for i in order:
+    for k in range(len(order)):
+        i = order[k]
         a, b, d = cov[i, 0], cov[i, 1], cov[i, 2]
         det = a * d - b * b
         x0, x1, y0, y1 = _footprint(u[i], v[i], a, b, d, width, height, cutoff2)
+        if n + (x1 - x0 + 1) * (y1 - y0 + 1) > len(rows):  # grow by half at least
+            size = max(len(rows) * 3 // 2, n + (x1 - x0 + 1) * (y1 - y0 + 1))
+            more_rows = np.empty(size, np.int32)
+            more_vals = np.empty(size, np.float32)
+            more_rows[:n] = rows[:n]
+            more_vals[:n] = vals[:n]
+            rows, vals = more_rows, more_vals
+        start = n
         for y in range(y0, y1 + 1):
             dy = y + 0.5 - v[i]
             for x in range(x0, x1 + 1):
@@ -56,24 +56,20 @@ def _draw(order, u, v, cov, alpha, width, height, cutoff2, min_alpha, floor, row
                 trans[p] *= 1.0 - al
                 if w >= floor:
                     rows[n] = p
-                    cols[n] = i
                     vals[n] = w
                     n += 1
-    return n
+        counts[k] = n - start
+    return rows[:n].copy(), vals[:n].copy(), counts
 
 
 def rasterize(order: np.ndarray, u: np.ndarray, v: np.ndarray, cov: np.ndarray,
               alpha: np.ndarray, width: int, height: int, cutoff2: float,
               min_alpha: float, floor: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The fragments of the splats ``order`` (front to back) with a weight of at least
-    ``floor``: ``(pixel (K,) int32, splat (K,) int32, weight (K,) float32)``."""
-    capacity = _count(order, u, v, cov, alpha, width, height, cutoff2)
-    rows = np.empty(capacity, np.int32)
-    cols = np.empty(capacity, np.int32)
-    vals = np.empty(capacity, np.float32)
-    n = _draw(order, u, v, cov, alpha, width, height, cutoff2, min_alpha, floor, rows,
-              cols, vals)
-    return rows[:n], cols[:n], vals[:n]
+    ``floor``, grouped by splat in that order: ``(pixel (K,) int32, weight (K,)
+    float32, count (len(order),) int64)``."""
+    return _draw(order, u, v, cov, alpha, width, height, cutoff2, min_alpha, floor,
+                 8 * len(order) + 1024)
 
 
 @njit(cache=True, nogil=True)

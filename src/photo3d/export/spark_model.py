@@ -150,7 +150,36 @@ def spark_weights(splats: Splats, camera: Camera, *, quantize: bool = True):
 
     ``quantize``: round the splats as Spark keeps them (:func:`spark_quantized`)
     first.
+
+    Example:
+        >>> from photo3d.camera import Intrinsics
+        >>> k = Intrinsics.default(8, 8)  # fx = 8: a pixel is 1/8 wide at z = 1
+        >>> one = Splats(np.array([[0.0625, 0.0625, 1]]), np.full((1, 3), 0.5),
+        ...              np.full(1, 0.99), np.full((1, 3), 0.6 / 8), np.array([[1.0, 0, 0, 0]]))
+        >>> w = spark_weights(one, Camera(k, np.eye(4))).toarray().reshape(8, 8)
+        >>> round(float(w[4, 4]), 2), round(float(w[4, 5]), 2)  # its pixel, the next
+        (0.55, 0.26)
     """
+    import scipy.sparse
+
+    weights, order = visible_weights(splats, camera, quantize=quantize)
+    n = len(splats)
+    counts = np.zeros(n, np.int64)
+    counts[order] = np.diff(weights.indptr)
+    indptr = np.zeros(n + 1, np.int64)
+    np.cumsum(counts, out=indptr[1:])
+    first = np.zeros(n, np.int64)
+    first[order] = weights.indptr[:-1]
+    gather = np.repeat(first - indptr[:-1], counts) + np.arange(weights.nnz)
+    return scipy.sparse.csc_matrix((weights.data[gather], weights.indices[gather], indptr),
+                                   shape=(weights.shape[0], n))
+
+
+def visible_weights(splats: Splats, camera: Camera, *, quantize: bool = True):
+    """:func:`spark_weights` of the splats Spark draws from ``camera`` only, in the
+    order it blends them (front to back): ``(weights (H * W, M) csc_matrix float32,
+    order (M,) int64)``, column ``j`` the splat ``order[j]`` (cheaper: no
+    reordering)."""
     import scipy.sparse
 
     from photo3d.export._spark_raster import rasterize
@@ -161,15 +190,10 @@ def spark_weights(splats: Splats, camera: Camera, *, quantize: bool = True):
     u, v, cov, alpha, distance = projected(splats, camera)
     order = np.argsort(distance, kind="stable").astype(np.int64)  # front to back
     order = order[alpha[order] > 0]
-    rows, cols, vals = rasterize(order, u, v, cov, alpha, k.width, k.height, CUTOFF2,
-                                 MIN_ALPHA, WEIGHT_FLOOR)
-    # the fragments come grouped by splat: gathered into columns without a sort
-    n = len(splats)
-    counts = np.bincount(cols, minlength=n)
-    indptr = np.zeros(n + 1, np.int64)
+    rows, vals, counts = rasterize(order, u, v, cov, alpha, k.width, k.height, CUTOFF2,
+                                   MIN_ALPHA, WEIGHT_FLOOR)
+    indptr = np.zeros(len(order) + 1, np.int64)
     np.cumsum(counts, out=indptr[1:])
-    first = np.zeros(n, np.int64)
-    first[cols[::-1]] = np.arange(len(cols) - 1, -1, -1)
-    gather = np.repeat(first - indptr[:-1], counts) + np.arange(len(cols))
-    return scipy.sparse.csc_matrix((vals[gather], rows[gather], indptr),
-                                   shape=(k.width * k.height, n))
+    weights = scipy.sparse.csc_matrix((vals, rows, indptr),
+                                      shape=(k.width * k.height, len(order)))
+    return weights, order

@@ -73,12 +73,13 @@ def fit_colors(splats: Splats, camera: Camera, color: np.ndarray, covered: np.nd
     """
     from dataclasses import replace
 
-    from photo3d.export.spark_model import spark_weights
+    from photo3d.export.spark_model import visible_weights
 
-    weights = spark_weights(splats, camera).astype(np.float32)  # (pixels, splats) CSC
+    weights, order = visible_weights(splats, camera)  # (pixels, seen splats) CSC
     mask = np.asarray(covered, np.float32).reshape(-1, 1)
     y = np.asarray(color, np.float32).reshape(-1, 3) * mask
-    c0 = np.clip(np.asarray(splats.colors, np.float32), 0, 1)
+    colors = np.clip(np.asarray(splats.colors, np.float32), 0, 1)
+    c0 = colors[order]
     lam = np.float32(regularization)
     norms = np.asarray(weights.multiply(weights).T @ mask).ravel()  # diag(W^T M W)
     precondition = (1 / (norms + lam)).astype(np.float32)[:, None]
@@ -100,4 +101,5 @@ def fit_colors(splats: Splats, camera: Camera, color: np.ndarray, covered: np.nd
         z = r * precondition
         rz, previous = (r * z).sum(0), rz
         p = z + p * (rz / np.maximum(previous, 1e-30))
-    return replace(splats, colors=np.clip(x, 0, 1).astype(np.float32))
+    colors[order] = np.clip(x, 0, 1)
+    return replace(splats, colors=colors)
