@@ -86,9 +86,10 @@ def project(positions, scales, rotations, rot, t, f, width, height, blur):
     r = np.empty((3, 3))
     m = np.empty((3, 3))
     for i in range(n):
-        p0 = rot[0, 0] * positions[i, 0] + rot[0, 1] * positions[i, 1] + rot[0, 2] * positions[i, 2] + t[0]
-        p1 = rot[1, 0] * positions[i, 0] + rot[1, 1] * positions[i, 1] + rot[1, 2] * positions[i, 2] + t[1]
-        p2 = rot[2, 0] * positions[i, 0] + rot[2, 1] * positions[i, 1] + rot[2, 2] * positions[i, 2] + t[2]
+        wx, wy, wz = positions[i, 0], positions[i, 1], positions[i, 2]
+        p0 = rot[0, 0] * wx + rot[0, 1] * wy + rot[0, 2] * wz + t[0]
+        p1 = rot[1, 0] * wx + rot[1, 1] * wy + rot[1, 2] * wz + t[1]
+        p2 = rot[2, 0] * wx + rot[2, 1] * wy + rot[2, 2] * wz + t[2]
         dist[i] = math.sqrt(p0 * p0 + p1 * p1 + p2 * p2)
         if p2 <= 0.0:
             continue
