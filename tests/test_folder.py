@@ -45,11 +45,14 @@ CHANGES = {
     "save.exports": ({"save": SaveOptions(exports=("splats.spz",))},
                      lambda m: m["save"]["exports"] == ["splats.spz"]
                      and m["written"] == ["splats.spz"]),
-    # recorded with splat exports only (what they change); the defaults are adaptive, 3
+    # recorded with splat exports only (what they change); the defaults are adaptive,
+    # 3, no fit
     "save.splats": ({"save": SaveOptions(exports=("splats.spz",), splats="dense")},
                     lambda m: m["save"]["splats"] == "dense"),
     "save.spz_version": ({"save": SaveOptions(exports=("splats.spz",), spz_version=4)},
                          lambda m: m["save"]["spz_version"] == 4),
+    "save.splat_fit": ({"save": SaveOptions(exports=("splats.spz",), splat_fit=True)},
+                       lambda m: m["save"]["splat_fit"] is True),
 }
 NOT_RECORDED = {
     "depth_model": "the model for photos without any depth: a depth array is used here "

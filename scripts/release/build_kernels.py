@@ -56,7 +56,10 @@ def workload(python: str, work: Path) -> list[list[str]]:
                if module is None or _has(python, module)]
     return [["-m", "photo3d", "demo", "-o", str(out), "--overwrite", "-q", "--frames", "8"],
             ["-m", "photo3d", "render", str(out), "--frames", "8", "-q"],
-            ["-m", "photo3d", "export", str(out), *formats, "-q"]]
+            ["-m", "photo3d", "export", str(out), *formats, "-q"],
+            # the colour fit's kernels (photo3d.export._spark_raster)
+            ["-m", "photo3d", "export", str(out), "splats.spz", "--splat-fit", "-q",
+             "-o", str(work / "fitted.spz")]]
 
 
 def _has(python: str, module: str) -> bool:

@@ -197,16 +197,23 @@ def section_splats(load, machine_line, missing) -> str:
             f"leaves empty. Issue 46's targets: at most {t['splats']:,} splats, "
             f"`splats.spz` at most {t['spz_mb']} MB, input camera at least "
             f"{t['input_db']} dB, widest circle camera at least {t['widest_db']} dB with at "
-            f"most {100 * t['widest_empty']} % empty. build s: median seconds to build the "
-            "splats in that session (the machine's load shows in it; "
-            f"{rec.get('load_note', 'see the machine line')}).", "",
-            "| layout | splats | build s | PLY MB | GLB MB | SPZ 3 MB | SPZ 4 MB | input dB "
-            "| widest dB | widest empty |", "| --- | --- | --- | --- | --- | --- | --- | --- "
-            "| --- | --- |"]
+            f"most {100 * t['widest_empty']} % empty. Each layout as built and with its "
+            "colours fitted (`--splat-fit`: photo3d.export.splat_fit, fitted to photo3d's "
+            "render from the input camera only). build s: median seconds to build the "
+            "splats in that session, the fit's reference render included (the machine's "
+            "load shows in it: load, the 1-minute load average before the runs; "
+            f"{rec.get('load_note', 'see the machine line')}). model dB: the fit's model of "
+            "Spark (photo3d.export.spark_model) against Spark's own image, input and widest "
+            "camera, all pixels (Spark blends in 8 bits).", "",
+            "| layout | splats | build s (load) | PLY MB | GLB MB | SPZ 3 MB | SPZ 4 MB "
+            "| input dB | widest dB | widest empty | model dB |",
+            "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
     for name, r in rec["results"].items():
         f = r["files_mb"]
-        out.append(f"| {name} | {r['splats']:,} | {r['build_s']:.2f} | {f['splats.ply']:.1f} "
+        out.append(f"| {name} | {r['splats']:,} | {r['build_s']:.2f} ({r.get('load_1min', '?')}) "
+                   f"| {f['splats.ply']:.1f} "
                    f"| {f['splats.glb']:.1f} | {f['splats.spz v3']:.2f} | "
                    f"{f['splats.spz v4']:.2f} | {r['input_db']:.2f} | {r['widest_db']:.2f} | "
-                   f"{100 * r['widest_empty']:.3f} % |")
+                   f"{100 * r['widest_empty']:.3f} % | "
+                   + " / ".join(f"{m:.1f}" for m in r.get("model_db", [])) + " |")
     return "\n".join(out + [""])

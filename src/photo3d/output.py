@@ -217,7 +217,8 @@ def photo_meta(photo: SavedPhoto, options: SaveOptions | None = None) -> dict:
             "videos": [dataclasses.asdict(v) for v in videos], "render_settings": None,
             "exports": list(options.exports)}
     if options.exports:
-        save |= {"splats": options.splats, "spz_version": options.spz_version}
+        save |= {"splats": options.splats, "spz_version": options.spz_version,
+                 "splat_fit": options.splat_fit}
     written = sorted([f"video/{v.name}.{v.format}" for v in videos]
                      + [path for path, _ in _export_targets(photo.ldi, options)])
     if videos:
@@ -307,7 +308,8 @@ def _write_exports(photo: SavedPhoto, tmp: Path, pool: Executor, jobs: list, *,
         light = build_light_mesh(photo.ldi, full=mesh, max_error=light_error(options))
     jobs += submit_writers(pool, photo.ldi, [(fmt, tmp / name) for name, fmt in targets],
                            mesh=light, density=options.splats,
-                           spz_version=options.spz_version)
+                           spz_version=options.spz_version,
+                           splat_fit=options.splat_fit)
     return light
 
 

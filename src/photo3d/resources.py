@@ -137,13 +137,18 @@ EXPORT_MESH_BYTES_PER_LDI_PIXEL = 500
 """The same for the formats made of the light mesh (``mesh.usdz``, the quilt: the
 mesh is built once for both; measured with the three splat files, adaptive: 998 MB
 for all five formats)."""
+EXPORT_FIT_BYTES_PER_LDI_PIXEL = 400
+"""The more bytes per LDI pixel the splat exports take when their colours are fitted
+(:mod:`photo3d.export.splat_fit`: Spark's weights from the input view, about 10
+per LDI pixel, and the reference render)."""
 _MESH_EXPORTS = ("mesh.usdz", "quilt")
 
 
-def export_memory_estimate(ldi_pixels: int, formats) -> int:
+def export_memory_estimate(ldi_pixels: int, formats, *, splat_fit: bool = False) -> int:
     """Peak bytes ``photo3d export`` needs to write ``formats`` (names of
     :data:`photo3d.save_options.EXPORT_FORMATS`) of a 3D photo of ``ldi_pixels``
-    LDI pixels.
+    LDI pixels; ``splat_fit``: the splats' colours are fitted
+    (:data:`EXPORT_FIT_BYTES_PER_LDI_PIXEL` more).
 
     Example:
         >>> round(export_memory_estimate(1_453_295, ["splats.spz", "quilt"]) / 1e9, 2)
@@ -151,21 +156,23 @@ def export_memory_estimate(ldi_pixels: int, formats) -> int:
         >>> round(export_memory_estimate(1_453_295, ["splats.spz"]) / 1e9, 2)
         0.56
     """
-    per_pixel = (EXPORT_SPLAT_BYTES_PER_LDI_PIXEL if any(f.startswith("splats.")
-                                                         for f in formats) else 0)
+    splats = any(f.startswith("splats.") for f in formats)
+    per_pixel = EXPORT_SPLAT_BYTES_PER_LDI_PIXEL if splats else 0
+    per_pixel += EXPORT_FIT_BYTES_PER_LDI_PIXEL if splats and splat_fit else 0
     per_pixel += (EXPORT_MESH_BYTES_PER_LDI_PIXEL if any(f in _MESH_EXPORTS
                                                          for f in formats) else 0)
     return int(BASE_BYTES + per_pixel * ldi_pixels)
 
 
-def check_export_memory(ldi_pixels: int, formats) -> None:
+def check_export_memory(ldi_pixels: int, formats, *, splat_fit: bool = False) -> None:
     """Raise :class:`ConfigError` if exporting ``formats`` would need more memory than
     is available (:func:`export_memory_estimate`).
 
     Example:
         >>> check_export_memory(300_000, ["splats.ply"])  # within any machine
     """
-    need, have = export_memory_estimate(ldi_pixels, formats), available_memory()
+    need = export_memory_estimate(ldi_pixels, formats, splat_fit=splat_fit)
+    have = available_memory()
     if have is None or need <= have:
         return
     raise ConfigError(f"exporting {', '.join(formats)} of a 3D photo of {ldi_pixels:,} LDI "

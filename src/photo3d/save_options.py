@@ -50,6 +50,8 @@ class SaveOptions:
         splats: the splat exports' layout: ``"adaptive"`` (fewer, larger splats
             where the photo is flat) or ``"dense"`` (one per LDI pixel).
         spz_version: the version of ``splats.spz``: 3 (gzip) or 4 (zstd streams).
+        splat_fit: the splat exports' colours are fitted to photo3d's render through
+            a splat renderer's blend (:mod:`photo3d.export.splat_fit`).
 
     Example:
         >>> options = SaveOptions(ply=None, viewer=False)
@@ -81,6 +83,7 @@ class SaveOptions:
     exports: tuple[str, ...] = ()
     splats: str = "adaptive"
     spz_version: int = 3
+    splat_fit: bool = False
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "videos", tuple(self.videos))
@@ -99,6 +102,8 @@ class SaveOptions:
                               f"got {self.splats!r}")
         if self.spz_version not in SPZ_VERSIONS or isinstance(self.spz_version, bool):
             raise ConfigError(f"spz_version must be 3 or 4, got {self.spz_version!r}")
+        if not isinstance(self.splat_fit, bool):
+            raise ConfigError(f"splat_fit must be True or False, got {self.splat_fit!r}")
 
     def with_(self, **changes) -> SaveOptions:
         """A copy with fields replaced (:func:`dataclasses.replace`)."""

@@ -14,6 +14,7 @@ from spark_renderer import chromium, missing, read_splats, render_views, widest_
 
 import photo3d
 from photo3d.camera import Camera
+from photo3d.export.spark_model import spark_quantized, spark_weights
 from photo3d.export.splats import build_splats, write_ply, write_spz
 from photo3d.render.renderer import Renderer, RenderSettings
 
@@ -38,10 +39,11 @@ def browser():
         yield browser
 
 
-def check_views(photo, tmp_path, browser=None, *, density="adaptive"):
-    """Spark's views of splats.ply from the input camera and the circle path's widest
-    one against photo3d's: returns (PSNR input, PSNR widest, empty fraction widest)."""
-    write_ply(photo.ldi, tmp_path / "splats.ply", density=density)
+def check_views(photo, tmp_path, browser=None, *, density="adaptive", fit=False):
+    """Spark's views of splats.ply (``fit``: colours fitted, photo3d.export.splat_fit)
+    from the input camera and the circle path's widest one against photo3d's: returns
+    (PSNR input, PSNR widest, empty fraction widest)."""
+    write_ply(photo.ldi, tmp_path / "splats.ply", density=density, fit=fit)
     k = photo.ldi.intrinsics
     cameras = [Camera(k, np.eye(4)), widest_circle_camera(k)]
     got = render_views(tmp_path / "splats.ply", cameras, browser=browser)
@@ -100,6 +102,35 @@ def test_spark_renders_the_splats_as_photo3d_renders_the_photo(box_photo, tmp_pa
     assert np.mean(widest[..., 3][covered] < 0.5) > 5 * max(empty, 0.002)
 
 
+@pytest.mark.parametrize("density", ["adaptive", "dense"])
+def test_spark_model_reproduces_sparks_image(box_photo, tmp_path, browser, density):
+    """photo3d.export.spark_model's weights times the colours give Spark's own image,
+    from the input camera and a moved one, within Spark's 8-bit blending."""
+    splats = build_splats(box_photo.ldi, density=density)
+    write_ply(box_photo.ldi, tmp_path / "splats.ply", splats=splats)
+    k = box_photo.ldi.intrinsics
+    cameras = [Camera(k, np.eye(4)), widest_circle_camera(k)]
+    got = render_views(tmp_path / "splats.ply", cameras, browser=browser)
+    for camera, rgba in zip(cameras, got, strict=True):
+        weights = spark_weights(splats, camera)
+        image = (weights @ spark_quantized(splats, camera).colors).reshape(rgba[..., :3].shape)
+        coverage = np.asarray(weights.sum(1)).reshape(rgba.shape[:2])
+        assert psnr(image, rgba[..., :3]) >= 45 and psnr(coverage, rgba[..., 3]) >= 45
+        # the comparison can fail: the splats a pixel to the right are far off
+        assert psnr(np.roll(image, 1, axis=1), rgba[..., :3]) < 40
+
+
+@pytest.mark.parametrize("density", ["adaptive", "dense"])
+def test_fitted_colours_bring_spark_closer_to_photo3d(box_photo, tmp_path, browser, density):
+    built = check_views(box_photo, tmp_path, browser, density=density)
+    fitted = check_views(box_photo, tmp_path, browser, density=density, fit=True)
+    print(f"{density}, fitted: input {fitted[0]:.2f} dB (built {built[0]:.2f}), "  # noqa: T201
+          f"widest {fitted[1]:.2f} dB (built {built[1]:.2f}), {100 * fitted[2]:.3f} % empty")
+    assert fitted[0] >= built[0] + 3  # the fitted camera
+    assert fitted[1] >= built[1] + 1  # a camera the fit did not see
+    assert fitted[2] == built[2]  # the fit moves no splat
+
+
 def test_spz_read_back_by_spark_equals_the_ply_within_quantization(box_photo, tmp_path,
                                                                    browser):
     splats = build_splats(box_photo.ldi, density="dense")
@@ -131,19 +162,29 @@ def test_spz_read_back_by_spark_equals_the_ply_within_quantization(box_photo, tm
 @pytest.mark.slow
 def test_bundled_sample_in_spark(tmp_path, browser):
     """The issue's proof on the bundled sample (``photo3d demo``'s 1024 px 3D photo),
-    dense (1,453,295 splats) and adaptive: about three minutes in SwiftShader
-    (``pytest -m slow -s`` prints the numbers)."""
+    dense (1,453,295 splats) and adaptive, each as built and with its colours fitted
+    (``--splat-fit``): about five minutes in SwiftShader (``pytest -m slow -s`` prints
+    the numbers). Issue 46's target (30 dB from the input camera, 28 dB and at most
+    0.5 % empty from the circle path's widest) is met with the fit only."""
     from photo3d.sample import motorcycle
 
     sample = motorcycle()
     photo = photo3d.make(sample.left, depth=np.asarray(sample.disparity))
     found = {}
     for density in ("dense", "adaptive"):
-        found[density] = check_views(photo, tmp_path, browser, density=density)
-        p_input, p_widest, empty = found[density]
-        print(f"bundled sample, {density} ({len(build_splats(photo.ldi, density=density)):,} "  # noqa: T201
-              f"splats): input {p_input:.2f} dB, widest {p_widest:.2f} dB, "
-              f"{100 * empty:.3f} % empty")
-    for density, (p_input, p_widest, empty) in found.items():
-        assert p_input >= 27 and p_widest >= 26 and empty <= 0.005, density
+        for fit in (False, True):
+            found[density, fit] = check_views(photo, tmp_path, browser, density=density,
+                                              fit=fit)
+            p_input, p_widest, empty = found[density, fit]
+            print(f"bundled sample, {density}{', fitted' if fit else ''} "  # noqa: T201
+                  f"({len(build_splats(photo.ldi, density=density)):,} splats): input "
+                  f"{p_input:.2f} dB, widest {p_widest:.2f} dB, {100 * empty:.3f} % empty")
+    for (density, fit), (p_input, p_widest, empty) in found.items():
+        assert empty <= 0.005, density
+        if fit:
+            assert p_input >= 30 and p_widest >= 28, density
+        else:
+            assert p_input >= 27 and p_widest >= 26, density
     assert len(build_splats(photo.ldi)) <= 500_000
+    write_spz(photo.ldi, tmp_path / "splats.spz", fit=True)
+    assert (tmp_path / "splats.spz").stat().st_size <= 4_000_000

@@ -45,7 +45,7 @@ def run(args: argparse.Namespace) -> int:
     try:
         written = export_folder(args.photo, args.formats, output=args.output,
                                 overwrite=args.overwrite, density=args.splats,
-                                spz_version=args.spz_version,
+                                spz_version=args.spz_version, splat_fit=args.splat_fit,
                                 progress=lambda stage, fraction: bar.update(
                                     round(fraction * bar.total) - bar.n))
     finally:
@@ -73,6 +73,8 @@ def _say_memory(args: argparse.Namespace) -> None:
         pixels = ldi_pixels(args.photo / LDI_FILE)
     except InputError:
         return
-    need = export_memory_estimate(pixels, list(dict.fromkeys(args.formats)))
-    print(f"export: {pixels:,} LDI pixels, {args.splats} splats, at most about "
+    need = export_memory_estimate(pixels, list(dict.fromkeys(args.formats)),
+                                  splat_fit=args.splat_fit)
+    fitted = ", colours fitted" if args.splat_fit else ""
+    print(f"export: {pixels:,} LDI pixels, {args.splats} splats{fitted}, at most about "
           f"{format_bytes(need)} of memory", flush=True)

@@ -171,6 +171,10 @@ def add_splat_options(p: argparse.ArgumentParser) -> None:
                    help="splats.spz: version 3 (the default: gzip; Spark 2, three.js, "
                         "SuperSplat) or 4 (zstd streams; three.js, SuperSplat, PlayCanvas; "
                         "needs photo3d[spz4])")
+    p.add_argument("--splat-fit", action="store_true",
+                   help="splat exports: fit the splats' colours to photo3d's render "
+                        "through a splat renderer's blend (Spark's), so that splat "
+                        "viewers show the photo sharper (a few seconds more)")
 
 
 def video_size(text: str) -> tuple[int, int]:
@@ -323,7 +327,8 @@ def make_options(args: argparse.Namespace):
                            videos=() if args.no_video else tuple(videos_from(args)),
                            render_settings=render_settings_from(args),
                            exports=tuple(args.exports or ()),
-                           splats=args.splats, spz_version=args.spz_version),
+                           splats=args.splats, spz_version=args.spz_version,
+                           splat_fit=args.splat_fit),
                        overwrite=args.overwrite)
 
 

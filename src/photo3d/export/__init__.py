@@ -95,7 +95,7 @@ def _named_by(module: str, attribute: str) -> Callable[[LDI], str]:
 
 
 _SPLATS = "photo3d.export.splats"
-_SPLAT_OPTIONS = ("density", "splats")  # splats: built once for several splat formats
+_SPLAT_OPTIONS = ("density", "fit", "splats")  # splats: built once for several splat formats
 _MESH_OPTIONS = ("mesh",)  # the light textured mesh, built once for all that take it
 _USD = ("pxr.Gf", "pxr.Kind", "pxr.Sdf", "pxr.Usd", "pxr.UsdGeom", "pxr.UsdShade",
         "pxr.UsdUtils", "pxr.Vt")  # what write_usdz imports (usd-core)
@@ -116,6 +116,7 @@ FORMATS: dict[str, Format] = {
 def export_folder(folder: str | Path, formats: Sequence[str], *,
                   output: str | Path | None = None, overwrite: bool = False,
                   density: str = "adaptive", spz_version: int = 3,
+                  splat_fit: bool = False,
                   progress: StageProgress | None = None) -> list[Path]:
     """Write ``formats`` of the 3D photo saved in ``folder``.
 
@@ -132,6 +133,9 @@ def export_folder(folder: str | Path, formats: Sequence[str], *,
             photo is flat) or ``"dense"`` (one per LDI pixel;
             :func:`photo3d.export.splats.build_splats`).
         spz_version: ``splats.spz``'s version, 3 (gzip) or 4 (zstd streams).
+        splat_fit: splat formats: fit the splats' colours to photo3d's render
+            through Spark's blend (:mod:`photo3d.export.splat_fit`; sharper in
+            splat viewers, a few seconds more).
         progress: ``progress("export", fraction)`` after each file.
 
     The files are written two at a time (the machine's cores), each atomically, and
@@ -182,10 +186,12 @@ def export_folder(folder: str | Path, formats: Sequence[str], *,
         raise InputError(f"no 3D photo in {folder} (it has no {LDI_FILE})")
     with reading(folder / LDI_FILE):  # no write may reach it (the gate refuses)
         record_in = None if output is None else _check_output(Path(output), overwrite)
-        check_export_memory(ldi_pixels(folder / LDI_FILE), [f.name for f in chosen])
+        check_export_memory(ldi_pixels(folder / LDI_FILE), [f.name for f in chosen],
+                            splat_fit=splat_fit)
         ldi, meta = load_npz(folder / LDI_FILE)
         return _export(folder, chosen, ldi, meta, output=output, record_in=record_in,
-                       density=density, spz_version=spz_version, progress=progress)
+                       density=density, spz_version=spz_version, splat_fit=splat_fit,
+                       progress=progress)
 
 
 def _check_output(output: Path, overwrite: bool) -> Path | None:
@@ -213,7 +219,7 @@ def _check_output(output: Path, overwrite: bool) -> Path | None:
 
 def _export(folder: Path, chosen: list[Format], ldi: LDI, meta: dict, *,
             output: Path | None, record_in: Path | None, density: str,
-            spz_version: int, progress: StageProgress | None) -> list[Path]:
+            spz_version: int, splat_fit: bool, progress: StageProgress | None) -> list[Path]:
     """Write ``chosen`` (:func:`export_folder` once the checks are done)."""
     output = None if output is None else Path(output)
     targets = [output] if output is not None else [folder / f.filename(ldi) for f in chosen]
@@ -226,7 +232,8 @@ def _export(folder: Path, chosen: list[Format], ldi: LDI, meta: dict, *,
     with thread_pool(2, name="export") as pool:  # zlib, numpy and writes release the GIL
         jobs = submit_writers(pool, ldi, list(zip(chosen, targets, strict=True)),
                               density=density, spz_version=spz_version,
-                              light_error=_light_error(meta), record_in=record_in)
+                              splat_fit=splat_fit, light_error=_light_error(meta),
+                              record_in=record_in)
         for job, target in zip(jobs, targets, strict=True):
             while True:  # every job ends (after a signal, at its next check) before
                 try:     # this returns or raises: none moves a file in place later
@@ -247,7 +254,7 @@ def _export(folder: Path, chosen: list[Format], ldi: LDI, meta: dict, *,
 
 def submit_writers(pool: Executor, ldi: LDI, targets: Sequence[tuple[Format, Path]], *,
                    density: str = "adaptive", spz_version: int = 3,
-                   mesh: TexturedMesh | None = None,
+                   splat_fit: bool = False, mesh: TexturedMesh | None = None,
                    light_error: float | None = None,
                    record_in: Path | None = None) -> list[Future]:
     """Have ``pool`` write each ``(format, path)`` of ``targets``; returns the writers'
@@ -269,6 +276,7 @@ def submit_writers(pool: Executor, ldi: LDI, targets: Sequence[tuple[Format, Pat
         targets: what to write where (:func:`check_formats`' formats, each once).
         density: splat formats: ``"adaptive"`` or ``"dense"``.
         spz_version: ``splats.spz``'s version (3 or 4).
+        splat_fit: fit the splats' colours (:mod:`photo3d.export.splat_fit`).
         mesh: the light textured mesh of ``ldi`` if already built.
         light_error: its error bound when it is built here (pixels).
         record_in: a 3D photo folder whose ``config.json`` records each file as it
@@ -288,11 +296,12 @@ def submit_writers(pool: Executor, ldi: LDI, targets: Sequence[tuple[Format, Pat
         >>> sorted(p.name for p in out.iterdir())
         ['a.ply', 'a.spz']
     """
-    options: dict[str, object] = {"density": density, "spz_version": spz_version}
+    options: dict[str, object] = {"density": density, "spz_version": spz_version,
+                                  "fit": splat_fit}
     if sum(f.module == _SPLATS for f, _ in targets) > 1:  # build the splats once
         from photo3d.export.splats import build_splats
 
-        options["splats"] = build_splats(ldi, density=density)
+        options["splats"] = build_splats(ldi, density=density, fit=splat_fit)
     light: Future | None = None
     if mesh is None and any("mesh" in f.options for f, _ in targets):
         from photo3d.mesh.light import LIGHT_ERROR, build_light_mesh

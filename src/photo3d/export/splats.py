@@ -71,7 +71,7 @@ _FRONT = (1,)  # LDI labels of the photo's own pixels
 
 
 def build_splats(ldi: LDI, *, density: str = "adaptive",
-                 alpha: np.ndarray | None = None) -> Splats:
+                 alpha: np.ndarray | None = None, fit: bool = False) -> Splats:
     """The Gaussian splats of ``ldi`` (see the module doc), in the input camera's
     frame (OpenCV axes).
 
@@ -81,6 +81,9 @@ def build_splats(ldi: LDI, *, density: str = "adaptive",
             the surface planar) or ``"dense"`` (one splat per LDI pixel).
         alpha: ``(N,) float`` in [0, 1], each LDI pixel's coverage (soft
             silhouettes); None: every pixel is fully covered.
+        fit: fit the colours to photo3d's render of the input view through Spark's
+            blend of all splats (:mod:`photo3d.export.splat_fit`: sharper in splat
+            viewers, about 3 s more on the bundled sample).
 
     Returns:
         :class:`~photo3d.structures.splats.Splats`: ``ldi.size`` splats (dense), or
@@ -109,8 +112,9 @@ def build_splats(ldi: LDI, *, density: str = "adaptive",
     if density == "dense":
         scales = _facing(z, k, np.ones(len(z), np.float32))
         rotations = np.tile(np.array([1, 0, 0, 0], np.float32), (len(z), 1))
-        return Splats(positions=positions, colors=colors, opacity=opacity,
-                      scales=scales, rotations=rotations)
+        splats = Splats(positions=positions, colors=colors, opacity=opacity,
+                        scales=scales, rotations=rotations)
+        return _fitted(ldi, splats) if fit else splats
     front = np.isin(ldi.label, _FRONT)
     blocks = merge_blocks(ldi, positions, colors, opacity, levels=ADAPTIVE_LEVELS,
                           color_tolerance=np.where(front, ADAPTIVE_COLOR, HIDDEN_COLOR),
@@ -121,7 +125,18 @@ def build_splats(ldi: LDI, *, density: str = "adaptive",
                 blocks.opacity[single], z[blocks.pixel[single]], k),
         _joined(blocks, ~single),
     ]
-    return Splats(*(np.concatenate([part[i] for part in parts]) for i in range(5)))
+    splats = Splats(*(np.concatenate([part[i] for part in parts]) for i in range(5)))
+    return _fitted(ldi, splats) if fit else splats
+
+
+def _fitted(ldi: LDI, splats: Splats) -> Splats:
+    """``splats`` with their colours fitted to photo3d's render of the input view
+    (:mod:`photo3d.export.splat_fit`)."""
+    from photo3d.camera import Camera
+    from photo3d.export.splat_fit import fit_colors, reference_view
+
+    color, covered = reference_view(ldi)
+    return fit_colors(splats, Camera(ldi.intrinsics, np.eye(4)), color, covered)
 
 
 def _single(positions: np.ndarray, colors: np.ndarray, opacity: np.ndarray,
@@ -169,11 +184,11 @@ def _facing(z: np.ndarray, k: Intrinsics, size: np.ndarray) -> np.ndarray:
 
 
 def write_ply(ldi: LDI, path: str | Path, *, density: str = "adaptive",
-              splats: Splats | None = None) -> None:
+              splats: Splats | None = None, fit: bool = False) -> None:
     """Write ``splats.ply``, the 3DGS PLY of ``ldi``'s splats, to ``path`` atomically.
 
-    ``density``: as :func:`build_splats`; ``splats``: :func:`build_splats` of ``ldi``
-    if already built.
+    ``density`` and ``fit``: as :func:`build_splats`; ``splats``: :func:`build_splats`
+    of ``ldi`` if already built.
 
     Example:
         >>> import numpy as np, photo3d, pathlib, tempfile
@@ -185,16 +200,17 @@ def write_ply(ldi: LDI, path: str | Path, *, density: str = "adaptive",
         >>> len(read_splat_ply(path)) == photo.ldi.size
         True
     """
-    splats = build_splats(ldi, density=density) if splats is None else splats
+    splats = build_splats(ldi, density=density, fit=fit) if splats is None else splats
     with atomic_path(path) as tmp:
         write_splat_ply(tmp, splats)
 
 
 def write_spz(ldi: LDI, path: str | Path, *, density: str = "adaptive",
-              splats: Splats | None = None, spz_version: int = DEFAULT_VERSION) -> None:
+              splats: Splats | None = None, spz_version: int = DEFAULT_VERSION,
+              fit: bool = False) -> None:
     """Write ``splats.spz``, Niantic's compressed splats of ``ldi``, to ``path``
     atomically: SPZ version ``spz_version`` (3: gzip, or 4: zstd streams, see
-    :mod:`photo3d.io.spz`); ``density`` and ``splats`` as :func:`write_ply`.
+    :mod:`photo3d.io.spz`); ``density``, ``fit`` and ``splats`` as :func:`write_ply`.
 
     Example:
         >>> import numpy as np, photo3d, pathlib, tempfile
@@ -206,16 +222,16 @@ def write_spz(ldi: LDI, path: str | Path, *, density: str = "adaptive",
         >>> len(read_spz(path)) == photo.ldi.size
         True
     """
-    splats = build_splats(ldi, density=density) if splats is None else splats
+    splats = build_splats(ldi, density=density, fit=fit) if splats is None else splats
     with atomic_path(path) as tmp:
         write_spz_file(tmp, splats, version=spz_version)
 
 
 def write_glb(ldi: LDI, path: str | Path, *, density: str = "adaptive",
-              splats: Splats | None = None) -> None:
+              splats: Splats | None = None, fit: bool = False) -> None:
     """Write ``splats.glb``, the splats of ``ldi`` as glTF with
     ``KHR_gaussian_splatting``, to ``path`` atomically (the input view as its camera);
-    ``density`` and ``splats`` as :func:`write_ply`.
+    ``density``, ``fit`` and ``splats`` as :func:`write_ply`.
 
     Example:
         >>> import numpy as np, photo3d, pathlib, tempfile
@@ -226,7 +242,7 @@ def write_glb(ldi: LDI, path: str | Path, *, density: str = "adaptive",
         >>> path.read_bytes()[:4]
         b'glTF'
     """
-    splats = build_splats(ldi, density=density) if splats is None else splats
+    splats = build_splats(ldi, density=density, fit=fit) if splats is None else splats
     with atomic_path(path) as tmp:
         write_splat_glb(tmp, splats, intrinsics=ldi.intrinsics)
 
