@@ -94,6 +94,22 @@ class RegionConfig:
 
 
 @dataclass(frozen=True)
+class SilhouetteConfig:
+    """Soft silhouettes: coverage of the mixed pixels along occluding contours
+    (:mod:`photo3d.stages.silhouettes`; on when :attr:`Config.edges` is ``align``)."""
+
+    band: int = 3
+    """Near-side pixels this close to a depth edge (px at 1024) get an alpha and a
+    foreground colour (``benchmarks/bench_alpha.py``)."""
+    radius: int = 4
+    """Half side of the window their foreground and background colours are sampled
+    from (px at 1024)."""
+    method: str = "pairs"
+    """``pairs``: the foreground / background sample pair that explains the pixel's
+    colour best; ``means``: the window's mean colours."""
+
+
+@dataclass(frozen=True)
 class Config:
     """Everything that changes what :func:`photo3d.make` computes."""
 
@@ -110,14 +126,25 @@ class Config:
     is the input depth instead of the authors' normalised [1/3, 20] range."""
     spatial_scale: float | None = None
     """Factor applied to spatial sizes (None: working size / 1024, as the paper)."""
+    edges: str = "align"
+    """How the occlusion edges are drawn: ``align`` (soft silhouettes: the mixed pixels
+    along each foreground's outline get a coverage and their foreground colour,
+    :attr:`silhouettes`) or ``exact`` (the depth map's edges cut hard, every pixel
+    opaque: photo3d before issue 44)."""
     preprocess: PreprocessConfig = field(default_factory=PreprocessConfig)
     regions: RegionConfig = field(default_factory=RegionConfig)
+    silhouettes: SilhouetteConfig = field(default_factory=SilhouetteConfig)
 
     def __post_init__(self) -> None:
         if self.size is not None and not 16 <= self.size <= 16384:
             raise ConfigError(f"size must be between 16 and 16384 or None, got {self.size}")
         if self.depth_kind not in ("disparity", "depth"):
             raise ConfigError(f"depth_kind must be 'disparity' or 'depth', got {self.depth_kind!r}")
+        if self.edges not in ("align", "exact"):
+            raise ConfigError(f"edges must be 'align' or 'exact', got {self.edges!r}")
+        if self.silhouettes.method not in ("pairs", "means"):
+            raise ConfigError("silhouettes.method must be 'pairs' or 'means', got "
+                              f"{self.silhouettes.method!r}")
         if self.metric and self.depth_kind != "depth":
             raise ConfigError("metric=True needs depth_kind='depth' (metric depth input)")
 
@@ -153,7 +180,9 @@ class Config:
             if "filter_windows" in pre:
                 pre = {**pre, "filter_windows": tuple(pre["filter_windows"])}
             reg = data.pop("regions", {})
-            return cls(preprocess=PreprocessConfig(**pre), regions=RegionConfig(**reg), **data)
+            sil = data.pop("silhouettes", {})
+            return cls(preprocess=PreprocessConfig(**pre), regions=RegionConfig(**reg),
+                       silhouettes=SilhouetteConfig(**sil), **data)
         except TypeError as err:
             raise ConfigError(f"bad configuration: {err}") from None
 

@@ -50,6 +50,7 @@ from photo3d.stages.merge import Merged, merge_fills, take
 from photo3d.stages.patches import PatchJob, extract_patches, iter_patches
 from photo3d.stages.preprocess import Preprocessed
 from photo3d.stages.regions import RegionLimit, Regions, RegionSizes, find_regions
+from photo3d.stages.silhouettes import silhouettes_of
 from photo3d.structures.ldi import LABEL_BORDER, LDI
 from photo3d.structures.patch import InpaintResult, Patch
 
@@ -103,8 +104,9 @@ class PassInput:
 def start(pre: Preprocessed, *, config: Config, border: bool = True,
           intrinsics: Intrinsics | None = None,
           mapping: DepthMapping | None = None) -> PassInput:
-    """The first pass's input: ``pre``'s one-layer LDI cut along its depth edges, with
-    the extrapolated frame (``config.regions.border`` px at 1024) unless ``border`` is off.
+    """The first pass's input: ``pre``'s one-layer LDI cut along its depth edges (its
+    silhouettes soft unless ``config.edges`` is ``exact``:
+    :func:`~photo3d.stages.silhouettes.silhouettes_of`), with the extrapolated frame (``config.regions.border`` px at 1024) unless ``border`` is off.
 
     Args:
         pre: the preprocessed photo (working size, disparity, linked depth edges).
@@ -123,8 +125,12 @@ def start(pre: Preprocessed, *, config: Config, border: bool = True,
         >>> first.edges, first.ldi.border
         (1, 4)
     """
-    ldi = cut(from_image(pre.image, pre.disparity, intrinsics=intrinsics, mapping=mapping),
+    sil = silhouettes_of(pre.image, pre.disparity, pre.edges.cuts, config=config,
+                         working_size=pre.working_size)
+    ldi = cut(from_image(sil.color, pre.disparity, intrinsics=intrinsics, mapping=mapping),
               pre.edges.cuts)
+    if sil.fringe:
+        ldi = replace(ldi, alpha=sil.alpha.reshape(-1))
     if border:
         ldi = extend_border(ldi, config.spatial(config.regions.border, pre.working_size))
     edge_ptr, edge_pixels = edges_csr(pre.edges.labels, pre.edges.count)
