@@ -26,6 +26,7 @@ from photo3d.resources import check_memory
 from photo3d.stages.border import fill_border
 from photo3d.stages.passes import PassInput, fill_pass, start
 from photo3d.stages.preprocess import preprocess
+from photo3d.stages.silhouettes import paint_behind
 from photo3d.structures.patch import Patch
 
 
@@ -109,6 +110,7 @@ def make(
         lo, hi = pre.disparity_range  # of 1 / z: normalised d maps back to z exactly
         mapping = DepthMapping.from_inverse_depth(lo, hi)
     state = start(pre, config=config, intrinsics=intrinsics, mapping=mapping)
+    behind = state.behind
     scale = max(w / img.shape[1], h / img.shape[0])
     patchwise = getattr(backend, "patchwise", False)
     framing = None  # the frame's colours, filled in another thread meanwhile
@@ -152,6 +154,9 @@ def make(
             edges_per_pass.append(state.edges)
             added_per_pass.append(merged.added)
             state = PassInput(merged.ldi, merged.edge_ptr, merged.edge_pixels, merged.index)
+    if behind is not None:
+        state = replace(state, ldi=paint_behind(state.ldi, *behind,
+                                                threshold=config.preprocess.discontinuity))
     done("inpaint")
 
     return Photo3D(

@@ -159,6 +159,10 @@ class Renderer:
         self.mesh = mesh
         texture = None
         if isinstance(mesh, TexturedMesh):
+            overlay = mesh.overlay
+        else:
+            mesh, overlay = mesh.split_fringe()
+        if isinstance(mesh, TexturedMesh):
             self._vertices, uv, _, self._faces = mesh.checked()
             self._colors = np.zeros((len(uv), 3), np.float32)
             self._colors[:, :2] = uv
@@ -186,10 +190,28 @@ class Renderer:
         if antialias == "auto":
             antialias = "edges" if texture is not None else "full"
         self._edges = self.backend == "numba" and antialias == "edges" and self.settings.ssaa > 1
+        self._overlay = None if overlay is None else (self._rasterizer(overlay, alpha=False),
+                                                      self._rasterizer(overlay, alpha=True))
+
+    def _rasterizer(self, fringe: Mesh, *, alpha: bool):
+        """A rasterizer of this renderer's backend for the fringe mesh ``fringe``: its
+        vertex colours, or (``alpha``) its coverage as a grey colour."""
+        vertices, colors, _, faces = fringe.checked()
+        if alpha:
+            colors = np.repeat(np.asarray(fringe.alpha, np.float32)[:, None], 3, axis=1)
+        if self.backend == "gl":
+            from photo3d.render.gl import GLRasterizer
+
+            return GLRasterizer(vertices, colors, faces)
+        from photo3d.render.raster import CPURasterizer
+
+        return CPURasterizer(vertices, colors, faces, reuse=True)
 
     def close(self) -> None:
         """Release GPU resources (if any)."""
         self._raster.release()
+        for raster in self._overlay or ():
+            raster.release()
 
     def __enter__(self) -> Renderer:
         return self
@@ -201,17 +223,37 @@ class Renderer:
         """Render ``camera`` (its intrinsics give the output size)."""
         s = self.settings
         k = self._intrinsics(camera)
-        f = s.ssaa
-        if self._edges:
-            color, coverage, depth = self._raster.render_edges(
-                k, pose=camera.pose, near=s.near, tolerance=EDGE_TOLERANCE)
-        else:
-            big = Intrinsics(k.fx * f, k.fy * f, k.cx * f, k.cy * f, k.width * f, k.height * f)
-            color, coverage, depth = self._raster.render_resolved(big, f, pose=camera.pose,
-                                                                  near=s.near)
+        color, coverage, depth = self._draw(self._raster, k, camera.pose)
         color = self._holes(color, coverage, depth)
+        if self._overlay is not None:
+            color, depth = self._blend(color, depth, k, camera.pose)
         return View(color=np.clip(color, 0.0, 1.0, out=color), depth=depth,
                     mask=coverage >= 1.0)
+
+    def _draw(self, raster, k: Intrinsics, pose) -> tuple[np.ndarray, ...]:
+        """``(color, coverage, depth)`` of ``raster`` at ``k``'s size (the settings'
+        antialiasing)."""
+        s = self.settings
+        f = s.ssaa
+        if self._edges:
+            return raster.render_edges(k, pose=pose, near=s.near, tolerance=EDGE_TOLERANCE)
+        big = Intrinsics(k.fx * f, k.fy * f, k.cx * f, k.cy * f, k.width * f, k.height * f)
+        return raster.render_resolved(big, f, pose=pose, near=s.near)
+
+    def _blend(self, color: np.ndarray, depth: np.ndarray, k: Intrinsics,
+               pose) -> tuple[np.ndarray, np.ndarray]:
+        """``color`` with the soft silhouettes' fringe blended over it where the fringe
+        is in front: ``a * fringe + (1 - a) * color``, ``a`` the fringe's interpolated
+        alpha where it covers any sample of the pixel; and the nearer depth."""
+        colors, alphas = self._overlay
+        f_color, f_coverage, f_depth = self._draw(colors, k, pose)
+        # the fringe's mesh ends at its outer pixels' centres: its coverage of them is
+        # about half, while their alpha already is their coverage, so it is not applied
+        f_alpha = np.where(f_coverage > 0.0, self._draw(alphas, k, pose)[0][..., 0], 0.0)
+        front = (f_alpha > 0.0) & (f_depth <= depth * 1.001)
+        a = np.where(front, f_alpha, 0.0).astype(np.float32)[..., None]
+        color = color * (1.0 - a) + f_color * a
+        return color, np.where(front, np.minimum(f_depth, depth), depth)
 
     def render_rgb8(self, camera: Camera) -> np.ndarray:
         """``render(camera).color`` in 8 bits (``to_rgb8``): a new ``(H, W, 3) uint8``
@@ -229,7 +271,7 @@ class Renderer:
             >>> rgb.shape, rgb.dtype, int(rgb[4, 4, 0])
             ((8, 8, 3), dtype('uint8'), 128)
         """
-        if not self._edges:
+        if not self._edges or self._overlay is not None:
             return to_rgb8(self.render(camera).color)
         color, coverage, depth, rgb = self._raster.render_edges(
             self._intrinsics(camera), pose=camera.pose, near=self.settings.near,

@@ -88,12 +88,17 @@ class PassInput:
         edge_ptr: ``(E + 1,) int64`` CSR offsets into ``edge_pixels``.
         edge_pixels: ``(K,) int64`` background silhouette pixels of each edge.
         index: ``ldi.position_index()`` if known (a merge's), else None.
+        behind: the soft silhouettes' background estimates (``(pixels, colors)``,
+            :meth:`~photo3d.stages.silhouettes.Silhouettes.behind`) for
+            :func:`~photo3d.stages.silhouettes.paint_behind` once the passes are
+            done; None if there is no fringe.
     """
 
     ldi: LDI
     edge_ptr: np.ndarray
     edge_pixels: np.ndarray
     index: tuple[np.ndarray, np.ndarray] | None = None
+    behind: tuple[np.ndarray, np.ndarray] | None = None
 
     @property
     def edges(self) -> int:
@@ -134,7 +139,7 @@ def start(pre: Preprocessed, *, config: Config, border: bool = True,
     if border:
         ldi = extend_border(ldi, config.spatial(config.regions.border, pre.working_size))
     edge_ptr, edge_pixels = edges_csr(pre.edges.labels, pre.edges.count)
-    return PassInput(ldi, edge_ptr, edge_pixels)
+    return PassInput(ldi, edge_ptr, edge_pixels, behind=sil.behind() if sil.fringe else None)
 
 
 def region_sizes(config: Config, working_size: int, *, pass_index: int = 0,

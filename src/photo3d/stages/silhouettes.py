@@ -23,12 +23,13 @@ for each cut link the pixel of larger disparity is near.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numba
 import numpy as np
 
 from photo3d.config import Config
+from photo3d.structures.ldi import LDI
 
 _FAR = 1 << 20  # distance of pixels the walk from the near seeds did not reach
 
@@ -42,11 +43,93 @@ class Silhouettes:
         color: ``(H, W, 3) float32`` in [0, 1]: the photo, with each fringe pixel's
             foreground colour estimate.
         fringe: number of pixels with ``alpha < 1``.
+        background: ``(H, W, 3) float32`` the background colour estimated behind each
+            fringe pixel (the photo's colour where ``alpha`` is 0), or None (no fringe).
     """
 
     alpha: np.ndarray
     color: np.ndarray
     fringe: int
+    background: np.ndarray | None = None
+
+    def behind(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(pixels (K,) int64, colors (K, 3) float32)``: the fringe's raster indices
+        and their background estimates (for :func:`paint_behind`).
+
+        Example:
+            >>> img = np.zeros((8, 12, 3), np.float32); img[:, 6:] = 1.0; img[:, 6] = 0.25
+            >>> disp = np.zeros((8, 12), np.float32); disp[:, 6:] = 1.0
+            >>> cuts = np.zeros((8, 12), np.uint8); cuts[:, 5] = 2
+            >>> pixels, colors = soft_silhouettes(img, disp, cuts).behind()
+            >>> pixels[:2].tolist(), colors[0].tolist()
+            ([6, 18], [0.0, 0.0, 0.0])
+        """
+        if self.background is None:
+            return np.zeros(0, np.int64), np.zeros((0, 3), np.float32)
+        pixels = np.flatnonzero(self.alpha < 1.0)
+        return pixels, self.background.reshape(-1, 3)[pixels]
+
+
+def paint_behind(ldi: LDI, pixels: np.ndarray, colors: np.ndarray, *,
+                 threshold: float) -> LDI:
+    """Give the nearest LDI pixel behind each fringe pixel (farther by more than
+    ``threshold`` at the same lattice position: the inpainted layer) the background
+    colour the matting estimated there (:meth:`Silhouettes.behind`).
+
+    The inpainting fills the hidden area behind a silhouette from context a few pixels
+    away (never from the mixed pixels); right behind the fringe the photo itself shows
+    the background through the mixed pixels, and that estimate is closer to it (the
+    photo's own colour where the fringe pixel's alpha is 0).
+
+    Args:
+        ldi: the LDI after inpainting; its first ``H * W`` pixels are the photo.
+        pixels: ``(K,) int64`` fringe pixels (raster indices of the photo).
+        colors: ``(K, 3) float32`` their background estimates.
+        threshold: disparity difference that makes a pixel lie behind.
+
+    Returns:
+        The LDI with those colours (positions, links and alpha unchanged).
+
+    Example:
+        >>> from photo3d.stages.ldi import from_image
+        >>> from photo3d.stages.merge import merge_fills
+        >>> ldi = from_image(np.ones((1, 2, 3), np.float32), np.ones((1, 2), np.float32))
+        >>> behind = replace(ldi, y=np.r_[ldi.y, 0].astype(np.int32),
+        ...     x=np.r_[ldi.x, 1].astype(np.int32), color=np.r_[ldi.color, [[0.5] * 3]],
+        ...     disparity=np.r_[ldi.disparity, 0.0].astype(np.float32),
+        ...     links=np.r_[ldi.links, [[-1] * 4]].astype(np.int32), label=np.r_[ldi.label, 2],
+        ...     alpha=np.ones(3, np.float32))
+        >>> out = paint_behind(behind, np.array([1]), np.zeros((1, 3), np.float32),
+        ...                    threshold=0.04)
+        >>> out.color[2].tolist()
+        [0.0, 0.0, 0.0]
+    """
+    if pixels.size == 0:
+        return ldi
+    starts, order = ldi.position_index()
+    cols = ldi.width + 2 * ldi.border
+    y, x = np.divmod(pixels, ldi.width)
+    pos = (y + ldi.border) * cols + (x + ldi.border)
+    target = _behind(starts, order, pos, pixels, ldi.disparity, np.float32(threshold))
+    ok = target >= 0
+    color = ldi.color.copy()
+    color[target[ok]] = colors[ok]
+    return replace(ldi, color=color)
+
+
+@numba.njit(cache=True)
+def _behind(starts, order, pos, pixels, disparity, threshold):  # pragma: no cover - numba
+    out = np.full(pixels.size, -1, np.int64)
+    for i in range(pixels.size):
+        front = disparity[pixels[i]]
+        best = -np.inf
+        for s in range(starts[pos[i]], starts[pos[i] + 1]):
+            j = order[s]
+            d = disparity[j]
+            if d < front - threshold and d > best:
+                best = d
+                out[i] = j
+    return out
 
 
 def soft_silhouettes(image: np.ndarray, disparity: np.ndarray, cuts: np.ndarray, *,
@@ -75,7 +158,7 @@ def soft_silhouettes(image: np.ndarray, disparity: np.ndarray, cuts: np.ndarray,
         >>> img = np.zeros((8, 12, 3), np.float32); img[:, 6:] = 1.0  # white foreground
         >>> img[:, 6] = 0.25                                          # a 25 % mixed column
         >>> disp = np.zeros((8, 12), np.float32); disp[:, 6:] = 1.0
-        >>> cuts = np.zeros((8, 12), np.uint8); cuts[:, 5] = 2; cuts[:, 6] = 1
+        >>> cuts = np.zeros((8, 12), np.uint8); cuts[:, 5] = 2  # right of column 5
         >>> sil = soft_silhouettes(img, disp, cuts)
         >>> sil.fringe, round(float(sil.alpha[4, 6]), 2), sil.color[4, 6].tolist()
         (8, 0.25, [1.0, 1.0, 1.0])
@@ -89,10 +172,11 @@ def soft_silhouettes(image: np.ndarray, disparity: np.ndarray, cuts: np.ndarray,
     color = image.copy()
     if band <= 0 or not cuts.any():
         return Silhouettes(alpha, color, 0)
-    dist = _near_distance(disparity, cuts, np.int32(band + 2 * radius))
+    dist = _near_distance(disparity, cuts, np.int32(band + 2 * radius), np.float32(threshold))
+    back = image.copy()
     _matte(image, disparity, dist, np.int32(band), np.int32(radius), np.float32(threshold),
-           method == "pairs", alpha, color)
-    return Silhouettes(alpha, color, int(np.count_nonzero(alpha < 1.0)))
+           method == "pairs", alpha, color, back)
+    return Silhouettes(alpha, color, int(np.count_nonzero(alpha < 1.0)), back)
 
 
 def silhouettes_of(image: np.ndarray, disparity: np.ndarray, cuts: np.ndarray, *,
@@ -109,7 +193,7 @@ def silhouettes_of(image: np.ndarray, disparity: np.ndarray, cuts: np.ndarray, *
     Example:
         >>> img = np.zeros((8, 12, 3), np.float32); img[:, 6:] = 1.0; img[:, 6] = 0.25
         >>> disp = np.zeros((8, 12), np.float32); disp[:, 6:] = 1.0
-        >>> cuts = np.zeros((8, 12), np.uint8); cuts[:, 5] = 2; cuts[:, 6] = 1
+        >>> cuts = np.zeros((8, 12), np.uint8); cuts[:, 5] = 2  # right of column 5
         >>> exact = Config(edges="exact")
         >>> silhouettes_of(img, disp, cuts, config=exact, working_size=1024).fringe
         0
@@ -123,14 +207,18 @@ def silhouettes_of(image: np.ndarray, disparity: np.ndarray, cuts: np.ndarray, *
                             threshold=config.preprocess.discontinuity, method=sil.method)
 
 
-def _near_distance(disparity: np.ndarray, cuts: np.ndarray, limit: np.int32) -> np.ndarray:
+def _near_distance(disparity: np.ndarray, cuts: np.ndarray, limit: np.int32,
+                   threshold: np.float32) -> np.ndarray:
     """``(H, W) int32`` steps along uncut 4-neighbour links from the nearest *near*
-    pixel of a cut link (0 on those pixels), up to ``limit``; ``_FAR`` elsewhere."""
-    return _walk(disparity, cuts, limit)
+    pixel of a cut link (0 on those pixels), up to ``limit``; ``_FAR`` elsewhere. A
+    link is cut when either end has its bit (the edges mark one end); the walk never
+    steps across a disparity difference above ``threshold`` (a step whose edge was
+    too short to be cut)."""
+    return _walk(disparity, cuts, limit, threshold)
 
 
 @numba.njit(cache=True)
-def _walk(disparity, cuts, limit):  # pragma: no cover - numba
+def _walk(disparity, cuts, limit, threshold):  # pragma: no cover - numba
     h, w = disparity.shape
     dist = np.full((h, w), _FAR, np.int32)
     queue = np.empty(h * w, np.int64)
@@ -142,14 +230,16 @@ def _walk(disparity, cuts, limit):  # pragma: no cover - numba
             c = cuts[y, x]
             if c == 0:
                 continue
-            for d in range(4):
+            for d in range(4):  # the cut link's nearer end (either may hold the bit)
                 if c & (1 << d):
                     qy, qx = y + dy[d], x + dx[d]
-                    if 0 <= qy < h and 0 <= qx < w and disparity[y, x] > disparity[qy, qx]:
-                        dist[y, x] = 0
-                        queue[tail] = y * w + x
+                    if not (0 <= qy < h and 0 <= qx < w):
+                        continue
+                    sy, sx = (y, x) if disparity[y, x] > disparity[qy, qx] else (qy, qx)
+                    if dist[sy, sx] != 0:
+                        dist[sy, sx] = 0
+                        queue[tail] = sy * w + sx
                         tail += 1
-                        break
     while head < tail:
         p = queue[head]
         head += 1
@@ -162,7 +252,11 @@ def _walk(disparity, cuts, limit):  # pragma: no cover - numba
             if c & (1 << d):
                 continue
             qy, qx = y + dy[d], x + dx[d]
-            if 0 <= qy < h and 0 <= qx < w and dist[qy, qx] > nd:
+            if not (0 <= qy < h and 0 <= qx < w) or cuts[qy, qx] & (1 << (d ^ 1)):
+                continue
+            if abs(disparity[qy, qx] - disparity[y, x]) > threshold:  # a step not cut
+                continue
+            if dist[qy, qx] > nd:
                 dist[qy, qx] = nd
                 queue[tail] = qy * w + qx
                 tail += 1
@@ -170,8 +264,8 @@ def _walk(disparity, cuts, limit):  # pragma: no cover - numba
 
 
 @numba.njit(cache=True)
-def _matte(image, disparity, dist, band, radius, threshold, pairs, alpha,
-           color):  # pragma: no cover - numba
+def _matte(image, disparity, dist, band, radius, threshold, pairs, alpha, color,
+           back):  # pragma: no cover - numba
     h, w = disparity.shape
     side = 2 * radius + 1
     fs = np.empty((side * side, 3), np.float32)
@@ -185,7 +279,8 @@ def _matte(image, disparity, dist, band, radius, threshold, pairs, alpha,
             for qy in range(max(0, y - radius), min(h, y + radius + 1)):
                 for qx in range(max(0, x - radius), min(w, x + radius + 1)):
                     dq = dist[qy, qx]
-                    if band <= dq < _FAR:
+                    same = abs(disparity[qy, qx] - dp) <= threshold
+                    if band <= dq < _FAR and same:
                         for c in range(3):
                             fs[nf, c] = image[qy, qx, c]
                         nf += 1
@@ -239,12 +334,16 @@ def _matte(image, disparity, dist, band, radius, threshold, pairs, alpha,
                 if ba >= 0.5:
                     v = (image[y, x, c] - (1.0 - ba) * bb[c]) / ba
                     color[y, x, c] = min(max(v, 0.0), 1.0)
+                    back[y, x, c] = bb[c]
                 else:
                     color[y, x, c] = bf[c]
+                    v = (image[y, x, c] - ba * bf[c]) / (1.0 - ba)
+                    back[y, x, c] = min(max(v, 0.0), 1.0)
 
 
 KERNELS = (
-    (_walk, "(float32[:, ::1], uint8[:, ::1], int32)"),
+    (_walk, "(float32[:, ::1], uint8[:, ::1], int32, float32)"),
+    (_behind, "(int64[::1], int64[::1], int64[::1], int64[::1], float32[::1], float32)"),
     (_matte, "(float32[:, :, ::1], float32[:, ::1], int32[:, ::1], int32, int32, float32, "
-             "boolean, float32[:, ::1], float32[:, :, ::1])"),
+             "boolean, float32[:, ::1], float32[:, :, ::1], float32[:, :, ::1])"),
 )
