@@ -9,7 +9,8 @@ pixel's footprint at its depth (``z / fx`` by ``z / fy``: one pixel of the input
 view) times :data:`FOOTPRINT`, a flat disc facing the camera (the third axis
 :data:`THICKNESS` times as thick). Seen from the input camera the splats of
 neighbouring pixels overlap as the mesh's triangles join them; opacity is
-:data:`OPACITY`, so the splats nearest the camera hide what lies behind them.
+:data:`OPACITY` (times the LDI pixel's alpha: a soft silhouette's fringe is translucent),
+so the splats nearest the camera hide what lies behind them.
 
 ``merge=True`` joins, in up to :data:`MERGE_LEVELS` rounds, the linked 2 x 2 blocks
 of a flat, smooth area (colours within :data:`MERGE_COLOR`, depths planar and
@@ -79,8 +80,9 @@ def build_splats(ldi: LDI, *, merge: bool = False) -> Splats:
     positions = unproject(ldi.x, ldi.y, z, k)
     colors = np.asarray(ldi.color, np.float32)
     size = np.ones(len(z), np.float32)  # side of the block a splat stands for, pixels
+    alpha = np.asarray(ldi.alpha, np.float32)  # soft silhouettes: opacity * coverage
     if merge:
-        positions, colors, z, size = _merge(ldi, positions, colors, z)
+        positions, colors, z, size, alpha = _merge(ldi, positions, colors, z)
     scales = np.empty((len(z), 3), np.float32)
     scales[:, 0] = FOOTPRINT * size * z / k.fx
     scales[:, 1] = FOOTPRINT * size * z / k.fy
@@ -88,7 +90,7 @@ def build_splats(ldi: LDI, *, merge: bool = False) -> Splats:
     rotations = np.zeros((len(z), 4), np.float32)
     rotations[:, 0] = 1.0
     return Splats(positions=positions, colors=colors,
-                  opacity=np.full(len(z), OPACITY, np.float32), scales=scales,
+                  opacity=(OPACITY * alpha).astype(np.float32), scales=scales,
                   rotations=rotations)
 
 
@@ -195,7 +197,7 @@ def splat_count(path: str | Path) -> int | None:
 
 
 def _merge(ldi: LDI, positions: np.ndarray, colors: np.ndarray,
-           z: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+           z: np.ndarray) -> tuple[np.ndarray, ...]:
     """Join flat, smooth, linked 2 x 2 blocks, :data:`MERGE_LEVELS` times.
 
     A block at level ``L`` is ``2**L`` pixels on a side, anchored at its top-left
@@ -203,7 +205,8 @@ def _merge(ldi: LDI, positions: np.ndarray, colors: np.ndarray,
     ``L - 1`` become one when their anchors are linked as a square (walking the LDI's
     links ``2**(L - 1)`` steps right and down) and the union is flat and smooth.
 
-    Returns the positions, colours, depths and block sides (pixels) of the splats.
+    Returns the positions, colours, depths, block sides (pixels) and alphas of the
+    splats (a block with a soft silhouette's pixel is never joined).
     """
     n = ldi.size
     links = ldi.links
@@ -231,7 +234,7 @@ def _merge(ldi: LDI, positions: np.ndarray, colors: np.ndarray,
         limit = MERGE_DEPTH * zs.mean(axis=0)
         flat = (np.abs(zs[0] + zs[3] - zs[1] - zs[2]) <= limit) & (
             hi_z[quad].max(axis=0) - lo_z[quad].min(axis=0) <= limit)
-        ok = flat & (c_range.max(axis=1) <= MERGE_COLOR)
+        ok = flat & (c_range.max(axis=1) <= MERGE_COLOR) & (ldi.alpha[quad].min(axis=0) >= 1.0)
         p, quad = p[ok], quad[:, ok]
         pos[p] = pos[quad].mean(axis=0)
         col[p] = col[quad].mean(axis=0)
@@ -244,7 +247,8 @@ def _merge(ldi: LDI, positions: np.ndarray, colors: np.ndarray,
     keep = np.flatnonzero(block >= 0)
     z_out = pos[keep, 2]
     return (pos[keep].astype(np.float32), col[keep].astype(np.float32),
-            z_out.astype(np.float32), (1 << block[keep]).astype(np.float32))
+            z_out.astype(np.float32), (1 << block[keep]).astype(np.float32),
+            np.asarray(ldi.alpha, np.float32)[keep])
 
 
 def _walk(links: np.ndarray, start: np.ndarray, direction: int, steps: int) -> np.ndarray:
