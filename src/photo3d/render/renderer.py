@@ -244,12 +244,12 @@ class Renderer:
                pose) -> tuple[np.ndarray, np.ndarray]:
         """``color`` with the soft silhouettes' fringe blended over it where the fringe
         is in front: ``a * fringe + (1 - a) * color``, ``a`` the fringe's interpolated
-        alpha where it covers any sample of the pixel; and the nearer depth."""
+        alpha times twice its coverage of the pixel (at most 1); and the nearer depth."""
         colors, alphas = self._overlay
         f_color, f_coverage, f_depth = self._draw(colors, k, pose)
-        # the fringe's mesh ends at its outer pixels' centres: its coverage of them is
-        # about half, while their alpha already is their coverage, so it is not applied
-        f_alpha = np.where(f_coverage > 0.0, self._draw(alphas, k, pose)[0][..., 0], 0.0)
+        # the fringe's mesh ends at its outer pixels' centres: it covers about half of
+        # them, while their alpha already is their coverage: coverage counts twice
+        f_alpha = self._draw(alphas, k, pose)[0][..., 0] * np.minimum(2.0 * f_coverage, 1.0)
         front = (f_alpha > 0.0) & (f_depth <= depth * 1.001)
         a = np.where(front, f_alpha, 0.0).astype(np.float32)[..., None]
         color = color * (1.0 - a) + f_color * a

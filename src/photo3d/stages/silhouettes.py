@@ -7,7 +7,8 @@ fatter than the object, pure background colours) into every novel view, as a hal
 Here every near-side pixel within ``band`` pixels of a cut link (the *fringe*) is
 explained as ``I = alpha * F + (1 - alpha) * B``: ``F`` from the pure foreground
 pixels of a ``(2 radius + 1)^2`` window (those at least ``band`` steps inside the
-near side, walking along uncut links), ``B`` from the window's background pixels
+near side, walking along uncut links; in a structure thinner than ``2 band``, its
+innermost pixels), ``B`` from the window's background pixels
 (farther by at least the discontinuity threshold). Of all ``(F, B)`` sample pairs the
 one that explains ``I`` best is taken (sampling-based matting, as Robust Matting /
 Shared Matting do; the window means alone were measured worse:
@@ -275,12 +276,21 @@ def _matte(image, disparity, dist, band, radius, threshold, pairs, alpha, color,
             if dist[y, x] >= band:
                 continue
             dp = disparity[y, x]
+            # foreground samples: the window's near-side pixels at least `band` steps
+            # in, or (a structure thinner than 2 band) its innermost ones
+            inner = 0
+            for qy in range(max(0, y - radius), min(h, y + radius + 1)):
+                for qx in range(max(0, x - radius), min(w, x + radius + 1)):
+                    dq = dist[qy, qx]
+                    if inner < dq < _FAR and abs(disparity[qy, qx] - dp) <= threshold:
+                        inner = dq
+            need = min(band, inner) if inner > 0 else band
             nf, nb = 0, 0
             for qy in range(max(0, y - radius), min(h, y + radius + 1)):
                 for qx in range(max(0, x - radius), min(w, x + radius + 1)):
                     dq = dist[qy, qx]
                     same = abs(disparity[qy, qx] - dp) <= threshold
-                    if band <= dq < _FAR and same:
+                    if need <= dq < _FAR and same:
                         for c in range(3):
                             fs[nf, c] = image[qy, qx, c]
                         nf += 1
