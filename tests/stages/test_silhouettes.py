@@ -184,3 +184,30 @@ def test_splats_take_the_alpha_as_opacity():
         splats = build_splats(ldi, merge=merge)
         assert splats.opacity.min() < 0.5 * OPACITY
     assert np.allclose(build_splats(ldi).opacity, OPACITY * ldi.alpha)
+
+
+def test_glb_files_keep_the_fringe_and_its_alpha(tmp_path):
+    from photo3d.io.gltf import read_glb, write_glb
+    from photo3d.io.gltf_textured import read_textured_glb, write_textured_glb
+    from photo3d.io.light_glb import read_light_glb
+
+    image, depth = _pole(spread=2)
+    config = Config(size=None, depth_kind="depth", spatial_scale=1.0)
+    photo = photo3d.make(image, depth=depth, config=config)
+    light = photo.light_mesh()
+    write_textured_glb(tmp_path / "light.glb", light)
+    back = read_textured_glb(tmp_path / "light.glb")
+    assert back.overlay is not None
+    assert np.allclose(back.overlay.alpha, light.overlay.alpha, atol=1e-6)
+    assert np.array_equal(back.overlay.colors, light.overlay.colors)
+    assert np.array_equal(back.overlay.faces, light.overlay.faces)
+    again = read_light_glb(tmp_path / "light.glb", intrinsics=photo.ldi.intrinsics,
+                           lattice=photo.ldi.lattice_shape)
+    assert again.overlay is not None  # videos drawn from a saved folder keep it
+    full = photo.mesh()
+    write_glb(tmp_path / "full.glb", full)
+    read = read_glb(tmp_path / "full.glb")
+    opaque, fringe = full.split_fringe()
+    assert len(read.faces) == len(full.faces)
+    assert np.isclose(read.alpha.min(), full.alpha.min())
+    assert np.array_equal(read.split_fringe()[1].alpha, fringe.alpha)

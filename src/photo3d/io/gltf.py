@@ -24,6 +24,7 @@ container in :mod:`photo3d.io.glb`.
 from __future__ import annotations
 
 import os
+from dataclasses import replace
 
 import numpy as np
 
@@ -36,6 +37,7 @@ from photo3d.io.glb import (
     WHITE,
     accessor,
     read_chunks,
+    read_fringe,
     write_glb_file,
 )
 from photo3d.structures.mesh import Mesh
@@ -68,7 +70,9 @@ def write_glb(path: PathLike, mesh: Mesh) -> None:
         path: file to create (overwritten if it exists).
         mesh: vertices ``(N, 3) float32`` finite OpenCV camera coordinates, colors
             ``(N, 3) uint8`` sRGB, labels ``(N,) uint8``, faces ``(M, 3) int32``;
-            ``N >= 1`` and ``M >= 1`` (glTF has no empty accessors).
+            ``N >= 1`` and ``M >= 1`` (glTF has no empty accessors). Faces touching a
+            vertex of ``alpha < 1`` (soft silhouettes) go into a second, blended
+            primitive (:func:`photo3d.io.glb.write_glb_file`).
 
     Raises:
         InputError: the mesh is empty, has wrong shapes, non-finite vertices or
@@ -87,9 +91,11 @@ def write_glb(path: PathLike, mesh: Mesh) -> None:
         >>> path.read_bytes()[:4]
         b'glTF'
     """
+    mesh, fringe = mesh.split_fringe()
     vertices, colors, labels, faces = _checked_arrays(mesh)
     arrays = [(_SRGB_TO_LINEAR[colors], "VEC3", ARRAY_BUFFER, None)]
-    write_glb_file(path, mesh, vertices, labels, faces, arrays, _PRIMITIVE, _MATERIAL)
+    write_glb_file(path, mesh, vertices, labels, faces, arrays, _PRIMITIVE, _MATERIAL,
+                   fringe=fringe)
 
 
 def read_glb(path: PathLike) -> Mesh:
@@ -97,7 +103,8 @@ def read_glb(path: PathLike) -> Mesh:
 
     Reads the first primitive of the first mesh (triangles; ``POSITION``, ``COLOR_0``
     linear RGB(A) as float or normalised integers, optional ``_LABEL``); undoes the
-    axis and colour conversions. Node transforms are not applied.
+    axis and colour conversions. Node transforms are not applied. A second primitive
+    (photo3d's soft silhouettes) is appended, its vertices with their ``alpha``.
 
     Args:
         path: a binary glTF 2.0 file.
@@ -151,7 +158,7 @@ def read_glb(path: PathLike) -> Mesh:
         raise InputError(f"glTF {path} has an unexpected structure ({err!r})") from err
     if faces.size and faces.max() >= count:
         raise InputError(f"glTF {path} has indices outside [0, {count})")
-    return Mesh(
+    mesh = Mesh(
         vertices=(positions * TO_GLTF).astype(np.float32),
         colors=colors,
         labels=labels.astype(np.uint8),
@@ -161,6 +168,18 @@ def read_glb(path: PathLike) -> Mesh:
         hfov=float(extras.get("hfov", 0.0)),
         vfov=float(extras.get("vfov", 0.0)),
     )
+    try:
+        fringe = read_fringe(document, binary, path, extras)
+    except (KeyError, IndexError, TypeError, ValueError) as err:
+        raise InputError(f"glTF {path} has an unexpected structure ({err!r})") from err
+    if fringe is None:
+        return mesh
+    return replace(  # the soft silhouettes' vertices after the others, with their alpha
+        mesh, vertices=np.concatenate([mesh.vertices, fringe.vertices]),
+        colors=np.concatenate([mesh.colors, fringe.colors]),
+        labels=np.concatenate([mesh.labels, fringe.labels]),
+        faces=np.concatenate([mesh.faces, fringe.faces + count]),
+        alpha=np.concatenate([np.ones(count, np.float32), fringe.alpha]))
 
 
 def _srgb_to_linear_table() -> np.ndarray:

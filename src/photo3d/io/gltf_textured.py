@@ -23,6 +23,7 @@ from photo3d.io.glb import (
     WHITE,
     accessor,
     read_chunks,
+    read_fringe,
     write_glb_file,
 )
 
@@ -38,7 +39,8 @@ def write_textured_glb(path: PathLike, mesh: TexturedMesh, *, quality: int = 90)
     The file holds ``POSITION``, ``TEXCOORD_0`` and ``_LABEL`` as :func:`write_glb`
     does, one sRGB base-colour texture (linear filtering, clamped; no mipmaps, so
     atlas charts do not bleed into each other) on an unlit material, and the input
-    camera as a camera node.
+    camera as a camera node. The mesh's ``overlay`` (soft silhouettes), if any, is a
+    second primitive drawn blended (:func:`photo3d.io.glb.write_glb_file`).
 
     Args:
         path: file to create (overwritten if it exists).
@@ -77,7 +79,8 @@ def write_textured_glb(path: PathLike, mesh: TexturedMesh, *, quality: int = 90)
         "extensions": {UNLIT: {}},
         "doubleSided": False,
     }
-    write_glb_file(path, mesh, vertices, labels, faces, arrays, primitive, material, image=image)
+    write_glb_file(path, mesh, vertices, labels, faces, arrays, primitive, material, image=image,
+                   fringe=mesh.overlay)
 
 
 def read_textured_glb(path: PathLike) -> TexturedMesh:
@@ -104,6 +107,7 @@ def read_textured_glb(path: PathLike) -> TexturedMesh:
         start = view.get("byteOffset", 0)
         texture = decode_jpeg(binary[start:start + view["byteLength"]])
         extras = document["meshes"][0].get("extras", {})
+        overlay = read_fringe(document, binary, path, extras)
     except (KeyError, IndexError, TypeError, ValueError) as err:
         raise InputError(f"glTF {path} is not a photo3d textured mesh ({err!r})") from err
     count = len(positions)
@@ -116,6 +120,7 @@ def read_textured_glb(path: PathLike) -> TexturedMesh:
         texture=texture, labels=labels.astype(np.uint8), faces=faces.astype(np.int32),
         n_input=0, width=int(extras.get("width", 0)), height=int(extras.get("height", 0)),
         hfov=float(extras.get("hfov", 0.0)), vfov=float(extras.get("vfov", 0.0)),
+        overlay=overlay,
     )
 
 
