@@ -145,11 +145,18 @@ def test_npz_refuses_alpha_out_of_range(tmp_path):
         load_npz(tmp_path / "a.npz")
 
 
-def test_renderer_blends_the_fringe_over_what_is_behind():
+@pytest.mark.parametrize("backend", ["numba", "gl"])
+def test_renderer_blends_the_fringe_over_what_is_behind(backend):
     from photo3d.mesh.full import build_mesh
     from photo3d.render.renderer import Renderer, RenderSettings
     from photo3d.stages.ldi import from_image
 
+    if backend == "gl":
+        pytest.importorskip("moderngl")
+        from photo3d.render.gl import gl_available
+
+        if not gl_available():
+            pytest.skip("no OpenGL context")
     h = w = 16
     blue = np.zeros((h, w, 3), np.float32)
     blue[..., 2] = 1.0
@@ -165,7 +172,7 @@ def test_renderer_blends_the_fringe_over_what_is_behind():
         np.concatenate([back.faces, near.faces + n]), w, h, back.hfov, back.vfov,
         alpha=np.concatenate([np.ones(n, np.float32), alpha]))
     camera = Camera(Intrinsics.default(w, h), np.eye(4))
-    settings = RenderSettings(backend="numba", ssaa=2)
+    settings = RenderSettings(backend=backend, ssaa=2)
     with Renderer(both, settings) as renderer:
         color = renderer.render(camera).color
     inner = color[4:12, 4:12].reshape(-1, 3)
