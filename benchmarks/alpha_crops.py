@@ -25,9 +25,9 @@ sys.path.insert(0, str(Path(__file__).parent))
 from _machine import save_record  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
-CROPS = {  # (path, frame, name): (top, left, height, width) in the 740x500 frame
-    ("swing", 60, "handlebar"): (60, 180, 120, 180),
-    ("circle", 30, "fork"): (230, 330, 120, 180),
+CROPS = {  # (path, frame, name): (top, left, height, width) in the 1024x690 frame
+    ("swing", 60, "handlebar"): (100, 430, 150, 250),
+    ("circle", 30, "fork"): (330, 720, 150, 250),
 }
 
 
@@ -55,7 +55,7 @@ def main() -> None:
     for edges, photo in photos.items():
         light = build_light_mesh(photo.ldi)
         with Renderer(light, video_settings()) as renderer:
-            for path, frame, name in CROPS:
+            for path, frame, _ in CROPS:
                 cam = path_cameras(photo.ldi, VideoSpec(path=path))[frame]
                 frames[edges, path, frame] = renderer.render(cam).color
     out = ROOT / "docs" / "img"

@@ -17,7 +17,12 @@ Variants: ``exact`` (``Config(edges="exact")``: today's hard cut) and ``soft`` (
 default, soft silhouettes), plus the matting method and band given by ``--variants``.
 Writes ``benchmarks/results/alpha.json``.
 
-Usage: python benchmarks/bench_alpha.py [--scenes 3] [--size 384x256]
+``--accuracy``: the alpha estimates themselves, against the exact coverage of the
+input view's fringe pixels (the share of a pixel's 4x4 samples on a surface at least
+as near as the pixel's LDI disparity less half the threshold), for each method, band
+and radius; writes ``benchmarks/results/alpha_accuracy.json``.
+
+Usage: python benchmarks/bench_alpha.py [--scenes 3] [--size 384x256] [--accuracy]
 """
 
 from __future__ import annotations
@@ -118,6 +123,59 @@ def cast(layers, k: Intrinsics, centre, *, samples: int = 4) -> tuple[np.ndarray
     return (image / samples**2).astype(np.float32), depth.astype(np.float32)
 
 
+def samples(layers, k: Intrinsics, *, samples: int = 4) -> tuple[np.ndarray, np.ndarray]:
+    """The input view ``(image (H, W, 3), depth of every sample (S, H, W))``."""
+    from photo3d.eval.synthetic import _bilinear
+
+    yy, xx = np.mgrid[0:k.height, 0:k.width].astype(np.float64)
+    image = np.zeros((k.height, k.width, 3))
+    depths = []
+    for oy in ((o + 0.5) / samples for o in range(samples)):
+        for ox in ((o + 0.5) / samples for o in range(samples)):
+            u, v = xx + ox, yy + oy
+            z_best = np.full(u.shape, np.inf)
+            col = np.zeros(u.shape + (3,))
+            for z, inside, tex, (u0, v0, u1, v1) in layers:
+                hit = inside(u, v) & (z < z_best)
+                col[hit] = _bilinear(tex, (u[hit] - u0) / (u1 - u0), (v[hit] - v0) / (v1 - v0))
+                z_best[hit] = z
+            depths.append(z_best)
+            image += col
+    return (image / samples**2).astype(np.float32), np.array(depths)
+
+
+def accuracy(seed: int, k: Intrinsics, spread: int, settings: list[tuple]) -> list[dict]:
+    """Alpha error on the fringe of scene ``seed`` for each ``(method, band, radius)``."""
+    from photo3d.depth.normalize import prepare_depth
+    from photo3d.stages.preprocess import preprocess
+    from photo3d.stages.silhouettes import _FAR, _near_distance, soft_silhouettes
+
+    image, depths = samples(scene(seed, k), k)
+    z = np.median(depths, axis=0)
+    if spread:
+        z = ndimage.minimum_filter(z, 2 * spread + 1)
+    config = Config(size=None, depth_kind="depth", metric=True, spatial_scale=1.0)
+    pre = preprocess(image, prepare_depth(z.astype(np.float32), image.shape[:2],
+                                          kind="depth").disparity, config=config)
+    lo, hi = pre.disparity_range
+    threshold = config.preprocess.discontinuity
+    truth = ((1.0 / depths - lo) / (hi - lo) >= pre.disparity[None] - threshold / 2).mean(0)
+    rows = []
+    for method, band, radius in settings:
+        dist = _near_distance(pre.disparity, pre.edges.cuts, np.int32(band + 2 * radius),
+                              np.float32(threshold))
+        fringe = (dist < band) & (dist < _FAR)
+        sil = soft_silhouettes(pre.image, pre.disparity, pre.edges.cuts, band=band,
+                               radius=radius, threshold=threshold, method=method)
+        err = np.abs(sil.alpha - truth)[fringe]
+        hard = np.abs(1.0 - truth)[fringe]
+        rows.append({"scene": seed, "spread": spread, "method": method, "band": band,
+                     "radius": radius, "pixels": int(fringe.sum()), "mean_error": float(err.mean()),
+                     "share_off_0.25": float((err > 0.25).mean()),
+                     "hard_cut_mean_error": float(hard.mean())})
+    return rows
+
+
 def near_steps(depth: np.ndarray, radius: int = 4) -> np.ndarray:
     """``(H, W) bool`` pixels within ``radius`` px of a depth step (> 10 %)."""
     z = depth
@@ -149,7 +207,7 @@ VARIANTS = {
     "soft": lambda c: c,
     "soft-means": lambda c: c.with_(silhouettes=replace(c.silhouettes, method="means")),
     "soft-band2": lambda c: c.with_(silhouettes=replace(c.silhouettes, band=2)),
-    "soft-band5": lambda c: c.with_(silhouettes=replace(c.silhouettes, band=5)),
+    "soft-band4": lambda c: c.with_(silhouettes=replace(c.silhouettes, band=4, radius=5)),
 }
 
 
@@ -163,9 +221,27 @@ def main() -> None:
     ap.add_argument("--variants", default="exact,soft")
     ap.add_argument("--spread", type=int, default=2)
     ap.add_argument("--out", default=str(Path(__file__).parent / "results" / "alpha.json"))
+    ap.add_argument("--accuracy", action="store_true")
     args = ap.parse_args()
     w, h = (int(v) for v in args.size.split("x"))
     k = Intrinsics.default(w, h)
+    if args.accuracy:
+        settings = [("pairs", 3, 4), ("means", 3, 4), ("pairs", 2, 3), ("pairs", 4, 5)]
+        rows = [r for seed in range(args.scenes) for spread in (0, args.spread)
+                for r in accuracy(seed, k, spread, settings)]
+        summary = {}
+        for spread in (0, args.spread):
+            for method, band, radius in settings:
+                sel = [r for r in rows if r["spread"] == spread and r["method"] == method
+                       and r["band"] == band]
+                key = f"spread{spread}/{method}/band{band}/radius{radius}"
+                summary[key] = {m: float(np.mean([r[m] for r in sel])) for m in (
+                    "mean_error", "share_off_0.25", "hard_cut_mean_error")}
+                print(key, {m: round(v, 3) for m, v in summary[key].items()})
+        out = Path(args.out).with_name("alpha_accuracy.json")
+        save_record({"rows": rows, "mean_over_scenes": summary}, out, "alpha_accuracy",
+                    "bench_alpha.py")
+        return
     # the paper's spatial sizes are for 1024 px: keep them in pixels at this small size
     base = Config(size=None, depth_kind="depth", metric=True, spatial_scale=1.0)
     settings = RenderSettings(ssaa=2, backend="numba")

@@ -63,9 +63,10 @@ def load_npz(path: str | Path) -> tuple[LDI, dict]:
     """Inverse of :func:`save_npz`: returns ``(ldi, meta)``.
 
     Everything read is checked before use (the file may come from anywhere): a zip
-    holding the six arrays (seven from version 3: ``alpha``, in [0, 1]) and the header, sizes within limits before allocating (the
-    pixel count within :data:`MAX_LAYERS` of the image size, and what reading it
-    needs, :data:`LOAD_BYTES` per pixel, within the available memory:
+    holding the six arrays (seven from version 3: ``alpha``, in [0, 1]) and the header,
+    sizes within limits before allocating (the pixel count within :data:`MAX_LAYERS`
+    of the image size, and what reading it needs, :data:`LOAD_BYTES` per pixel, within
+    the available memory:
     :func:`photo3d.io.limits.check_available`), dtypes and shapes, link indices in
     range and symmetric, lattice positions inside the image plus border, finite and
     plausible intrinsics.
@@ -112,8 +113,8 @@ bound is checked on the declared ``.npy`` shapes before any data is decompressed
 _HEADER_BYTES = 1 << 24  # the JSON header and its metadata
 LOAD_BYTES = 400
 """Peak bytes per LDI pixel of :func:`load_npz`, rounded up: the arrays are 41 bytes a
-pixel (45 with version 3's alpha), the link checks need the rest (peak resident memory measured 295 bytes a pixel
-above the interpreter's on a 1.47M pixel LDI)."""
+pixel (45 with version 3's alpha), the link checks need the rest (peak resident memory
+measured 295 bytes a pixel above the interpreter's on a 1.47M pixel LDI, version 2)."""
 
 
 def _relative_links(links: np.ndarray) -> np.ndarray:

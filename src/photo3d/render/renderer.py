@@ -221,7 +221,6 @@ class Renderer:
 
     def render(self, camera: Camera) -> View:
         """Render ``camera`` (its intrinsics give the output size)."""
-        s = self.settings
         k = self._intrinsics(camera)
         color, coverage, depth = self._draw(self._raster, k, camera.pose)
         color = self._holes(color, coverage, depth)

@@ -111,7 +111,8 @@ def start(pre: Preprocessed, *, config: Config, border: bool = True,
           mapping: DepthMapping | None = None) -> PassInput:
     """The first pass's input: ``pre``'s one-layer LDI cut along its depth edges (its
     silhouettes soft unless ``config.edges`` is ``exact``:
-    :func:`~photo3d.stages.silhouettes.silhouettes_of`), with the extrapolated frame (``config.regions.border`` px at 1024) unless ``border`` is off.
+    :func:`~photo3d.stages.silhouettes.silhouettes_of`), with the extrapolated frame
+    (``config.regions.border`` px at 1024) unless ``border`` is off.
 
     Args:
         pre: the preprocessed photo (working size, disparity, linked depth edges).

@@ -33,6 +33,9 @@ from photo3d.config import Config
 from photo3d.structures.ldi import LDI
 
 _FAR = 1 << 20  # distance of pixels the walk from the near seeds did not reach
+MIN_CONTRAST2 = 0.05 ** 2
+"""Squared RGB distance below which a foreground and a background sample are too alike
+to tell a mixed pixel's coverage (the pixel then stays opaque)."""
 
 
 @dataclass(frozen=True)
@@ -311,7 +314,7 @@ def _matte(image, disparity, dist, band, radius, threshold, pairs, alpha, color,
                         d1 = fs[i, 1] - bs[j, 1]
                         d2 = fs[i, 2] - bs[j, 2]
                         n2 = d0 * d0 + d1 * d1 + d2 * d2
-                        if n2 < 0.0025:  # F and B alike (< 0.05 apart): no evidence
+                        if n2 < MIN_CONTRAST2:  # F and B alike: no evidence
                             continue
                         a = ((i0 - bs[j, 0]) * d0 + (i1 - bs[j, 1]) * d1
                              + (i2 - bs[j, 2]) * d2) / n2
@@ -331,7 +334,7 @@ def _matte(image, disparity, dist, band, radius, threshold, pairs, alpha, color,
                     bb[c] = bs[:nb, c].mean()
                 d0, d1, d2 = bf[0] - bb[0], bf[1] - bb[1], bf[2] - bb[2]
                 n2 = d0 * d0 + d1 * d1 + d2 * d2
-                if n2 >= 0.0025:
+                if n2 >= MIN_CONTRAST2:
                     a = ((i0 - bb[0]) * d0 + (i1 - bb[1]) * d1 + (i2 - bb[2]) * d2) / n2
                     ba = min(max(a, 0.0), 1.0)
                     best = 0.0

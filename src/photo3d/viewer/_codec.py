@@ -189,7 +189,8 @@ def decode_mesh(header: dict, payload: bytes) -> Mesh | TexturedMesh:
         k, m = int(header["overlay"]["vertices"]), int(header["overlay"]["faces"])
         rgba = np.frombuffer(section("overlay_color"), np.uint8).reshape(k, 4)
         overlay = Mesh(vertices=positions("overlay_position", k), colors=rgba[:, :3].copy(),
-                       labels=np.ones(k, np.uint8), faces=_decode_faces(section("overlay_faces"), m),
+                       labels=np.ones(k, np.uint8),
+                       faces=_decode_faces(section("overlay_faces"), m),
                        width=int(header["width"]), height=int(header["height"]),
                        hfov=float(header["hfov"]), vfov=float(header["vfov"]),
                        alpha=(rgba[:, 3] / 255.0).astype(np.float32))
