@@ -162,10 +162,14 @@ def _read_arrays(path: Path) -> tuple[dict[str, np.ndarray], dict]:
         header = json.loads(_read_member(zf, "header", _HEADER_BYTES).tobytes().decode())
         if not isinstance(header, dict) or header.get("format") != "photo3d-ldi":
             raise InputError("not a photo3d file (its header is not a photo3d LDI header)")
+        version = header.get("version", 1)
+        if version not in range(1, FORMAT_VERSION + 1) or isinstance(version, bool):
+            raise InputError(f"format version {version!r} is not one this photo3d reads "
+                             f"(1 to {FORMAT_VERSION}); a newer photo3d wrote it")
         w, h, border = _checked_frame(header)
         limit = MAX_LAYERS * (h + 2 * border) * (w + 2 * border)
         declared = {}
-        names = _ARRAYS + (("alpha",) if header.get("version", 1) >= 3 else ())
+        names = _ARRAYS + (("alpha",) if version >= 3 else ())
         for name in names:
             with zf.open(f"{name}.npy") as f:
                 try:
@@ -228,10 +232,7 @@ def _checked_ldi(arrays: dict[str, np.ndarray], header: dict) -> LDI:
     mapping = [float(v) for v in header["mapping"]]
     n = len(arrays["y"])
     y, x, links = arrays["y"], arrays["x"], arrays["links"]
-    version = header.get("version", 1)
-    if version not in range(1, FORMAT_VERSION + 1) or isinstance(version, bool):
-        raise InputError(f"format version {version!r} is not one this photo3d reads "
-                         f"(1 to {FORMAT_VERSION}); a newer photo3d wrote it")
+    version = header.get("version", 1)  # checked by _read_arrays
     if version >= 2:
         links = _absolute_links(links)
     if n and (y.min() < -border or y.max() >= h + border or x.min() < -border

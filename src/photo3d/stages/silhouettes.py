@@ -33,6 +33,9 @@ from photo3d.config import Config
 from photo3d.structures.ldi import LDI
 
 _FAR = 1 << 20  # distance of pixels the walk from the near seeds did not reach
+MAX_SAMPLES = 16
+"""Foreground and background samples per fringe pixel the pairs are formed from (every
+k-th of the window's, in raster order)."""
 MIN_CONTRAST2 = 0.05 ** 2
 """Squared RGB distance below which a foreground and a background sample are too alike
 to tell a mixed pixel's coverage (the pixel then stays opaque)."""
@@ -75,7 +78,7 @@ class Silhouettes:
 
 
 def paint_behind(ldi: LDI, pixels: np.ndarray, colors: np.ndarray, *,
-                 threshold: float) -> LDI:
+                 threshold: float, index: tuple[np.ndarray, np.ndarray] | None = None) -> LDI:
     """Give the nearest LDI pixel behind each fringe pixel (farther by more than
     ``threshold`` at the same lattice position: the inpainted layer) the background
     colour the matting estimated there (:meth:`Silhouettes.behind`).
@@ -90,6 +93,7 @@ def paint_behind(ldi: LDI, pixels: np.ndarray, colors: np.ndarray, *,
         pixels: ``(K,) int64`` fringe pixels (raster indices of the photo).
         colors: ``(K, 3) float32`` their background estimates.
         threshold: disparity difference that makes a pixel lie behind.
+        index: ``ldi.position_index()`` if the caller has it (a merge's).
 
     Returns:
         The LDI with those colours (positions, links and alpha unchanged).
@@ -110,7 +114,7 @@ def paint_behind(ldi: LDI, pixels: np.ndarray, colors: np.ndarray, *,
     """
     if pixels.size == 0:
         return ldi
-    starts, order = ldi.position_index()
+    starts, order = ldi.position_index() if index is None else index
     cols = ldi.width + 2 * ldi.border
     y, x = np.divmod(pixels, ldi.width)
     pos = (y + ldi.border) * cols + (x + ldi.border)
@@ -274,6 +278,8 @@ def _matte(image, disparity, dist, band, radius, threshold, pairs, alpha, color,
     side = 2 * radius + 1
     fs = np.empty((side * side, 3), np.float32)
     bs = np.empty((side * side, 3), np.float32)
+    bf = np.zeros(3, np.float32)
+    bb = np.zeros(3, np.float32)
     for y in range(h):
         for x in range(w):
             if dist[y, x] >= band:
@@ -305,11 +311,9 @@ def _matte(image, disparity, dist, band, radius, threshold, pairs, alpha, color,
                 continue
             i0, i1, i2 = image[y, x, 0], image[y, x, 1], image[y, x, 2]
             best, ba = np.inf, 1.0
-            bf = np.zeros(3, np.float32)
-            bb = np.zeros(3, np.float32)
-            if pairs:
-                for i in range(nf):
-                    for j in range(nb):
+            if pairs:  # at most about MAX_SAMPLES of each, evenly spread over the window
+                for i in range(0, nf, (nf + MAX_SAMPLES - 1) // MAX_SAMPLES):
+                    for j in range(0, nb, (nb + MAX_SAMPLES - 1) // MAX_SAMPLES):
                         d0 = fs[i, 0] - bs[j, 0]
                         d1 = fs[i, 1] - bs[j, 1]
                         d2 = fs[i, 2] - bs[j, 2]
