@@ -4,11 +4,9 @@ argument types, the helper takes the list from its end, a warm cache shows no st
 from __future__ import annotations
 
 import json
-import os
 import subprocess
 import sys
 from collections import Counter
-from pathlib import Path
 from types import SimpleNamespace
 
 import pytest
@@ -121,22 +119,23 @@ def test_a_kernel_compiled_on_first_use_shows_in_the_bar():
                                              (0.3, False)])
 def test_the_helper_starts_only_with_a_core_idle_now(monkeypatch, idle, spare):
     # this process sleeps while the idle time is measured: its own core counts as idle
-    monkeypatch.setattr(ahead.os, "sched_getaffinity", lambda pid: {0, 1}, raising=False)
-    monkeypatch.setattr(ahead, "_idle_cores", lambda interval, allowed: idle)
+    monkeypatch.setattr(ahead.parallel, "cores", lambda: 2)
+    monkeypatch.setattr(ahead.parallel, "idle_cores", lambda interval: idle)
     monkeypatch.setattr(ahead.os, "getloadavg", lambda: (9.0, 9.0, 9.0))  # not read
     assert ahead.spare_core() is spare
 
 
 def test_without_proc_stat_the_load_average_decides(monkeypatch):
-    monkeypatch.setattr(ahead.os, "sched_getaffinity", lambda pid: {0, 1}, raising=False)
-    monkeypatch.setattr(ahead, "_idle_cores", lambda interval, allowed: None)
+    monkeypatch.setattr(ahead.parallel, "cores", lambda: 2)
+    monkeypatch.setattr(ahead.parallel, "idle_cores", lambda interval: None)
     monkeypatch.setattr(ahead.os, "getloadavg", lambda: (0.4, 1.0, 1.0))
     assert ahead.spare_core()
     monkeypatch.setattr(ahead.os, "getloadavg", lambda: (1.4, 1.0, 1.0))
     assert not ahead.spare_core()
 
 
-@pytest.mark.skipif(not Path("/proc/stat").exists(), reason="no /proc/stat")
-def test_the_idle_cores_are_measured_from_proc_stat():
-    idle = ahead._idle_cores(0.05, None)
-    assert idle is not None and 0.0 <= idle <= (os.cpu_count() or 1) + 1e-6
+def test_one_core_never_starts_the_helper(monkeypatch):
+    # a cgroup quota of one CPU on a machine of many: parallel.cores() says 1
+    monkeypatch.setattr(ahead.parallel, "cores", lambda: 1)
+    monkeypatch.setattr(ahead.parallel, "idle_cores", lambda interval: 8.0)
+    assert not ahead.spare_core()

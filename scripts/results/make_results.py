@@ -876,18 +876,9 @@ def section_alpha() -> str:
 
 
 def section_batch() -> str:
-    """``batch.json``'s section, with the fill that ran against today's default."""
-    from photo3d.config import Config
-
-    text = section_json("batch.json", "Many photos: `photo3d batch` against a shell loop of "
-                        "`make`", "python benchmarks/bench_batch.py")
-    rec, default = load("batch.json"), Config().inpainter
-    ran = rec and rec.get("inpainter", "diffusion")  # runs before the field: diffusion
-    if ran and ran != default:
-        text += (f"\nThis run used `{ran}`, the default fill when it ran; the default is "
-                 f"now `{default}` (`photo3d.Config().inpainter`), which a new run of "
-                 "`bench_batch.py` measures.\n")
-    return text
+    """``batch.json``'s section: batch, lone make, one core, a CPU quota (issue 43)."""
+    return section_json("batch.json", "Many photos: `photo3d batch` on the thread budget "
+                        "(issue 43)", "python benchmarks/bench_batch.py")
 
 
 def main() -> None:

@@ -17,6 +17,7 @@ import os as _os
 
 from photo3d.config import PRESETS, Config
 from photo3d.errors import ConfigError, InputError, MissingExtra, OutputError, Photo3DError
+from photo3d.parallel import library_defaults as _library_defaults
 
 # OpenMP threads (numba's parallel kernels) that finish a parallel region spin ~300,000
 # times before they sleep (GOMP's default): between photo3d's kernels (Python, serial
@@ -34,6 +35,11 @@ _os.environ.setdefault("GOMP_SPINCOUNT", "10000")
 # off, unless the user set it; NumPy reads it when it is imported, so this holds when
 # photo3d is imported first (the command line, its workers).
 _os.environ.setdefault("NUMPY_MADVISE_HUGEPAGE", "0")
+# numba and torch size their thread pools by the host's cores when they load, which
+# ignores a cgroup CPU quota (a container of 2 CPUs on a 64-core host: 64 threads);
+# from photo3d's budget instead (photo3d.parallel: affinity, quota, PHOTO3D_THREADS),
+# unless the user set NUMBA_NUM_THREADS / OMP_NUM_THREADS.
+_library_defaults()
 
 __version__ = "0.1.0"
 

@@ -25,12 +25,13 @@ from __future__ import annotations
 import os
 import shutil
 import subprocess
-import sys
 import tempfile
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
+
+from photo3d import parallel
 
 
 def kernels() -> list[tuple[object, tuple[str, ...]]]:
@@ -150,7 +151,8 @@ def watch_compiles(busy: Callable[[bool], None]) -> Iterator[None]:
 
 
 def spare_core(interval: float = 0.1) -> bool:
-    """Whether a second core is idle for the helper process: more than one core, and
+    """Whether a second core is idle for the helper process: more than one core this
+    process may use (:func:`photo3d.parallel.cores`: affinity and cgroup quota), and
     over the next ``interval`` seconds the machine leaves idle this process's core
     (it sleeps meanwhile) and at least ``0.75`` of another. On a busy machine the
     helper would only add its start-up and the numba internals each process compiles
@@ -165,54 +167,16 @@ def spare_core(interval: float = 0.1) -> bool:
         >>> spare_core() in (True, False)
         True
     """
-    allowed = _allowed_cores()
-    cores = len(allowed) if allowed is not None else (os.cpu_count() or 1)
-    if cores < 2:
+    if parallel.cores() < 2:  # affinity and cgroup quota
         return False
-    idle = _idle_cores(interval, allowed)
+    idle = parallel.idle_cores(interval)
     if idle is not None:
         return idle >= 1.75
     try:
         load = os.getloadavg()[0]
     except (AttributeError, OSError):  # no load average (Windows)
         load = 0.0
-    return load < cores - 1
-
-
-def _allowed_cores() -> set[int] | None:
-    """The cores this process may run on (its affinity); None where it cannot tell."""
-    return os.sched_getaffinity(0) if hasattr(os, "sched_getaffinity") else None
-
-
-def _idle_cores(interval: float, allowed: set[int] | None) -> float | None:
-    """How many of the ``allowed`` cores (None: all) the machine left idle, on
-    average, over ``interval`` seconds, from ``/proc/stat``'s idle and iowait time of
-    each; None where it cannot tell."""
-
-    def times() -> tuple[int, int]:
-        idle = total = 0
-        with open("/proc/stat", encoding="ascii") as f:
-            for line in f:
-                name, *values = line.split()
-                if not name.startswith("cpu") or name == "cpu":
-                    continue
-                if allowed is not None and int(name[3:]) not in allowed:
-                    continue
-                fields = [int(v) for v in values[:8]]  # user .. steal; guest is in user
-                idle += fields[3] + fields[4]
-                total += sum(fields)
-        return idle, total
-
-    try:
-        idle0, total0 = times()
-        time.sleep(interval)
-        idle1, total1 = times()
-    except (OSError, ValueError, IndexError):
-        return None
-    cores = len(allowed) if allowed is not None else (os.cpu_count() or 1)
-    if total1 <= total0:
-        return None
-    return cores * (idle1 - idle0) / (total1 - total0)
+    return load < parallel.cores() - 1
 
 
 def compile_from_end(folder: str | Path) -> None:
@@ -259,12 +223,5 @@ def _done(claims: Path | None, own: int) -> int:
 def _start_helper(claims: Path) -> subprocess.Popen | None:
     """Start :func:`compile_from_end` in a new process (None if it cannot start:
     this process then compiles everything itself)."""
-    if not sys.executable:
-        return None
     code = "import sys; from photo3d.kernels import compile_from_end; compile_from_end(sys.argv[1])"
-    try:
-        return subprocess.Popen([sys.executable, "-c", code, str(claims)],
-                                stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
-                                stderr=subprocess.DEVNULL)
-    except OSError:
-        return None
+    return parallel.spawn_python(code, str(claims))

@@ -18,7 +18,7 @@ from __future__ import annotations
 import dataclasses
 import json
 from collections.abc import Callable, Sequence
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import Executor
 from pathlib import Path
 from typing import TYPE_CHECKING, Protocol
 
@@ -31,6 +31,7 @@ from photo3d.io.npz import load_npz, save_npz
 from photo3d.io.ply import write_ply
 from photo3d.mesh.light import LIGHT_ERROR, build_light_mesh
 from photo3d.owned import FINISHED_FILES, LDI_FILE, claim_files, owned_photo, record_files
+from photo3d.parallel import thread_pool
 from photo3d.save_options import SaveOptions
 from photo3d.structures.ldi import LDI
 
@@ -156,9 +157,10 @@ def _write_photo(photo: SavedPhoto, tmp: Path, *, title: str, options: SaveOptio
                  progress) -> None:
     """Write the files of a 3D photo folder into ``tmp``.
 
-    The meshes are built in this thread; the files are written by two writer threads
-    as soon as what they hold is ready (``photo3d.npz`` first, its deflate and the
-    writes release the GIL), so writing overlaps building the light mesh. The
+    The meshes are built in this thread; the files are written by up to two writer
+    threads (:func:`~photo3d.parallel.thread_pool`) as soon as what they hold is
+    ready (``photo3d.npz`` first, its deflate and the writes release the GIL), so
+    writing overlaps building the light mesh. The
     ``exports`` are written by the same threads, from the meshes built here, before
     the folder is committed: a failed export leaves no folder."""
     meta = photo_meta(photo, options)
@@ -166,7 +168,7 @@ def _write_photo(photo: SavedPhoto, tmp: Path, *, title: str, options: SaveOptio
         from photo3d.export import preload
 
         preload([fmt for _, fmt in _export_targets(photo.ldi, options)])  # before threads
-    with ThreadPoolExecutor(max_workers=2) as pool:
+    with thread_pool(2, name="write") as pool:
         jobs = [pool.submit(save_npz, photo.ldi, tmp / LDI_FILE, meta=meta)]
         (tmp / "config.json").write_text(json.dumps(meta, indent=2))
         mesh, light = _write_meshes(photo, tmp, pool, jobs, title=title, options=options)
@@ -255,7 +257,7 @@ def _video_mesh(photo: SavedPhoto, mesh, light, options: SaveOptions, *,
                             max_error=max_error)
 
 
-def _write_meshes(photo: SavedPhoto, tmp: Path, pool: ThreadPoolExecutor, jobs: list, *,
+def _write_meshes(photo: SavedPhoto, tmp: Path, pool: Executor, jobs: list, *,
                   title: str, options: SaveOptions) -> tuple[Mesh | None, TexturedMesh | None]:
     """Build the meshes and have ``pool`` write ``mesh.ply``, ``mesh.glb`` and
     ``viewer.html`` as asked into ``tmp`` (their futures are added to ``jobs``);
@@ -288,7 +290,7 @@ def _export_targets(ldi: LDI, options: SaveOptions) -> list[tuple[str, Format]]:
     return [(fmt.filename(ldi), fmt) for fmt in check_formats(options.exports)]
 
 
-def _write_exports(photo: SavedPhoto, tmp: Path, pool: ThreadPoolExecutor, jobs: list, *,
+def _write_exports(photo: SavedPhoto, tmp: Path, pool: Executor, jobs: list, *,
                    mesh: Mesh | None, light: TexturedMesh | None,
                    options: SaveOptions) -> TexturedMesh | None:
     """Have ``pool`` write ``options.exports`` into ``tmp`` (their futures added to

@@ -3,7 +3,8 @@
 from __future__ import annotations
 
 import time
-from concurrent.futures import ThreadPoolExecutor
+from collections.abc import Iterator
+from concurrent.futures import Future
 from dataclasses import replace
 from functools import partial
 from pathlib import Path
@@ -20,13 +21,26 @@ from photo3d.inpaint.base import Inpainter
 from photo3d.inpaint.frame import fill_frame
 from photo3d.io.depth import read_depth
 from photo3d.io.images import MIN_SIDE
+from photo3d.parallel import ahead, overlap
 from photo3d.photo import Photo3D
-from photo3d.progress import StageProgress
+from photo3d.progress import CountProgress, StageProgress
 from photo3d.resources import check_memory
 from photo3d.stages.border import fill_border
-from photo3d.stages.passes import PassInput, fill_pass, start
-from photo3d.stages.preprocess import preprocess
+from photo3d.stages.merge import Merged, take
+from photo3d.stages.passes import (
+    PassInput,
+    PassPlan,
+    border_readers,
+    merge_pass,
+    pass_regions,
+    patch_batches,
+    plan_pass,
+    start,
+)
+from photo3d.stages.patches import PatchJob
+from photo3d.stages.preprocess import Preprocessed, preprocess
 from photo3d.stages.silhouettes import paint_behind
+from photo3d.structures.ldi import LDI
 from photo3d.structures.patch import Patch
 
 
@@ -83,74 +97,45 @@ def make(
         t = now
         report(stage, 1.0)
 
-    img = read_photo(image)
-    if min(img.shape[:2]) < MIN_SIDE:
-        raise InputError(f"image is {img.shape[1]}x{img.shape[0]} pixels; photo3d needs at "
-                         f"least {MIN_SIDE}x{MIN_SIDE}")
-    check_memory(img.shape[:2], config)
-    if isinstance(depth, DepthInput) and depth.disparity.shape == img.shape[:2]:
-        dep = depth  # already prepared (make_folder: by resolve_depth) for this kind
-    else:
-        raw = read_depth(depth) if isinstance(depth, str | Path) else np.asarray(depth)
-        dep = prepare_depth(raw, img.shape[:2], kind=config.depth_kind)
+    img, dep = _load(image, depth, config)
     done("load")
-
     pre = preprocess(img, dep.disparity, config=config)
     done("preprocess")
 
-    reg = config.regions
+    state = _first_pass_input(pre, img.shape[:2], config, intrinsics)
     h, w = pre.image.shape[:2]
-    if intrinsics is not None:
-        if (intrinsics.width, intrinsics.height) != (img.shape[1], img.shape[0]):
-            raise InputError(f"intrinsics are for {intrinsics.width}x{intrinsics.height} but "
-                             f"the image is {img.shape[1]}x{img.shape[0]}")
-        intrinsics = intrinsics.scaled(w, h)
-    mapping = None
-    if config.metric:
-        lo, hi = pre.disparity_range  # of 1 / z: normalised d maps back to z exactly
-        mapping = DepthMapping.from_inverse_depth(lo, hi)
-    state = start(pre, config=config, intrinsics=intrinsics, mapping=mapping)
-    behind = state.behind
+    behind = state.behind  # the soft silhouettes' background, painted after the passes
     scale = max(w / img.shape[1], h / img.shape[0])
-    patchwise = getattr(backend, "patchwise", False)
-    framing = None  # the frame's colours, filled in another thread meanwhile
-    with ThreadPoolExecutor(max_workers=1) as frame_pool:
+    reg = config.regions
+    with overlap(name="frame") as side:
+        frame = None  # the frame's colours, filled beside the first pass
         if reg.border_fill != "replicate":
             border = partial(fill_border, state.ldi,
                              _border_fill(reg.border_fill, backend, scale),
                              context=config.spatial(reg.border_context, pre.working_size))
-            if patchwise and state.edge_pixels.size:
+            if getattr(backend, "patchwise", False) and state.edge_pixels.size:
                 # the first pass fills the patches that do not read the frame meanwhile
                 # (the same result; about 0.6 s less on 2 cores for the sample)
-                framing = frame_pool.submit(border)
+                frame = side.submit(border)
             else:
                 state = replace(state, ldi=border())
         done("ldi")  # without the frame when it is filled meanwhile (it then counts
         # in "inpaint")
-
         edges_per_pass, added_per_pass = [], []
-        # a backend that fills each patch on its own gets them in batches (bounded memory)
-        rows, cols = state.ldi.lattice_shape
-        batch = rows * cols if patchwise else None
         for k in range(reg.max_passes):
             if state.edge_pixels.size == 0:
                 break
-
-            def fill(patches, progress, k: int = k):
-                return backend.inpaint(patches, progress=progress, pass_index=k)
-
-            def on_patch(i: int, n: int, k: int = k) -> None:
-                report("inpaint", (k + i / max(n, 1)) / reg.max_passes)
-
             # a backend may want thinner contexts after the first pass (learned: the
             # authors'), or the paper's contexts only (learned: its nets were trained
             # on those)
-            merged = fill_pass(state, fill, config=config, working_size=pre.working_size,
-                               margin=backend.margin, scale=scale, pass_index=k,
-                               later_context=getattr(backend, "later_context", 1.0),
-                               paper_context=getattr(backend, "paper_context", False),
-                               batch_area=batch, progress=on_patch,
-                               final=framing.result if framing is not None and k == 0 else None)
+            plan = plan_pass(config, pre.working_size, margin=backend.margin, scale=scale,
+                             pass_index=k,
+                             later_context=getattr(backend, "later_context", 1.0),
+                             paper_context=getattr(backend, "paper_context", False))
+            merged = fill_pass(state, plan, backend, pass_index=k,
+                               frame=frame if k == 0 else None,
+                               progress=lambda i, n, k=k: report(
+                                   "inpaint", (k + i / max(n, 1)) / reg.max_passes))
             edges_per_pass.append(state.edges)
             added_per_pass.append(merged.added)
             state = PassInput(merged.ldi, merged.edge_ptr, merged.edge_pixels, merged.index)
@@ -174,6 +159,107 @@ def make(
             "disparity_range": list(pre.disparity_range),
         },
     )
+
+
+def _load(image: np.ndarray | str | Path, depth: np.ndarray | str | Path | DepthInput,
+          config: Config) -> tuple[np.ndarray, DepthInput]:
+    """The photo and its prepared depth, the photo's size and the memory checked."""
+    img = read_photo(image)
+    if min(img.shape[:2]) < MIN_SIDE:
+        raise InputError(f"image is {img.shape[1]}x{img.shape[0]} pixels; photo3d needs at "
+                         f"least {MIN_SIDE}x{MIN_SIDE}")
+    check_memory(img.shape[:2], config)
+    if isinstance(depth, DepthInput) and depth.disparity.shape == img.shape[:2]:
+        return img, depth  # already prepared (make_folder: by resolve_depth) for this kind
+    raw = read_depth(depth) if isinstance(depth, str | Path) else np.asarray(depth)
+    return img, prepare_depth(raw, img.shape[:2], kind=config.depth_kind)
+
+
+def _first_pass_input(pre: Preprocessed, shape: tuple[int, int], config: Config,
+                      intrinsics: Intrinsics | None) -> PassInput:
+    """The first pass's input (:func:`~photo3d.stages.passes.start`) with the input
+    camera scaled to the working size and, for metric depth, its depth mapping."""
+    h, w = pre.image.shape[:2]
+    if intrinsics is not None:
+        if (intrinsics.width, intrinsics.height) != (shape[1], shape[0]):
+            raise InputError(f"intrinsics are for {intrinsics.width}x{intrinsics.height} but "
+                             f"the image is {shape[1]}x{shape[0]}")
+        intrinsics = intrinsics.scaled(w, h)
+    mapping = None
+    if config.metric:
+        lo, hi = pre.disparity_range  # of 1 / z: normalised d maps back to z exactly
+        mapping = DepthMapping.from_inverse_depth(lo, hi)
+    return start(pre, config=config, intrinsics=intrinsics, mapping=mapping)
+
+
+def fill_pass(state: PassInput, plan: PassPlan, backend: Inpainter, *, pass_index: int = 0,
+              frame: Future[LDI] | None = None,
+              progress: CountProgress | None = None) -> Merged:
+    """One inpainting pass, scheduled: ``state``'s regions
+    (:func:`~photo3d.stages.passes.pass_regions`), their patches filled by ``backend``
+    and merged (:func:`~photo3d.stages.passes.merge_pass`).
+
+    A backend that fills each patch on its own (``patchwise``) gets the patches in
+    batches of about half the lattice's area (bounded memory), the next batch
+    extracted on an :func:`~photo3d.parallel.overlap` thread while it fills this one.
+
+    Args:
+        state: the LDI and its edges.
+        plan: the pass's plan (:func:`~photo3d.stages.passes.plan_pass`).
+        backend: the inpainter.
+        pass_index: handed to ``backend.inpaint``.
+        frame: when ``state.ldi``'s frame colours are still being filled: the LDI with
+            them (the same pixels and links). The patches whose context reads no
+            frame pixel are filled first, meanwhile; the others are extracted from
+            ``frame``'s LDI, which the pass is merged into. The result is the same
+            as without (each patch is filled on its own; fills merge in edge order).
+        progress: ``progress(done, total)`` over the pass's patches.
+
+    Returns:
+        :class:`~photo3d.stages.merge.Merged`: the LDI with the new pixels and the
+        next pass's edges.
+
+    Example:
+        >>> from photo3d.stages.passes import plan_pass, start
+        >>> from photo3d.stages.preprocess import Preprocessed, preprocess
+        >>> cfg = Config(size=None)
+        >>> d = np.ones((64, 64), np.float32); d[16:48, 16:48] = 3.0
+        >>> pre = preprocess(np.zeros((64, 64, 3), np.float32), d, config=cfg)
+        >>> fill = get_inpainter("diffusion")
+        >>> merged = fill_pass(start(pre, config=cfg), plan_pass(cfg, 64, margin=1), fill)
+        >>> merged.added > 0
+        True
+    """
+    index = state.index if state.index is not None else state.ldi.position_index()
+    regions = pass_regions(state, plan.sizes, index=index)
+    first, later = (border_readers(state.ldi, regions) if frame is not None
+                    else (None, []))
+    rows, cols = state.ldi.lattice_shape
+    area = rows * cols // 2 if getattr(backend, "patchwise", False) else None
+
+    def batches() -> Iterator[list[PatchJob]]:
+        yield from patch_batches(state.ldi, regions, state.edge_pixels, plan, edges=first,
+                                 area=area)
+        if later:
+            yield from patch_batches(frame.result(), regions, state.edge_pixels, plan,
+                                     edges=later, area=area, first_area=area)
+
+    fills, done = [], 0
+
+    def report(i: int, n: int) -> None:
+        if progress is not None:
+            progress(min(done + i, regions.count), regions.count)
+
+    for batch in ahead(batches(), name="patches") if area is not None else batches():
+        results = backend.inpaint([job.patch for job in batch], progress=report,
+                                  pass_index=pass_index)
+        # take reads the LDI's positions only, the same in the frame's
+        fills.extend((job.edge, take(state.ldi, job, res))
+                     for job, res in zip(batch, results, strict=True))
+        done += len(batch)
+        del results  # not held while the next batch is filled (a batch's whole patches)
+    return merge_pass(state, plan, fills, ldi=frame.result() if frame is not None else None,
+                      index=index)
 
 
 def _border_fill(name: str, backend: Inpainter, scale: float):

@@ -27,6 +27,8 @@ NOT_BATCH = {
     "right": "a stereo pair is one photo's; batch takes depth maps by name",
     "out": "the output folder: batch writes one folder per photo under it",
     "quiet": "what is printed, not what is made",
+    "threads": "how many threads make it, not what is made (every command takes it; the "
+               "LDI does not depend on it: tests/test_parallel.py)",
     "help": "argparse's help",
 }
 """``make`` options that are not ``MakeOptions`` (``dest`` -> why)."""

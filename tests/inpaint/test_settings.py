@@ -11,11 +11,11 @@ from photo3d.inpaint import get_inpainter
 from photo3d.pipeline import inpainter_settings
 
 
-def test_classical_backends_report_their_options_but_not_their_threads():
-    diffusion = get_inpainter("diffusion", iterations=50, tolerance=1e-2, workers=3)
+def test_classical_backends_report_their_options():
+    diffusion = get_inpainter("diffusion", iterations=50, tolerance=1e-2)
     assert diffusion.settings() == {"name": "diffusion", "iterations": 50, "tolerance": 1e-2}
     structured = get_inpainter("structured", texture=0.25, pm_iterations=5, coherence=0.5,
-                               lines=False, workers=3)
+                               lines=False)
     s = structured.settings()
     assert (s["name"], s["texture"], s["pm_iterations"], s["coherence"], s["lines"]) == (
         "structured", 0.25, 5, 0.5, False)

@@ -126,27 +126,23 @@ def test_each_filtered_pixel_is_the_weighted_median_of_its_window(sigmas):
             assert out[y, x] == _sorted_scan(d, y, x, 2, *sigmas)
 
 
-def test_bilateral_median_uses_the_threads_numba_is_given(monkeypatch):
-    import numba
-
+def test_bilateral_median_uses_the_callers_budget(monkeypatch):
+    from photo3d import parallel
     from photo3d.stages import filters
 
     pools = []
-    real = filters.ThreadPoolExecutor
+    real = parallel.thread_pool
 
-    def recording(max_workers):
-        pools.append(max_workers)
-        return real(max_workers=max_workers)
+    def recording(most=None, *, name="work"):
+        pools.append(parallel.width(most))
+        return real(most, name=name)
 
-    monkeypatch.setattr(filters, "ThreadPoolExecutor", recording)
+    monkeypatch.setattr(filters.parallel, "thread_pool", recording)
     rng = np.random.default_rng(3)
     disparity = rng.random((24, 24)).astype(np.float32)
-    before = numba.get_num_threads()
-    numba.set_num_threads(1)  # as `batch` does in each worker
-    try:
+    with parallel.share(1):  # as `batch` gives each worker on two cores
         one = filters.bilateral_median(disparity)
-    finally:
-        numba.set_num_threads(before)
     assert pools == [1]
-    np.testing.assert_array_equal(filters.bilateral_median(disparity), one)
-    assert pools[1] == before
+    with parallel.share(3):
+        np.testing.assert_array_equal(filters.bilateral_median(disparity), one)
+    assert pools[1] == 3

@@ -104,54 +104,74 @@ def test_a_pass_over_a_noise_depth_stays_within_its_limit():
     assert sum(j.patch.context.size for j in jobs) <= 1.1 * AREA_LIMIT * lattice  # + margins
 
 
+class Fill:
+    """A backend made of a function ``fill(patches) -> results``: ``patchwise`` or not."""
+
+    name = "fill"
+    margin = 1
+
+    def __init__(self, fill, *, patchwise=True):
+        self.fill, self.patchwise = fill, patchwise
+
+    def inpaint(self, patches, *, progress=None, pass_index=0):
+        return self.fill(patches)
+
+
 def test_make_gives_a_patchwise_backend_its_patches_in_batches_for_the_same_result():
-    from photo3d.stages.passes import fill_pass
+    from photo3d.pipeline import fill_pass
+    from photo3d.stages.passes import plan_pass
 
     first, config = noise_pass(64)
     calls = []
 
-    def grey(patches, progress):
+    def grey(patches):
         calls.append(len(patches))
         return [InpaintResult(np.full((*p.shape, 3), 0.5, np.float32), p.disparity + 0.01,
                               np.zeros(p.shape, np.float32)) for p in patches]
 
-    kw = dict(config=config, working_size=64, margin=1)
-    whole = fill_pass(first, grey, **kw)
-    batched = fill_pass(first, grey, **kw, batch_area=2000)
-    assert calls[0] > 1 and len(calls) > 2
+    plan = plan_pass(config, 64, margin=1)
+    whole = fill_pass(first, plan, Fill(grey, patchwise=False))
+    assert calls == [first.edges]
+    batched = fill_pass(first, plan, Fill(grey))  # batches of half the lattice
+    assert len(calls) > 2 and sum(calls[1:]) == first.edges
     assert np.array_equal(whole.ldi.disparity, batched.ldi.disparity)
     assert np.array_equal(whole.edge_pixels, batched.edge_pixels)
 
 
-def test_an_error_in_a_batched_pass_is_raised_from_the_pass():
-    # the next batch is extracted in another thread meanwhile: an error of the fill or
-    # of the extraction (here the frame's) still comes out of fill_pass
-    from photo3d.stages.passes import fill_pass
+@pytest.mark.parametrize("threads", [1, 2])
+def test_an_error_in_a_batched_pass_is_raised_from_the_pass(threads):
+    # the next batch is extracted on another thread meanwhile (with a budget of 2): an
+    # error of the fill or of the extraction (here the frame's) still comes out of
+    # fill_pass
+    from concurrent.futures import Future
+
+    from photo3d.parallel import share
+    from photo3d.pipeline import fill_pass
+    from photo3d.stages.passes import plan_pass
 
     first, config = noise_pass(64)
     calls = []
 
-    def grey(patches, progress):
+    def grey(patches):
         calls.append(len(patches))
         return [InpaintResult(np.full((*p.shape, 3), 0.5, np.float32), p.disparity,
                               np.zeros(p.shape, np.float32)) for p in patches]
 
-    def failing(patches, progress):
+    def failing(patches):
         if len(calls) == 1:
             raise ValueError("the second batch")
-        return grey(patches, progress)
+        return grey(patches)
 
-    kw = dict(config=config, working_size=64, margin=1, batch_area=2000)
-    with pytest.raises(ValueError, match="the second batch"):
-        fill_pass(first, failing, **kw)
+    plan = plan_pass(config, 64, margin=1)
+    with share(threads), pytest.raises(ValueError, match="the second batch"):
+        fill_pass(first, plan, Fill(failing))
     assert len(calls) == 1
     calls.clear()
 
-    def no_frame():
-        raise RuntimeError("no frame")
-
-    with pytest.raises(RuntimeError, match="no frame"):  # (every context here reads it)
-        fill_pass(first, grey, **kw, final=no_frame)
+    no_frame = Future()
+    no_frame.set_exception(RuntimeError("no frame"))
+    with share(threads), pytest.raises(RuntimeError, match="no frame"):
+        fill_pass(first, plan, Fill(grey), frame=no_frame)  # (every context reads it)
 
 
 def test_later_passes_find_no_more_edges_than_the_first_on_a_raw_disparity():
@@ -167,11 +187,14 @@ def test_later_passes_find_no_more_edges_than_the_first_on_a_raw_disparity():
 
 
 def test_a_first_pass_filled_while_the_frame_is_filled_gives_the_same_result():
-    """``fill_pass(final=...)``: the patches that read no border pixel are filled from
-    the LDI whose frame is not filled yet, the others from ``final()``'s; the fills
+    """``fill_pass(frame=...)``: the patches that read no border pixel are filled from
+    the LDI whose frame is not filled yet, the others from the frame's; the fills
     are merged in edge order, so the result is the one of the framed LDI."""
+    from concurrent.futures import Future
+
+    from photo3d.pipeline import fill_pass
     from photo3d.stages.border import fill_border
-    from photo3d.stages.passes import fill_pass, start
+    from photo3d.stages.passes import plan_pass, start
     from photo3d.stages.preprocess import preprocess
 
     config = Config(size=128)
@@ -184,20 +207,25 @@ def test_a_first_pass_filled_while_the_frame_is_filled_gives_the_same_result():
                                       0:1:synthesis.shape[1] * 1j], 0.5), -1), context=8)
     seen = []
 
-    def mean_colour(patches, progress):
+    def mean_colour(patches):
         seen.extend(p.context.sum() for p in patches)
         return [InpaintResult(np.broadcast_to(p.color[p.context].mean(axis=0), (*p.shape, 3))
                               .astype(np.float32), p.disparity, np.zeros(p.shape, np.float32))
                 for p in patches]
 
-    kw = dict(config=config, working_size=128, margin=1, batch_area=4000)
-    direct = fill_pass(replace(first, ldi=framed), mean_colour, **kw)
+    class Frame(Future):  # the frame's LDI, noting how many patches were filled before
+        def result(self, timeout=None):
+            waited.append(len(seen))
+            return framed
+
+    plan = plan_pass(config, 128, margin=1)
+    direct = fill_pass(replace(first, ldi=framed), plan, Fill(mean_colour))
     seen.clear()
     waited = []
-    later = fill_pass(first, mean_colour, **kw,
-                      final=lambda: waited.append(len(seen)) or framed)
+    later = fill_pass(first, plan, Fill(mean_colour), frame=Frame())
     assert waited and 0 < waited[0] < len(seen)  # some patches were filled before
     for name in ("color", "disparity", "links", "y", "x", "label"):
         assert np.array_equal(getattr(direct.ldi, name), getattr(later.ldi, name)), name
     assert np.array_equal(direct.edge_pixels, later.edge_pixels)
-    assert not np.array_equal(direct.ldi.color, fill_pass(first, mean_colour, **kw).ldi.color)
+    assert not np.array_equal(direct.ldi.color,
+                              fill_pass(first, plan, Fill(mean_colour)).ldi.color)

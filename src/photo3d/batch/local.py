@@ -1,10 +1,10 @@
 """The local engine: a pool of worker processes, each with its models loaded once.
 
-Built on :class:`concurrent.futures.ProcessPoolExecutor` (``spawn`` processes, so
-nothing of the parent's threads or torch state is forked). Each worker builds one
-:class:`~photo3d.batch.worker.PhotoMaker` in its initializer and gets
-``cores // workers`` numba/torch threads, so the pool does not oversubscribe the
-CPU. At most ``workers`` photos are in flight, so when a worker dies (killed for
+Built on :func:`photo3d.parallel.process_pool` (``spawn`` processes, so nothing of
+the parent's threads or torch state is forked). Each worker builds one
+:class:`~photo3d.batch.worker.PhotoMaker` in its initializer and gets a budget of
+``threads // workers`` (numba's, torch's and every pool's in it), so the pool does not
+oversubscribe the CPU. At most ``workers`` photos are in flight, so when a worker dies (killed for
 memory, a crash in native code) the photos it may have held are known: a new
 pool makes them again one at a time, and a photo that kills its worker twice
 alone is recorded as failed. What the dead worker had staged is removed.
@@ -23,15 +23,13 @@ partial is left. The signal handlers are :mod:`photo3d.files.signals`'
 
 from __future__ import annotations
 
-import multiprocessing
 import os
 import signal
 import sys
-import threading
 import time
 from collections import deque
 from collections.abc import Callable, Sequence
-from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from concurrent.futures import FIRST_COMPLETED, Executor, wait
 from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
 
@@ -39,32 +37,12 @@ from photo3d.batch.jobs import MakeOptions, PhotoJob
 from photo3d.batch.manifest import PhotoResult
 from photo3d.batch.worker import PhotoMaker, discard_partial, one_line
 from photo3d.files.signals import Interrupted, sigint_ignored, worker_signals
+from photo3d.parallel import active_children, process_pool, start_thread
 
 _PR_SET_PDEATHSIG = 1  # linux/prctl.h
 _maker: PhotoMaker | None = None
 _init_error: str | None = None
 _busy = False
-
-
-def cpu_count() -> int:
-    """CPU cores this process may use."""
-    try:
-        return len(os.sched_getaffinity(0))
-    except AttributeError:  # not on Linux
-        return os.cpu_count() or 1
-
-
-def set_threads(threads: int) -> None:
-    """Limit numba's (and torch's, if loaded) CPU threads in this process."""
-    import sys
-
-    import numba
-
-    numba.set_num_threads(max(1, min(threads, numba.config.NUMBA_NUM_THREADS)))
-    if "torch" in sys.modules:
-        sys.modules["torch"].set_num_threads(max(1, threads))
-    else:  # torch (depth model, learned nets) may be imported later: it reads this then
-        os.environ["OMP_NUM_THREADS"] = str(max(1, threads))
 
 
 def _is_busy() -> bool:
@@ -92,14 +70,13 @@ def exit_with_parent(parent: int, *, poll: float = 1.0) -> None:
             time.sleep(poll)
         os.kill(os.getpid(), signal.SIGTERM)
 
-    threading.Thread(target=watch, name="photo3d-parent-watch", daemon=True).start()
+    start_thread(watch, name="parent-watch")
 
 
-def _init(options: MakeOptions, threads: int, parent: int) -> None:
+def _init(options: MakeOptions, parent: int) -> None:
     global _maker, _init_error
     worker_signals(busy=_is_busy)  # SIGTERM raises Interrupted in _run, else exits
     exit_with_parent(parent)  # also when it died before this line: getppid() differs
-    set_threads(threads)
     try:
         _maker = PhotoMaker(options)
     except Exception as err:  # each photo then fails with this message
@@ -130,14 +107,11 @@ def run_local(jobs: Sequence[PhotoJob], out_dir: Path, options: MakeOptions, *,
     Raises:
         KeyboardInterrupt: after stopping the workers cleanly.
     """
-    threads = max(1, cpu_count() // workers)
     queue = deque(jobs)
     crashes: dict[str, int] = {}
     alone: set[str] = set()  # in flight when a worker died: made one at a time
-    context = multiprocessing.get_context("spawn")
-    while queue:
-        pool = ProcessPoolExecutor(workers, mp_context=context, initializer=_init,
-                                   initargs=(options, threads, os.getpid()))
+    while queue:  # each worker with its share of the budget (parallel.process_pool)
+        pool = process_pool(workers, initializer=_init, initargs=(options, os.getpid()))
         running: dict = {}
         try:
             while queue or running:
@@ -181,10 +155,10 @@ def run_local(jobs: Sequence[PhotoJob], out_dir: Path, options: MakeOptions, *,
             pool.shutdown(wait=True, cancel_futures=True)
 
 
-def _stop(pool: ProcessPoolExecutor) -> None:
+def _stop(pool: Executor) -> None:
     """Stop the pool's workers now (SIGTERM: busy ones clean up their output first)."""
     pool.shutdown(wait=False, cancel_futures=True)
-    children = multiprocessing.active_children()
+    children = active_children()
     for child in children:
         child.terminate()
     for child in children:

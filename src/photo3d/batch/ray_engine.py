@@ -36,6 +36,7 @@ from photo3d.batch.jobs import MakeOptions, PhotoJob
 from photo3d.batch.manifest import PhotoResult
 from photo3d.batch.worker import PhotoMaker, discard_partial, one_line
 from photo3d.errors import ConfigError, Photo3DError, require
+from photo3d.parallel import worker_share
 
 _SIGNALS = tuple(getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP")
                  if hasattr(signal, name))
@@ -59,9 +60,9 @@ class _Actor:
     """The body of a Ray actor: one PhotoMaker, with its CPU threads limited."""
 
     def __init__(self, options: MakeOptions, threads: int) -> None:
-        from photo3d.batch.local import set_threads
+        from photo3d.parallel import set_threads
 
-        set_threads(threads)
+        set_threads(threads)  # the actor's budget
         self.error: str | None = None
         try:
             self.maker = PhotoMaker(options)
@@ -141,7 +142,8 @@ def run_ray(jobs: Sequence[PhotoJob], out_dir: Path, options: MakeOptions, *,
     try:
         cpus = int(ray.cluster_resources().get("CPU", 1))
         count = max(1, min(workers or cpus, len(jobs)))
-        threads = max(1, cpus // count) if started == "local" else 1
+        # a local Ray's actors share this machine's CPUs; a cluster's get one CPU each
+        threads = worker_share(count, cpus) if started == "local" else 1
         out = Path(out_dir).resolve()  # absolute: actors may run elsewhere, in another cwd
         jobs = [PhotoJob(j.name, j.image.resolve(), j.depth.resolve() if j.depth else None,
                          j.redo) for j in jobs]

@@ -170,9 +170,10 @@ def run_batch(jobs: Sequence[PhotoJob], out: str | Path, options: MakeOptions | 
                 run_ray(todo, out, options, workers=workers, address=ray_address,
                         on_result=record)
             else:
-                from photo3d.batch.local import cpu_count, run_local
+                from photo3d.batch.local import run_local
+                from photo3d.parallel import threads
 
-                count = min(workers or cpu_count(), len(todo))
+                count = min(workers or threads(), len(todo))
                 run_local(todo, out, options, workers=count, on_result=record)
         for job in todo:  # an engine that lost a photo must not hide it
             if job.name not in results:

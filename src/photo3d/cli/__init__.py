@@ -23,6 +23,7 @@ import warnings
 from photo3d.cli import batch, demo, depth, evaluate, export, make, render, train, ui, view
 from photo3d.errors import Photo3DError
 from photo3d.files.signals import handle_signals
+from photo3d.parallel import ENV, process_threads, set_threads
 
 COMMANDS = (make, batch, depth, demo, render, export, view, ui, evaluate, train)
 """Subcommand modules, in the order ``photo3d --help`` lists them."""
@@ -45,6 +46,11 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True)
     for command in COMMANDS:
         command.add_parser(sub)
+    for command in {id(p): p for p in sub.choices.values()}.values():
+        if "--threads" not in command._option_string_actions:  # train words its own
+            command.add_argument("--threads", type=int, metavar="N",
+                                 help="threads photo3d may keep busy (default: the cores "
+                                      f"this process may use, or ${ENV})")
     return parser
 
 
@@ -57,6 +63,10 @@ def main(argv: list[str] | None = None) -> int:
     with handle_signals() as guard:  # from the start: building the parser imports a lot
         try:
             args = build_parser().parse_args(argv)
+            if args.threads is not None:  # before numba or torch load
+                set_threads(args.threads)
+            else:
+                process_threads()  # a bad PHOTO3D_THREADS is told before any work
             warnings.showwarning = show
             status = args.run(args)
             if argv is None:  # the photo3d command: the process ends next

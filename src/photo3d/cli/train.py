@@ -80,8 +80,9 @@ def add_parser(sub) -> None:
                       help="score every K steps (default 250)")
     tr.add_argument("--device", help="torch device, e.g. cpu or cuda (default: CUDA if any)")
     tr.add_argument("--threads", type=int, metavar="N",
-                    help="CPU threads of torch (default: torch's choice; 1 is much faster for "
-                         "compact nets when another process keeps the other cores busy)")
+                    help="CPU threads of torch and photo3d (default: the cores this process "
+                         "may use, or PHOTO3D_THREADS; 1 is much faster for compact nets "
+                         "when another process keeps the other cores busy)")
     tr.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
     tr.set_defaults(run=run)
 
@@ -137,10 +138,6 @@ def _run(args: argparse.Namespace) -> int:
         raise ConfigError(f"--shape-scenes must be at least 0, got {args.shape_scenes}")
     if args.builtin_scenes < 0:
         raise ConfigError(f"--builtin-scenes must be at least 0, got {args.builtin_scenes}")
-    if args.threads is not None:
-        if args.threads < 1:
-            raise ConfigError(f"--threads must be at least 1, got {args.threads}")
-        torch.set_num_threads(args.threads)
     run = args.out
     check_run(run, config)  # refuses a folder that is not a photo3d run; writes nothing
     saved = checkpoints(run)

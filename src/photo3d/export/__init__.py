@@ -27,7 +27,7 @@ from __future__ import annotations
 import importlib
 import math
 from collections.abc import Callable, Sequence
-from concurrent.futures import Executor, Future, ThreadPoolExecutor
+from concurrent.futures import Executor, Future
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -35,6 +35,7 @@ from typing import TYPE_CHECKING
 from photo3d.errors import ConfigError, InputError, OutputError
 from photo3d.io.npz import load_npz
 from photo3d.owned import LDI_FILE, claim_files, record_files
+from photo3d.parallel import thread_pool
 from photo3d.progress import StageProgress
 from photo3d.structures.ldi import LDI
 
@@ -163,8 +164,8 @@ def export_folder(folder: str | Path, formats: Sequence[str], *,
         claim_files(folder, [t.name for t in targets])  # before writing anything
     preload(chosen)  # before the writer threads start
     written: list[Path] = []
-    with ThreadPoolExecutor(max_workers=2) as pool:  # zlib, numpy and writes run on
-        jobs = submit_writers(pool, ldi, list(zip(chosen, targets, strict=True)),  # both cores
+    with thread_pool(2, name="export") as pool:  # zlib, numpy and writes release the GIL
+        jobs = submit_writers(pool, ldi, list(zip(chosen, targets, strict=True)),
                               merge=merge, light_error=_light_error(meta))
         error = None
         for job, target in zip(jobs, targets, strict=True):
@@ -199,7 +200,8 @@ def submit_writers(pool: Executor, ldi: LDI, targets: Sequence[tuple[Format, Pat
     Call :func:`preload` before the pool's threads (or any other) start.
 
     Args:
-        pool: runs the jobs (two threads: the writes, zlib and numpy release the GIL).
+        pool: runs the jobs (:func:`~photo3d.parallel.thread_pool`: the writes, zlib and
+            numpy release the GIL).
         ldi: the 3D photo's layered depth image.
         targets: what to write where (:func:`check_formats`' formats, each once).
         merge: splat formats: join flat, smooth areas into larger splats.
@@ -211,7 +213,8 @@ def submit_writers(pool: Executor, ldi: LDI, targets: Sequence[tuple[Format, Pat
         >>> from photo3d.stages.ldi import from_image
         >>> ldi = from_image(np.full((16, 16, 3), 0.5, np.float32), np.ones((16, 16), np.float32))
         >>> out = pathlib.Path(tempfile.mkdtemp())
-        >>> with ThreadPoolExecutor(2) as pool:
+        >>> from photo3d.parallel import thread_pool
+        >>> with thread_pool(2) as pool:
         ...     jobs = submit_writers(pool, ldi, [(FORMATS["splats.spz"], out / "a.spz"),
         ...                                       (FORMATS["splats.ply"], out / "a.ply")])
         ...     [job.result() for job in jobs]

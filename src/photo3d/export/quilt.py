@@ -41,7 +41,6 @@ from __future__ import annotations
 import math
 import struct
 import zlib
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -51,6 +50,7 @@ import numpy as np
 from photo3d.camera import Camera, Intrinsics
 from photo3d.errors import ConfigError
 from photo3d.files.atomic import atomic_path
+from photo3d.parallel import overlap
 from photo3d.structures.ldi import LABEL_ORIGINAL, LDI
 
 if TYPE_CHECKING:
@@ -199,7 +199,7 @@ def write_quilt(ldi: LDI, path: str | Path, *, preset: QuiltPreset = DEFAULT,
             from photo3d.mesh.light import build_light_mesh
 
             mesh = build_light_mesh(ldi)
-        with (open(tmp, "wb") as file, ThreadPoolExecutor(max_workers=1) as encoder,
+        with (open(tmp, "wb") as file, overlap(name="quilt") as encoder,
               Renderer(mesh, RenderSettings(ssaa=1, backend=backend)) as renderer):
             png = _PNGStream(file, tw * cols, th * preset.rows)
             jobs = []

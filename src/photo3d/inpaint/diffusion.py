@@ -13,14 +13,13 @@ processor need not wait for one pixel's update before the next (a quarter less t
 
 from __future__ import annotations
 
-import os
 from collections.abc import Sequence
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import asdict, dataclass, replace
 
 import numba
 import numpy as np
 
+from photo3d.parallel import map_ordered
 from photo3d.progress import CountProgress
 from photo3d.structures.patch import InpaintResult, Patch
 
@@ -331,16 +330,12 @@ class DiffusionInpainter:
     patchwise = True
     """Each patch is filled on its own: the pipeline may give a pass's patches in batches."""
 
-    def __init__(self, options: DiffusionOptions | None = None, *,
-                 workers: int | None = None, **changes) -> None:
-        """``options`` (default: its defaults) with ``changes`` (e.g. ``iterations=50``);
-        ``workers``: threads (the solver releases the GIL; does not change the output)."""
+    def __init__(self, options: DiffusionOptions | None = None, **changes) -> None:
+        """``options`` (default: its defaults) with ``changes`` (e.g. ``iterations=50``)."""
         self.options = replace(options or DiffusionOptions(), **changes)
-        self.workers = workers or os.cpu_count() or 1
 
     def settings(self) -> dict[str, object]:
-        """What changes this backend's output, JSON-able (``config.json`` records it;
-        ``workers`` does not change it).
+        """What changes this backend's output, JSON-able (``config.json`` records it).
 
         Example:
             >>> DiffusionInpainter(iterations=50).settings()
@@ -365,11 +360,11 @@ class DiffusionInpainter:
             )
 
         results = []
-        # The solver releases the GIL, so patches run in parallel threads.
-        with ThreadPoolExecutor(max_workers=self.workers) as pool:
-            for i, result in enumerate(pool.map(one, patches)):
-                results.append(result)
-                if progress is not None:
-                    progress(i + 1, len(patches))
+        # The solver releases the GIL, so patches run in parallel threads (the budget's:
+        # the output does not depend on it).
+        for i, result in enumerate(map_ordered(one, patches, name="diffusion")):
+            results.append(result)
+            if progress is not None:
+                progress(i + 1, len(patches))
         return results
 

@@ -22,9 +22,7 @@ from the patch's context: nothing from the foreground or outside the context.
 
 from __future__ import annotations
 
-import os
 from collections.abc import Mapping, Sequence
-from concurrent.futures import ThreadPoolExecutor, as_completed
 from dataclasses import dataclass, fields, replace
 
 import numpy as np
@@ -32,6 +30,7 @@ import numpy as np
 from photo3d.inpaint.continuation import continue_edges
 from photo3d.inpaint.diffusion import diffuse_coarse, diffuse_in_place
 from photo3d.inpaint.exemplar import exemplar_fill
+from photo3d.parallel import map_completed
 from photo3d.progress import CountProgress
 from photo3d.structures.patch import InpaintResult, Patch
 
@@ -194,7 +193,6 @@ class StructuredInpainter:
 
     Args:
         options: :class:`StructuredOptions` (default: its defaults).
-        workers: threads (the kernels release the GIL; does not change the output).
         changes: fields of ``options`` to replace, e.g. ``texture=0.5``; a keyword that
             is not a field goes to the edge continuation (``continuation``).
 
@@ -219,23 +217,20 @@ class StructuredInpainter:
     patchwise = True
     """Each patch is filled on its own: the pipeline may give a pass's patches in batches."""
 
-    def __init__(self, options: StructuredOptions | None = None, *,
-                 workers: int | None = None, **changes) -> None:
+    def __init__(self, options: StructuredOptions | None = None, **changes) -> None:
         known = {f.name for f in fields(StructuredOptions)}
         extra = {k: changes.pop(k) for k in list(changes) if k not in known}
         options = replace(options or StructuredOptions(), **changes)
         if extra:
             options = replace(options, continuation=(*options.continuation, *extra.items()))
         self.options = options
-        self.workers = workers or os.cpu_count() or 1
         self.exemplar = dict(iterations=options.pm_iterations, em_steps=options.em_steps,
                              guide_weight=options.guide_weight, copy=options.copy)
         self.structure = dict(options.continuation, support_factor=options.support_factor,
                               coherence=options.coherence)
 
     def settings(self) -> dict[str, object]:
-        """What changes this backend's output, JSON-able (``config.json`` records it;
-        ``workers`` does not change it).
+        """What changes this backend's output, JSON-able (``config.json`` records it).
 
         Example:
             >>> s = StructuredInpainter(texture=0.5).settings()
@@ -294,12 +289,13 @@ class StructuredInpainter:
         at the end of the pass while the others wait; the results are in order."""
         order = sorted(range(len(patches)),
                        key=lambda i: -int(np.count_nonzero(patches[i].synthesis)))
-        with ThreadPoolExecutor(max_workers=self.workers) as pool:
-            futures = {pool.submit(self.fill, patches[i]): i for i in order}
-            results: list[InpaintResult | None] = [None] * len(patches)
-            for done, future in enumerate(as_completed(futures), 1):
-                results[futures[future]] = future.result()
-                if progress is not None:
-                    progress(done, len(patches))
+        # the kernels release the GIL: patches run in the budget's threads (the output
+        # does not depend on it)
+        results: list[InpaintResult | None] = [None] * len(patches)
+        jobs = map_completed(self.fill, [patches[i] for i in order], name="structured")
+        for done, (j, result) in enumerate(jobs, 1):
+            results[order[j]] = result
+            if progress is not None:
+                progress(done, len(patches))
         return results
 

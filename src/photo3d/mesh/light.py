@@ -22,7 +22,7 @@ camera positions a 3D photo is seen from, at a few percent of the triangles:
   (32 to 2 pixels) that are whole in one layer and planar to within
   ``PLANAR_SHARE * max_error`` become fans from their centre to the border pixels
   that their neighbours need (:mod:`photo3d.mesh._planar`): about a third of the
-  triangles reach the simplifier, which runs on four strips in two threads.
+  triangles reach the simplifier, which runs on four strips in the budget's threads.
 * Texture: one sRGB image, the photo on the lattice at the top left, the charts
   (each with a one-texel gutter, holes filled from their neighbours) beside and
   below it.
@@ -45,7 +45,6 @@ The result's faces list the input layer first, as the full mesh does.
 
 from __future__ import annotations
 
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import replace
 
 import numpy as np
@@ -56,6 +55,7 @@ from photo3d.mesh._charts import chart_vertices, claim_faces, fill_charts, pixel
 from photo3d.mesh._planar import merged_faces, planar_blocks, quad_counts
 from photo3d.mesh._simplify import simplify as _simplify
 from photo3d.mesh.full import build_mesh
+from photo3d.parallel import overlap
 from photo3d.structures.ldi import LDI
 from photo3d.structures.mesh import Mesh, TexturedMesh
 
@@ -185,7 +185,7 @@ def _textured(ldi: LDI, full: Mesh, faces: np.ndarray, face_layer: np.ndarray,
     slot_y, slot_x, tex_h, tex_w = _pack(len(charts), slot, rows, cols)
     c_layer, c_rest = np.divmod(charts, (-(-rows // block)) * nbx)
     c_by, c_bx = np.divmod(c_rest, nbx)
-    with ThreadPoolExecutor(max_workers=1) as pool:  # the texture meanwhile
+    with overlap(name="texture") as pool:  # the texture meanwhile
         texture = pool.submit(_texture, images, full.colors, (rows, cols), (tex_h, tex_w),
                               c_layer, c_by * block, c_bx * block, slot_y, slot_x, block)
         # vertices: one per (pixel, chart)

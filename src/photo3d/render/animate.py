@@ -5,16 +5,15 @@ from __future__ import annotations
 import math
 from collections import deque
 from collections.abc import Iterator, Sequence
-from concurrent.futures import ThreadPoolExecutor
 from contextlib import closing
 from dataclasses import dataclass
 from pathlib import Path
 
-import numba
 import numpy as np
 
 from photo3d.camera import Camera, Intrinsics
 from photo3d.errors import ConfigError
+from photo3d.parallel import overlap, thread_pool
 from photo3d.progress import CountProgress
 from photo3d.render._resolve import to_rgb8
 from photo3d.render.paths import STANDARD_PATHS, load_path, preset_path
@@ -105,8 +104,8 @@ def render_frames(renderer: Renderer, cameras: Sequence[Camera], *, stereo: str 
     """Yield ``(H, W, 3) uint8`` frames, one per camera (stereo frames composed).
 
     With the CPU rasterizer, two frames are rendered at once on two threads, each with
-    half of numba's threads (:meth:`~photo3d.render.renderer.Renderer.frame_workers`):
-    the same frames, yielded in order.
+    half of the caller's budget (:meth:`~photo3d.render.renderer.Renderer.frame_workers`,
+    :func:`~photo3d.parallel.thread_pool`): the same frames, yielded in order.
 
     Example:
         >>> from photo3d.stages.ldi import from_image
@@ -133,11 +132,8 @@ def render_frames(renderer: Renderer, cameras: Sequence[Camera], *, stereo: str 
                 progress(i + 1, len(cameras))
         return
     # frames rendered at once on worker threads, yielded in order, `workers` in flight,
-    # each worker's parallel kernels on its share of this thread's numba threads
-    # (numba.set_num_threads holds for the thread that calls it)
-    share = max(1, numba.get_num_threads() // workers)
-    pool = ThreadPoolExecutor(workers, thread_name_prefix="photo3d-frame",
-                              initializer=numba.set_num_threads, initargs=(share,))
+    # each worker's parallel kernels on its share of this thread's budget
+    pool = thread_pool(workers, name="frame")
     try:
         pending = deque(pool.submit(frame, cam) for cam in cameras[:workers])
         for i in range(len(cameras)):
@@ -188,7 +184,7 @@ def render_video(renderer: Renderer, ldi: LDI, spec: VideoSpec, out: str | Path,
                            progress=progress)
     # closing: on an error the frames' worker threads stop now, not when collected
     with closing(frames), VideoWriter(out, fps=spec.fps, size=(width, k.height)) as writer, \
-            ThreadPoolExecutor(max_workers=1, thread_name_prefix="photo3d-encode") as pool:
+            overlap(name="encode") as pool:
         pending = None
         for frame in frames:  # each a new array: the worker may keep it
             if pending is not None:

@@ -30,11 +30,11 @@ from __future__ import annotations
 import threading
 from dataclasses import dataclass
 
-import numba
 import numpy as np
 
 from photo3d.camera import Intrinsics
 from photo3d.errors import InputError
+from photo3d.parallel import threads
 from photo3d.render._clip import clip_near, project_vertices
 from photo3d.render._kernels import (
     BLOCK,
@@ -158,8 +158,9 @@ def check_texture(texture) -> np.ndarray:
 
 
 def default_bands() -> int:
-    """Number of row bands: one per thread, between 2 and 4 (DESIGN sec. 8)."""
-    return min(4, max(2, numba.get_num_threads()))
+    """Number of row bands: one per thread of the caller's budget
+    (:func:`~photo3d.parallel.threads`), between 2 and 4 (DESIGN sec. 8)."""
+    return min(4, max(2, threads()))
 
 
 def rasterize(

@@ -24,6 +24,7 @@ import numpy as np
 from photo3d.camera import Camera, Intrinsics
 from photo3d.errors import ConfigError, require
 from photo3d.holes import fill_holes
+from photo3d.parallel import thread_safe_kernels, threads
 from photo3d.render._resolve import grow_fill, grow_fill_far, holes_to_rgb8, to_rgb8
 from photo3d.structures.mesh import Mesh, TexturedMesh
 
@@ -279,10 +280,11 @@ class Renderer:
 
     def frame_workers(self) -> int:
         """How many frames :func:`~photo3d.render.animate.render_frames` renders at
-        once with this renderer: 2 with the CPU rasterizer when numba has two threads
-        or more and a threading layer that runs parallel kernels of several threads at
-        once (:func:`thread_safe_kernels`), each frame then on half the calling
-        thread's numba threads; else 1. Two frames at once keep both cores busy where
+        once with this renderer: 2 with the CPU rasterizer when the caller's budget
+        (:func:`~photo3d.parallel.threads`) is two threads or more and numba has a
+        threading layer that runs parallel kernels of several threads at
+        once (:func:`~photo3d.parallel.thread_safe_kernels`), each frame then on half the
+        calling thread's budget; else 1. Two frames at once keep both cores busy where
         one frame's bands wait for the slower band (the video encoder shares a core).
 
         Example:
@@ -293,9 +295,7 @@ class Renderer:
             >>> Renderer(mesh, RenderSettings(backend="numba")).frame_workers() in (1, 2)
             True
         """
-        import numba
-
-        if self.backend != "numba" or numba.get_num_threads() < 2:
+        if self.backend != "numba" or threads() < 2:
             return 1
         return 2 if thread_safe_kernels() else 1
 
@@ -318,36 +318,6 @@ class Renderer:
         if left:  # large holes left: smooth pyramid fill
             color = fill_holes(color, np.where(coverage >= 1.0, 1.0, coverage))
         return color
-
-
-def thread_safe_kernels() -> bool:
-    """Have numba run parallel kernels of several threads at once (frames rendered at
-    once, the UI's workers) if it can: its OpenMP and TBB threading layers can, its
-    fallback (``workqueue``) cannot: it aborts the process. When no parallel kernel
-    has run yet, a thread-safe layer is chosen if one is installed. Returns whether
-    parallel kernels may run in several threads at once.
-
-    Example:
-        >>> thread_safe_kernels() in (True, False)
-        True
-    """
-    import importlib
-
-    import numba
-
-    try:
-        return numba.threading_layer() != "workqueue"  # already chosen in this process
-    except ValueError:  # not chosen yet: choose a thread-safe one if there is one
-        pass
-    for layer in ("tbbpool", "omppool"):
-        try:
-            importlib.import_module(f"numba.np.ufunc.{layer}")
-        except ImportError:
-            continue
-        if numba.config.THREADING_LAYER == "default":
-            numba.config.THREADING_LAYER = "threadsafe"
-        return numba.config.THREADING_LAYER in ("threadsafe", "tbb", "omp", "safe")
-    return False
 
 
 def select_backend(name: str) -> str:

@@ -8,10 +8,10 @@ median of a smooth ramp is the ramp itself), over several passes.
 
 from __future__ import annotations
 
-from concurrent.futures import ThreadPoolExecutor
-
 import numba
 import numpy as np
+
+from photo3d import parallel
 
 _CHUNKS = 4  # pieces per thread, so that no thread is left alone with the last
 
@@ -158,8 +158,8 @@ def bilateral_median(
         (True, 0.0, 1.0)
     """
     out = np.ascontiguousarray(disparity, dtype=np.float32).copy()
-    threads = max(1, numba.get_num_threads())  # this thread's: `batch` sets 1 a worker
-    with ThreadPoolExecutor(max_workers=threads) as pool:
+    threads = parallel.threads()  # this thread's budget: `batch` gives each worker 1
+    with parallel.thread_pool(threads, name="median") as pool:
         for size in windows:
             if size < 1 or size % 2 == 0:
                 raise ValueError(f"filter window sizes must be odd and positive, got {size}")

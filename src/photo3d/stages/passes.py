@@ -11,8 +11,10 @@ what training learns from and what the benchmark measures are the shapes users g
 * :func:`pass_patches` - one pass: :func:`region_sizes` (the config's sizes at the
   working size, the pass's context rule) -> :func:`pass_regions` (the regions, within
   :func:`pass_limit`) -> :func:`~photo3d.stages.patches.extract_patches`;
-* :func:`fill_pass` - what ``make`` runs: the same regions, their patches filled and
-  merged (:func:`~photo3d.stages.merge.merge_fills`).
+* what ``make`` runs (:func:`photo3d.pipeline.fill_pass` schedules it): the pass's
+  :class:`PassPlan` (:func:`plan_pass`), the same regions, their patches in batches
+  (:func:`patch_batches`; those that read the frame apart, :func:`border_readers`),
+  the fills merged (:func:`merge_pass`).
 
 A pass is bounded whatever the depth holds (:func:`pass_limit`): a depth map of noise
 or a fine checkerboard has a depth edge at every few pixels, and the regions of
@@ -33,26 +35,22 @@ and the held-out shapes keep them), ``False`` adds photo3d's
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterator, Sequence
-from concurrent.futures import ThreadPoolExecutor
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, replace
-from typing import TypeVar
 
 import numpy as np
 
 from photo3d.camera import DepthMapping, Intrinsics
 from photo3d.config import Config
-from photo3d.progress import CountProgress
 from photo3d.stages.border import extend_border
 from photo3d.stages.edges import edges_csr
 from photo3d.stages.ldi import cut, from_image
-from photo3d.stages.merge import Merged, merge_fills, take
+from photo3d.stages.merge import Fill, Merged, merge_fills
 from photo3d.stages.patches import PatchJob, extract_patches, iter_patches
 from photo3d.stages.preprocess import Preprocessed
 from photo3d.stages.regions import RegionLimit, Regions, RegionSizes, find_regions
 from photo3d.stages.silhouettes import silhouettes_of
 from photo3d.structures.ldi import LABEL_BORDER, LDI
-from photo3d.structures.patch import InpaintResult, Patch
 
 CONTEXT_LIMIT = 6.0
 """Context pixels one pass may grow, summed over its edges, per lattice position (the
@@ -71,13 +69,6 @@ edge, and hands on no edges. Saving takes up to about 700 bytes per LDI pixel (t
 light mesh of a fragmented LDI); bounding the LDI keeps ``make`` and its files within
 :func:`photo3d.resources.memory_estimate` (3x3 blocks of noise at 1024 px: an LDI of
 2.3M pixels, 1.94 GB, before this limit)."""
-
-T = TypeVar("T")
-
-PassFill = Callable[[Sequence[Patch], CountProgress | None], list[InpaintResult]]
-"""``fill(patches, progress) -> results``: a pass's inpainting (one result per patch,
-in order; ``progress(done, total)`` after each patch, may be None)."""
-
 
 @dataclass(frozen=True)
 class PassInput:
@@ -261,32 +252,6 @@ def pass_regions(state: PassInput, sizes: RegionSizes, *,
         sizes = smaller
 
 
-def _border_readers(ldi: LDI, regions: Regions, split: bool) -> tuple[list[int], list[int]]:
-    """The edges of ``regions`` whose context holds no border pixel (label
-    :data:`~photo3d.structures.ldi.LABEL_BORDER`), and those whose context does, in
-    order; without ``split``, every edge and none."""
-    every = list(range(regions.count))
-    if not split or not regions.count:
-        return every, []
-    border = ldi.label[regions.context] == LABEL_BORDER
-    ptr = regions.context_ptr
-    seen = np.concatenate([[0], np.cumsum(border)])
-    reads = seen[ptr[1:]] > seen[ptr[:-1]]
-    return ([e for e in every if not reads[e]], [e for e in every if reads[e]])
-
-
-def _ahead(items: Iterator[T]) -> Iterator[T]:
-    """``items``, each next one made in another thread while the caller works on the
-    one before (the same items in the same order; an exception is raised where
-    ``items`` raised it)."""
-    end = object()
-    with ThreadPoolExecutor(max_workers=1) as pool:
-        coming = pool.submit(next, items, end)
-        while (item := coming.result()) is not end:
-            coming = pool.submit(next, items, end)
-            yield item
-
-
 def _shrunk(sizes: RegionSizes, factor: float) -> RegionSizes:
     """``sizes`` with every flood fill ``factor`` as deep, and at least one step less
     (but never below one step)."""
@@ -331,99 +296,147 @@ def pass_patches(state: PassInput, *, config: Config, working_size: int, margin:
     return extract_patches(state.ldi, regions, state.edge_pixels, margin=margin, scale=scale)
 
 
-def fill_pass(state: PassInput, fill: PassFill, *, config: Config, working_size: int,
-              margin: int, scale: float = 1.0, pass_index: int = 0,
-              later_context: float = 1.0, paper_context: bool = False,
-              batch_area: int | None = None,
-              progress: CountProgress | None = None,
-              final: Callable[[], LDI] | None = None) -> Merged:
-    """One inpainting pass of ``make``: :func:`pass_patches`' patches filled by ``fill``
-    and merged into the LDI with the next pass's edges
-    (:func:`~photo3d.stages.merge.merge_fills`; at most as many as this pass's, the
-    longest). Only the new pixels' values are kept of each result.
+@dataclass(frozen=True)
+class PassPlan:
+    """Everything one inpainting pass needs besides its LDI (:func:`plan_pass`).
+
+    Attributes:
+        sizes: the regions' sizes and rules (:func:`region_sizes`).
+        margin: the backend's context-free margin around each patch, px.
+        scale: lattice pixels per pixel of the input photo (:attr:`Patch.scale`).
+        label: the new pixels' label (2 in the first pass, 3 later).
+        threshold: the disparity step that is an edge (normalised disparity).
+        min_edge_length: the next pass's edges shorter than this are dropped, px.
+        overwrite_band: :attr:`~photo3d.config.RegionConfig.overwrite_dilation`.
+    """
+
+    sizes: RegionSizes
+    margin: int
+    scale: float
+    label: int
+    threshold: float
+    min_edge_length: int
+    overwrite_band: int
+
+
+def plan_pass(config: Config, working_size: int, *, margin: int, scale: float = 1.0,
+              pass_index: int = 0, later_context: float = 1.0,
+              paper_context: bool = False) -> PassPlan:
+    """Pass ``pass_index``'s :class:`PassPlan` from the config at ``working_size``.
 
     Args:
-        state: the LDI and its edges (:func:`start`, or the previous pass's result).
-        fill: the inpainting (:data:`PassFill`).
-        config, working_size, margin, scale, pass_index, later_context, paper_context:
-            see :func:`pass_patches`.
-        batch_area: hold about this many patch pixels at a time (for a backend that
-            fills each patch on its own): ``fill`` gets the patches in batches of half
-            of it (the first an eighth of that), each next batch extracted in another
-            thread while ``fill`` fills the one before; None: all at once.
-        progress: ``progress(done, total)`` over the pass's patches.
-        final: when ``state.ldi``'s border colours are not final yet (the frame is
-            still being filled, in another thread): ``final()`` waits for and returns
-            the LDI with them (the same pixels and links). The patches whose context
-            reads no border pixel are filled first, meanwhile; the others are
-            extracted from ``final()``, which the pass is merged into. The result is
-            the same as without (each patch is filled on its own; the fills are merged
-            in edge order). Regions never read colours.
+        config, working_size, pass_index, later_context, paper_context: see
+            :func:`region_sizes`.
+        margin: the backend's context-free margin around each patch, px.
+        scale: lattice pixels per pixel of the input photo.
 
-    Returns:
-        :class:`~photo3d.stages.merge.Merged`: the LDI with the new pixels (label 2 in
-        the first pass, 3 later) and the next pass's edges.
+    Example:
+        >>> plan = plan_pass(Config(), 512, margin=1, pass_index=1)
+        >>> plan.label, plan.sizes.dilation, plan.min_edge_length
+        (3, 0, 5)
+    """
+    pre = config.preprocess
+    return PassPlan(
+        sizes=region_sizes(config, working_size, pass_index=pass_index,
+                           later_context=later_context, paper_context=paper_context),
+        margin=margin, scale=scale, label=min(pass_index + 2, 3),
+        threshold=pre.discontinuity,
+        min_edge_length=config.spatial(pre.min_edge_length, working_size),
+        overwrite_band=config.regions.overwrite_dilation)
+
+
+def border_readers(ldi: LDI, regions: Regions) -> tuple[list[int], list[int]]:
+    """The edges of ``regions`` whose context holds no border pixel (label
+    :data:`~photo3d.structures.ldi.LABEL_BORDER`: they may be filled before the
+    frame's colours are), and those whose context does, each in edge order.
 
     Example:
         >>> from photo3d.stages.preprocess import preprocess
+        >>> cfg = Config(size=None)
+        >>> d = np.ones((64, 64), np.float32); d[16:48, 16:48] = 3.0
+        >>> first = start(preprocess(np.zeros((64, 64, 3), np.float32), d, config=cfg),
+        ...               config=cfg)
+        >>> border_readers(first.ldi, pass_regions(first, region_sizes(cfg, 64)))
+        ([0], [])
+    """
+    every = list(range(regions.count))
+    if not regions.count:
+        return every, []
+    border = ldi.label[regions.context] == LABEL_BORDER
+    ptr = regions.context_ptr
+    seen = np.concatenate([[0], np.cumsum(border)])
+    reads = seen[ptr[1:]] > seen[ptr[:-1]]
+    return ([e for e in every if not reads[e]], [e for e in every if reads[e]])
+
+
+def patch_batches(ldi: LDI, regions: Regions, edge_pixels: np.ndarray, plan: PassPlan, *,
+                  edges: Sequence[int] | None = None, area: int | None = None,
+                  first_area: int | None = None) -> Iterator[list[PatchJob]]:
+    """The patches of ``edges`` (None: every edge) in edge order, in lists of about
+    ``area`` patch pixels each (the first of ``first_area``, default ``area // 8``, so
+    that a fill can start sooner), so that a pass need not hold all of its patches at
+    once; ``area`` None: one list.
+
+    Example:
+        >>> from photo3d.stages.preprocess import preprocess
+        >>> cfg = Config(size=None)
+        >>> d = np.ones((64, 64), np.float32); d[8:24, 8:24] = d[40:56, 40:56] = 3.0
+        >>> first = start(preprocess(np.zeros((64, 64, 3), np.float32), d, config=cfg),
+        ...               config=cfg, border=False)
+        >>> plan = plan_pass(cfg, 64, margin=1)
+        >>> regions = pass_regions(first, plan.sizes)
+        >>> [len(b) for b in patch_batches(first.ldi, regions, first.edge_pixels, plan,
+        ...                                area=1)]
+        [1, 1]
+    """
+    limit = None if area is None else max(1, first_area or area // 8)
+    batch, held = [], 0
+    for job in iter_patches(ldi, regions, edge_pixels, margin=plan.margin, scale=plan.scale,
+                            edges=edges):
+        batch.append(job)
+        held += job.patch.shape[0] * job.patch.shape[1]
+        if limit is not None and held >= limit:
+            yield batch
+            batch, held, limit = [], 0, max(1, area)
+    if batch:
+        yield batch
+
+
+def merge_pass(state: PassInput, plan: PassPlan, fills: Sequence[tuple[int, Fill]], *,
+               ldi: LDI | None = None,
+               index: tuple[np.ndarray, np.ndarray] | None = None) -> Merged:
+    """A pass's fills merged into the LDI, with the next pass's edges
+    (:func:`~photo3d.stages.merge.merge_fills`: at most as many as this pass's, the
+    longest; the LDI within :func:`ldi_room`).
+
+    Args:
+        state: the pass's input.
+        plan: the pass's plan.
+        fills: ``(edge, fill)`` pairs in any order (merged in edge order, so the
+            result does not depend on the order the patches were filled in).
+        ldi: the LDI to merge into if not ``state.ldi`` (the same pixels and links,
+            its frame's colours filled meanwhile).
+        index: ``state.ldi.position_index()`` if the caller has it.
+
+    Example:
+        >>> from photo3d.stages.preprocess import preprocess
+        >>> from photo3d.stages.merge import take
         >>> from photo3d.structures.patch import InpaintResult
         >>> cfg = Config(size=None)
         >>> d = np.ones((64, 64), np.float32); d[16:48, 16:48] = 3.0
-        >>> pre = preprocess(np.zeros((64, 64, 3), np.float32), d, config=cfg)
-        >>> grey = lambda patches, progress: [InpaintResult(
-        ...     np.full(p.shape + (3,), 0.5, np.float32), p.disparity,
-        ...     np.zeros(p.shape, np.float32)) for p in patches]
-        >>> merged = fill_pass(start(pre, config=cfg), grey, config=cfg, working_size=64,
-        ...                    margin=1)
+        >>> first = start(preprocess(np.zeros((64, 64, 3), np.float32), d, config=cfg),
+        ...               config=cfg)
+        >>> plan = plan_pass(cfg, 64, margin=1)
+        >>> job = pass_patches(first, config=cfg, working_size=64, margin=1)[0]
+        >>> grey = InpaintResult(np.full(job.patch.shape + (3,), 0.5, np.float32),
+        ...                      job.patch.disparity, np.zeros(job.patch.shape, np.float32))
+        >>> merged = merge_pass(first, plan, [(job.edge, take(first.ldi, job, grey))])
         >>> merged.added > 0, float(merged.ldi.color[-1, 0])
         (True, 0.5)
     """
-    sizes = region_sizes(config, working_size, pass_index=pass_index,
-                         later_context=later_context, paper_context=paper_context)
-    index = state.index if state.index is not None else state.ldi.position_index()
-    regions = pass_regions(state, sizes, index=index)
-    total, done = regions.count, 0
-    fills = []
-    first, later = _border_readers(state.ldi, regions, final is not None)
-
-    def batches() -> Iterator[list[PatchJob]]:
-        # two batches are held at once (one filled, the next extracted): each is half
-        # of batch_area, the first an eighth of that, so that the fill starts sooner
-        # (nothing is filled while the first is extracted)
-        ldi, batch, area = state.ldi, [], 0
-        half = None if batch_area is None else max(1, batch_area // 2)
-        limit = None if half is None else max(1, half // 8)
-        for group in (first, later):
-            if group is later and final is not None:
-                ldi = final()
-            for job in iter_patches(ldi, regions, state.edge_pixels, margin=margin,
-                                    scale=scale, edges=group):
-                batch.append(job)
-                area += job.patch.shape[0] * job.patch.shape[1]
-                if limit is not None and area >= limit:
-                    yield batch
-                    batch, area, limit = [], 0, half
-            if batch:
-                yield batch
-                batch, area, limit = [], 0, half
-
-    def report(i: int, n: int) -> None:
-        if progress is not None:
-            progress(min(done + i, total), total)
-
-    # the next batch is extracted (Python and numpy work) while this one is filled
-    for batch in _ahead(batches()) if batch_area is not None else batches():
-        results = fill([job.patch for job in batch], report)
-        # take reads the LDI's positions only, the same in final()'s
-        fills.extend((job.edge, take(state.ldi, job, res))
-                     for job, res in zip(batch, results, strict=True))
-        done += len(batch)
-        del results  # not held while the next batch is filled (a batch's whole patches)
-    ldi = final() if final is not None else state.ldi
-    fills.sort(key=lambda pair: pair[0])  # edge order, as one group gives them
-    pre = config.preprocess
-    return merge_fills(ldi, [f for _, f in fills], label=min(pass_index + 2, 3),
-                       threshold=pre.discontinuity,
-                       min_edge_length=config.spatial(pre.min_edge_length, working_size),
-                       overwrite_band=config.regions.overwrite_dilation,
-                       max_edges=state.edges, room=ldi_room(state.ldi), index=index)
+    target = state.ldi if ldi is None else ldi
+    ordered = [fill for _, fill in sorted(fills, key=lambda pair: pair[0])]
+    return merge_fills(target, ordered, label=plan.label, threshold=plan.threshold,
+                       min_edge_length=plan.min_edge_length,
+                       overwrite_band=plan.overwrite_band, max_edges=state.edges,
+                       room=ldi_room(state.ldi), index=index)

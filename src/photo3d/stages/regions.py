@@ -26,16 +26,18 @@ from __future__ import annotations
 
 import queue
 from collections import deque
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numba
 import numpy as np
 
+from photo3d.parallel import thread_pool, width
 from photo3d.stages._lattice import step
 from photo3d.structures.ldi import LDI
 
-_THREADS = 2  # groups of edges grown at once (the machines photo3d is timed on have 2 cores)
+_MOST_THREADS = 4
+"""Groups of edges grown at once, at most: each holds two lattice-sized int64 scratch
+arrays (about 14 MB at 1024 px), and a pass has at most 16 groups."""
 
 
 @dataclass(frozen=True)
@@ -357,8 +359,9 @@ def find_regions(
     group = n_edges if limit is None else max(1, -(-n_edges // 16))
     starts_of = range(0, max(n_edges, 1), max(group, 1))
     extra = sizes.thin_context > 0 or sizes.context_around
+    threads = width(min(_MOST_THREADS, len(starts_of)))  # 1: grown in this thread
     scratch: queue.SimpleQueue = queue.SimpleQueue()  # one pair per thread at a time
-    for _ in range(min(_THREADS, len(starts_of))):
+    for _ in range(threads):
         scratch.put((np.full(rows * cols, -1, np.int64),
                      np.full(rows * cols if extra else 1, -1, np.int64)))
 
@@ -378,11 +381,11 @@ def find_regions(
 
     parts = []
     used = np.zeros(3, np.int64)  # context, synthesis, area
-    # groups grown by two threads (the kernel runs without the GIL), taken in order;
-    # the result does not depend on the threads
-    with ThreadPoolExecutor(max_workers=_THREADS) as pool:
-        ahead = deque(pool.submit(grow, a) for a in starts_of[:_THREADS])
-        following = iter(starts_of[_THREADS:])
+    # groups grown by the budget's threads (the kernel runs without the GIL), taken in
+    # order; the result does not depend on the threads
+    with thread_pool(threads, name="regions") as pool:
+        ahead = deque(pool.submit(grow, a) for a in starts_of[:threads])
+        following = iter(starts_of[threads:])
         while ahead:
             part = ahead.popleft().result()
             parts.append(part)

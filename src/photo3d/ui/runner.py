@@ -35,6 +35,7 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 
 from photo3d.errors import Photo3DError
+from photo3d.parallel import shared_steps, start_thread, worker_share
 from photo3d.ui.job import JobCancelled, JobOptions, JobResult, redact, run_job
 from photo3d.ui.warmup import Warmup
 from photo3d.ui.workspace import Workspace, check_upload
@@ -164,7 +165,7 @@ class Runner:
             else:
                 listener("done", None)
 
-        threading.Thread(target=work, name="photo3d-ui-request", daemon=True).start()
+        start_thread(work, name="ui-request")
         return cancel
 
     def _private(self, text: str, uploads: list[Path]) -> str:
@@ -201,9 +202,10 @@ class Runner:
         try:
             with self.workspace.request() as folder:
                 try:
-                    yield from run_job(photo, folder, options=options, depth=depth,
-                                       right=right, name=name, progress=report,
-                                       cancel=cancel)
+                    # each request on its share of the budget (--workers at once)
+                    yield from shared_steps(run_job(
+                        photo, folder, options=options, depth=depth, right=right, name=name,
+                        progress=report, cancel=cancel), worker_share(self.workers))
                 except JobCancelled:
                     self.workspace.discard(folder)
                     raise

@@ -25,13 +25,13 @@ import functools
 import os
 import secrets
 import socket
-import threading
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TypeVar
 
 from photo3d.errors import ConfigError, OutputError
+from photo3d.parallel import start_thread
 from photo3d.ui.options import UiOptions, check_host, host_allowed, url_of
 from photo3d.ui.runner import Runner
 from photo3d.ui.warmup import Warmup
@@ -106,7 +106,7 @@ def start(options: UiOptions | None = None) -> UiServer:
     port = options.port or _free_port(options.host)
     _check_port(options.host, port)  # before Gradio tries, which leaks its loop when it fails
     options = _with_port(options, port)
-    from photo3d.render.renderer import thread_safe_kernels
+    from photo3d.parallel import thread_safe_kernels
     from photo3d.ui.page import CSS, build_app, load_gradio, theme
 
     load_gradio()  # MissingExtra before anything is created
@@ -216,9 +216,7 @@ def _in_own_loop(fn: Callable[[], T]) -> T:
         except BaseException as err:  # handed to the caller's thread
             outcome.append((False, err))
 
-    thread = threading.Thread(target=target, name="photo3d-ui-launch")
-    thread.start()
-    thread.join()
+    start_thread(target, name="ui-launch", daemon=False).join()
     ok, value = outcome[0]
     if not ok:
         raise value

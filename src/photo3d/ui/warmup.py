@@ -26,6 +26,8 @@ import threading
 import time
 from pathlib import Path
 
+from photo3d.parallel import start_thread
+
 
 class Warmup:
     """Make a tiny photo in a daemon thread.
@@ -53,7 +55,7 @@ class Warmup:
         """Start the warm-up thread (once)."""
         if not self._started:
             self._started = True
-            threading.Thread(target=self._run, name="photo3d-ui-warmup", daemon=True).start()
+            start_thread(self._run, name="ui-warmup")
 
     @property
     def finished(self) -> bool:

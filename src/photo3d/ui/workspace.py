@@ -44,6 +44,7 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from photo3d.errors import InputError, OutputError
+from photo3d.parallel import start_thread
 
 try:
     import fcntl
@@ -261,8 +262,7 @@ class Workspace:
             while not self._stop.wait(interval):
                 self.sweep()
 
-        self._sweeper = threading.Thread(target=loop, name="photo3d-ui-sweeper", daemon=True)
-        self._sweeper.start()
+        self._sweeper = start_thread(loop, name="ui-sweeper")
 
     def contains(self, path: str | os.PathLike[str]) -> bool:
         """True if ``path`` (resolved) lies inside the root but not in its upload
