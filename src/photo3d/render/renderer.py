@@ -25,7 +25,13 @@ from photo3d.camera import Camera, Intrinsics
 from photo3d.errors import ConfigError, require
 from photo3d.holes import fill_holes
 from photo3d.parallel import thread_safe_kernels, threads
-from photo3d.render._resolve import grow_fill, grow_fill_far, holes_to_rgb8, to_rgb8
+from photo3d.render._resolve import (
+    blend_fringe,
+    grow_fill,
+    grow_fill_far,
+    holes_to_rgb8,
+    to_rgb8,
+)
 from photo3d.structures.mesh import Mesh, TexturedMesh
 
 AUTHORS_CROP = (0.03, 0.03, 0.05, 0.03)
@@ -244,16 +250,15 @@ class Renderer:
                pose) -> tuple[np.ndarray, np.ndarray]:
         """``color`` with the soft silhouettes' fringe blended over it where the fringe
         is in front: ``a * fringe + (1 - a) * color``, ``a`` the fringe's interpolated
-        alpha times twice its coverage of the pixel (at most 1); and the nearer depth."""
+        alpha times twice its coverage of the pixel, at most 1
+        (:func:`~photo3d.render._resolve.blend_fringe`); and the nearer depth."""
         colors, alphas = self._overlay
         f_color, f_coverage, f_depth = self._draw(colors, k, pose)
-        # the fringe's mesh ends at its outer pixels' centres: it covers about half of
-        # them, while their alpha already is their coverage: coverage counts twice
-        f_alpha = self._draw(alphas, k, pose)[0][..., 0] * np.minimum(2.0 * f_coverage, 1.0)
-        front = (f_alpha > 0.0) & (f_depth <= depth * 1.001)
-        a = np.where(front, f_alpha, 0.0).astype(np.float32)[..., None]
-        color = color * (1.0 - a) + f_color * a
-        return color, np.where(front, np.minimum(f_depth, depth), depth)
+        f_alpha = self._draw(alphas, k, pose)[0]
+        color = np.ascontiguousarray(color, np.float32)
+        depth = np.array(depth, np.float32)  # a new array: the rasterizer may reuse its own
+        blend_fringe(color, depth, f_color, f_coverage, f_alpha, f_depth)
+        return color, depth
 
     def render_rgb8(self, camera: Camera) -> np.ndarray:
         """``render(camera).color`` in 8 bits (``to_rgb8``): a new ``(H, W, 3) uint8``
