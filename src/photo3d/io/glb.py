@@ -51,7 +51,9 @@ def write_glb_file(path: PathLike, mesh, vertices: np.ndarray, labels: np.ndarra
     ``alpha``, :meth:`~photo3d.structures.mesh.Mesh.split_fringe`), written as a
     second primitive of the same mesh: ``POSITION``, ``COLOR_0`` (linear RGB and the
     alpha, float32 VEC4) and ``_LABEL``, with :data:`FRINGE_MATERIAL` (``alphaMode``
-    ``BLEND``); a glTF viewer draws it over the first."""
+    ``BLEND``); a glTF viewer draws it over the first. When its ``vertices`` are
+    ``mesh.vertices`` themselves (the full mesh), it shares the first primitive's
+    ``POSITION`` and ``_LABEL``."""
     positions = vertices * TO_GLTF
     strided_labels = np.zeros((len(labels), 4), np.uint8)  # attributes are 4-byte aligned
     strided_labels[:, 0] = labels
@@ -63,6 +65,7 @@ def write_glb_file(path: PathLike, mesh, vertices: np.ndarray, labels: np.ndarra
         (indices, "SCALAR", ELEMENT_ARRAY_BUFFER, None),
     ]
     primitives, materials = [primitive], [material]
+    shared = fringe is not None and fringe.vertices is mesh.vertices
     if fringe is not None:
         first = len(arrays)
         f_vertices, f_colors, f_labels, f_faces = fringe.checked()
@@ -72,21 +75,26 @@ def write_glb_file(path: PathLike, mesh, vertices: np.ndarray, labels: np.ndarra
         rgba[:, 3] = np.clip(np.asarray(fringe.alpha, np.float32), 0.0, 1.0)
         f_strided = np.zeros((len(f_labels), 4), np.uint8)
         f_strided[:, 0] = f_labels
-        arrays += [
-            (f_positions, "VEC3", ARRAY_BUFFER, None),
-            (rgba, "VEC4", ARRAY_BUFFER, None),
-            (f_strided, "SCALAR", ARRAY_BUFFER, 4),
-            (f_faces.ravel().astype(np.uint16 if len(f_vertices) <= 0xFFFF else np.uint32),
-             "SCALAR", ELEMENT_ARRAY_BUFFER, None),
-        ]
-        primitives.append({"attributes": {"POSITION": first, "COLOR_0": first + 1,
-                                          "_LABEL": first + 2},
-                           "indices": first + 3, "material": 1, "mode": TRIANGLES})
+        f_indices = f_faces.ravel().astype(np.uint16 if len(f_vertices) <= 0xFFFF else np.uint32)
+        if shared:  # the same vertices: POSITION and _LABEL are the first primitive's
+            arrays += [(rgba, "VEC4", ARRAY_BUFFER, None),
+                       (f_indices, "SCALAR", ELEMENT_ARRAY_BUFFER, None)]
+            attributes = {"POSITION": 0, "COLOR_0": first, "_LABEL": len(attributes) + 1}
+            indices = first + 1
+        else:
+            arrays += [(f_positions, "VEC3", ARRAY_BUFFER, None),
+                       (rgba, "VEC4", ARRAY_BUFFER, None),
+                       (f_strided, "SCALAR", ARRAY_BUFFER, 4),
+                       (f_indices, "SCALAR", ELEMENT_ARRAY_BUFFER, None)]
+            attributes = {"POSITION": first, "COLOR_0": first + 1, "_LABEL": first + 2}
+            indices = first + 3
+        primitives.append({"attributes": attributes, "indices": indices, "material": 1,
+                           "mode": TRIANGLES})
         materials.append(FRINGE_MATERIAL)
     views, accessors, chunks = pack_arrays(arrays)
     offset = sum(len(chunk) for chunk in chunks)
     accessors[0].update(min=positions.min(axis=0).tolist(), max=positions.max(axis=0).tolist())
-    if fringe is not None:
+    if fringe is not None and not shared:
         accessors[first].update(min=f_positions.min(axis=0).tolist(),
                                 max=f_positions.max(axis=0).tolist())
     document = {
@@ -119,8 +127,8 @@ def srgb_to_linear(colors: np.ndarray) -> np.ndarray:
     colours are linear).
 
     Example:
-        >>> srgb_to_linear(np.array([[0, 255, 188]], np.uint8)).round(3).tolist()
-        [[0.0, 1.0, 0.503]]
+        >>> [round(float(v), 3) for v in srgb_to_linear(np.array([[0, 255, 188]], np.uint8))[0]]
+        [0.0, 1.0, 0.503]
     """
     srgb = np.asarray(colors, np.float64) / 255.0
     linear = np.where(srgb <= 0.04045, srgb / 12.92, ((srgb + 0.055) / 1.055) ** 2.4)

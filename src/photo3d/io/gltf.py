@@ -91,7 +91,15 @@ def write_glb(path: PathLike, mesh: Mesh) -> None:
         >>> path.read_bytes()[:4]
         b'glTF'
     """
-    mesh, fringe = mesh.split_fringe()
+    fringe = None
+    if mesh.alpha is not None:  # soft silhouettes: their faces in a second primitive
+        faces = np.asarray(mesh.faces, np.int32)
+        touch = (np.asarray(mesh.alpha) < 1.0)[faces].any(axis=1)
+        if touch.any():
+            fringe = replace(mesh, faces=faces[touch])
+        mesh = replace(mesh, faces=faces[~touch], alpha=None)
+        if fringe is not None:
+            fringe = replace(fringe, vertices=mesh.vertices)  # shared: the same array
     vertices, colors, labels, faces = _checked_arrays(mesh)
     arrays = [(_SRGB_TO_LINEAR[colors], "VEC3", ARRAY_BUFFER, None)]
     write_glb_file(path, mesh, vertices, labels, faces, arrays, _PRIMITIVE, _MATERIAL,
@@ -104,7 +112,8 @@ def read_glb(path: PathLike) -> Mesh:
     Reads the first primitive of the first mesh (triangles; ``POSITION``, ``COLOR_0``
     linear RGB(A) as float or normalised integers, optional ``_LABEL``); undoes the
     axis and colour conversions. Node transforms are not applied. A second primitive
-    (photo3d's soft silhouettes) is appended, its vertices with their ``alpha``.
+    (photo3d's soft silhouettes) is appended with its ``alpha`` (sharing the first's
+    vertices, as :func:`write_glb` writes it, or after them).
 
     Args:
         path: a binary glTF 2.0 file.
@@ -174,6 +183,10 @@ def read_glb(path: PathLike) -> Mesh:
         raise InputError(f"glTF {path} has an unexpected structure ({err!r})") from err
     if fringe is None:
         return mesh
+    if document["meshes"][0]["primitives"][1]["attributes"]["POSITION"] == attributes[
+            "POSITION"]:  # photo3d's full mesh: the same vertices, with their alpha
+        return replace(mesh, faces=np.concatenate([mesh.faces, fringe.faces]),
+                       alpha=fringe.alpha)
     return replace(  # the soft silhouettes' vertices after the others, with their alpha
         mesh, vertices=np.concatenate([mesh.vertices, fringe.vertices]),
         colors=np.concatenate([mesh.colors, fringe.colors]),
