@@ -22,7 +22,13 @@ input view's fringe pixels (the share of a pixel's 4x4 samples on a surface at l
 as near as the pixel's LDI disparity less half the threshold), for each method, band
 and radius; writes ``benchmarks/results/alpha_accuracy.json``.
 
+``--stereo``: the stereo pairs of ``photo3d eval`` (the Middlebury motorcycle with its
+ground truth, synthetic pairs 0-2), the right view with ``edges="exact"`` and with
+the default, PSNR and LPIPS over the whole view and the disoccluded pixels (the
+issue's "within 1 % of today"); writes ``benchmarks/results/alpha_stereo.json``.
+
 Usage: python benchmarks/bench_alpha.py [--scenes 3] [--size 384x256] [--accuracy]
+                                        [--stereo]
 """
 
 from __future__ import annotations
@@ -222,7 +228,28 @@ def main() -> None:
     ap.add_argument("--spread", type=int, default=2)
     ap.add_argument("--out", default=str(Path(__file__).parent / "results" / "alpha.json"))
     ap.add_argument("--accuracy", action="store_true")
+    ap.add_argument("--stereo", action="store_true")
     args = ap.parse_args()
+    if args.stereo:
+        from photo3d.eval.evaluate import evaluate
+        from photo3d.eval.stereo_pair import motorcycle_pair
+        from photo3d.eval.synthetic import synthetic_pair
+
+        pairs = {"motorcycle": motorcycle_pair, **{f"synthetic{i}": (
+            lambda i=i: synthetic_pair(i)) for i in range(3)}}
+        rows = []
+        for name, make_pair in pairs.items():
+            pair = make_pair()
+            for edges in ("exact", "align"):
+                scores = evaluate(pair, ["structured"], config=Config(edges=edges)).scores
+                row = {"pair": name, "edges": edges, **{
+                    f"{m}_{region}": float(v) for region, ms in scores["structured"].items()
+                    for m, v in ms.items()}}
+                rows.append(row)
+                print(row, flush=True)
+        save_record({"rows": rows}, Path(args.out).with_name("alpha_stereo.json"),
+                    "alpha_stereo", "bench_alpha.py")
+        return
     w, h = (int(v) for v in args.size.split("x"))
     k = Intrinsics.default(w, h)
     if args.accuracy:
