@@ -60,6 +60,8 @@ BENCHMARKS = [
     ["bench_learned.py", "--runs", "3", "--out", "benchmarks/results/learned_shared.json"],
     ["bench_edge_crops.py"],
     ["bench_alpha.py", "--scenes", "3", "--variants", "exact,soft,soft-means"],
+    ["bench_alpha.py", "--stereo"],
+    ["bench_alpha.py", "--accuracy"],
     ["bench_alpha_cost.py"],
     ["bench_later_passes.py"],
     ["bench_stereo.py"],
@@ -865,6 +867,17 @@ def section_alpha() -> str:
                 f"without and {m['frames_align']:.3f} s with the blended fringe "
                 f"({cost['fringe_pixels']:,} fringe pixels, {cost['overlay_faces']:,} fringe "
                 "faces).", ""]
+    stereo = load("alpha_stereo.json")
+    if stereo is not None:
+        out += [f"The stereo pairs of `photo3d eval` (command: `{stereo['command']}`), the "
+                "right view against the real one, `structured` fill:", "",
+                "| pair | edges | LPIPS, disoccluded | PSNR, disoccluded | LPIPS, whole view | "
+                "PSNR, whole view |", "| --- | --- | --- | --- | --- | --- |"]
+        for r in stereo["rows"]:
+            out.append(f"| {r['pair']} | {r['edges']} | {r['lpips_disoccluded']:.4f} | "
+                       f"{r['psnr_disoccluded']:.2f} | {r['lpips_all']:.4f} | "
+                       f"{r['psnr_all']:.2f} |")
+        out.append("")
     demo = load("alpha_demo.json")
     if demo is not None:
         t = demo["make_s"]
