@@ -4,6 +4,7 @@ behind it, the switch, the file format and how the fringe is drawn."""
 from __future__ import annotations
 
 import json
+import warnings
 import zipfile
 
 import numpy as np
@@ -218,3 +219,30 @@ def test_glb_files_keep_the_fringe_and_its_alpha(tmp_path):
     assert len(read.faces) == len(full.faces)
     assert np.isclose(read.alpha.min(), full.alpha.min())
     assert np.array_equal(read.split_fringe()[1].alpha, fringe.alpha)
+
+
+def test_usdz_holds_the_fringe_with_its_opacity(tmp_path):
+    pxr = pytest.importorskip("pxr")
+    from pxr import Usd, UsdGeom, UsdUtils
+
+    from photo3d.export.usdz import write_usdz
+
+    del pxr
+    image, depth = _pole(spread=2)
+    config = Config(size=None, depth_kind="depth", spatial_scale=1.0)
+    ldi = photo3d.make(image, depth=depth, config=config).ldi
+    path = tmp_path / "mesh.usdz"
+    write_usdz(ldi, path)
+    stage = Usd.Stage.Open(str(path))
+    fringe = UsdGeom.Mesh(stage.GetPrimAtPath("/photo3d/fringe"))
+    opacity = np.asarray(UsdGeom.PrimvarsAPI(fringe).GetPrimvar("displayOpacity").Get())
+    assert opacity.size and opacity.min() < 0.5 and opacity.max() <= 1.0
+    checker_class = getattr(UsdUtils, "ComplianceChecker", None)
+    if checker_class is None:
+        return  # usd-core >= 26.8 has no ARKit checker
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DeprecationWarning)  # deprecated since 25.x
+        checker = checker_class(arkit=True, skipARKitRootLayerCheck=False,
+                                rootPackageOnly=False, skipVariants=False, verbose=False)
+        checker.CheckCompliance(str(path))
+    assert (list(checker.GetErrors()), list(checker.GetFailedChecks())) == ([], [])
