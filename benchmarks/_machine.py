@@ -127,27 +127,33 @@ def save_record(record: dict, out, benchmark: str, script: str) -> dict:
     return record
 
 
-def timed_python(argv: list[str], *, src: Path, cache: Path | None = None,
-                 timeout: float | None = None) -> dict | None:
-    """Run ``python argv`` with ``src`` first on ``PYTHONPATH`` (and numba's cache in
-    ``cache``, if given) and measure the whole child process: ``{"wall_s", "cpu_s"
-    (user + system of the child and its own children, ``os.wait4``), "peak_rss_mb",
-    "load_1min": [before, after], "stdout"}``. A failed child ends the benchmark with
-    its stderr; a child still running after ``timeout`` seconds is killed (a deadlock,
-    not a slow run) and gives None."""
+def timed_python(argv: list[str], *, src: Path | None, cache: Path | None = None,
+                 timeout: float | None = None, python: str | None = None,
+                 env: dict | None = None, prefix: list[str] | None = None) -> dict | None:
+    """Run ``python argv`` with ``src`` first on ``PYTHONPATH`` (None: not set) and
+    numba's cache in ``cache`` (if given) and measure the whole child process:
+    ``{"wall_s", "cpu_s" (user + system of the child and its own children,
+    ``os.wait4``), "peak_rss_mb", "load_1min": [before, after], "stdout"}``. A failed
+    child ends the benchmark with its stderr; a child still running after ``timeout``
+    seconds is killed (a deadlock, not a slow run) and gives None. ``python``: the
+    interpreter (default this one); ``env``: more environment variables; ``prefix``: a
+    command that execs the rest (``setpriv ...``: the same process, so measured)."""
     import subprocess
     import sys
     import tempfile
     import threading
     import time
 
-    env = dict(START_ENV, PYTHONPATH=str(src))
+    env = dict(START_ENV, **(env or {}))
+    if src is not None:
+        env["PYTHONPATH"] = str(src)
     if cache is not None:
         env["NUMBA_CACHE_DIR"] = str(cache)
     load = os.getloadavg()[0]
     with tempfile.TemporaryFile() as out, tempfile.TemporaryFile() as err:
         start = time.perf_counter()
-        proc = subprocess.Popen([sys.executable, *argv], env=env, stdout=out, stderr=err)
+        proc = subprocess.Popen([*(prefix or []), python or sys.executable, *argv], env=env,
+                                stdout=out, stderr=err)
         killer = threading.Timer(timeout, proc.kill) if timeout else None
         if killer is not None:
             killer.start()
@@ -165,7 +171,8 @@ def timed_python(argv: list[str], *, src: Path, cache: Path | None = None,
                              f"{err.read().decode()}")
         return {"wall_s": wall, "cpu_s": usage.ru_utime + usage.ru_stime,
                 "peak_rss_mb": usage.ru_maxrss / 1024,
-                "load_1min": [load, os.getloadavg()[0]], "stdout": out.read().decode()}
+                "load_1min": [load, os.getloadavg()[0]], "stdout": out.read().decode(),
+                "stderr": err.read().decode()}
 
 
 def git_src(ref: str, dest: Path) -> Path:

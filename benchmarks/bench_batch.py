@@ -244,8 +244,8 @@ def main() -> None:
                     f"(median of {args.runs}) | {med[name]['wall_s']:.2f} s | "
                     f"{med[name]['cpu_s']:.2f} s | | {med[name]['cpu_s']:.2f} s | | |")
     for label, row in batches.items():
-        name = {"ref": f"`batch`, {ref_commit}", "now": "`batch`, this tree"}.get(
-            label, f"`batch`, this tree, {label.split(', ', 1)[1]}")
+        names = {"ref": f"`batch`, {ref_commit}", "now": "`batch`, this tree"}
+        name = names.get(label) or f"`batch`, this tree, {label.partition(', ')[2]}"
         t = row["threads"]
         rows.append(f"| {name} | {row['wall_s']:.1f} s | {row['cpu_s']:.1f} s | "
                     f"{row['photos_per_hour']} | {row['cpu_per_photo_s']:.2f} s | "

@@ -156,8 +156,27 @@ def test_view_serves_the_viewer_on_localhost(files):
         _, err = proc.communicate(timeout=10)
         proc.stdout.close()
         proc.stderr.close()
-    assert proc.returncode == 0 and "Traceback" not in err
+    assert proc.returncode == 130 and err == "photo3d: interrupted\n"  # as every command
     assert (out / "viewer.html").is_file()  # written on demand
+
+
+def test_view_stops_on_sigterm_with_143_and_a_line(files):
+    # issue 45: view exited 0, silently, on SIGTERM
+    import signal
+
+    out = files / "out"
+    assert main(["make", str(files / "photo.png"), "--depth", str(files / "depth.png"),
+                 "-o", str(out), "--size", "64", "--no-video", "-q"]) == 0
+    proc = subprocess.Popen([sys.executable, "-m", "photo3d", "view", str(out), "--no-browser"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        assert " at http://127.0.0.1:" in proc.stdout.readline()
+    finally:
+        proc.send_signal(signal.SIGTERM)
+        _, err = proc.communicate(timeout=10)
+        proc.stdout.close()
+        proc.stderr.close()
+    assert proc.returncode == 143 and err == "photo3d: interrupted (SIGTERM)\n"
 
 
 def test_make_with_the_learned_inpainter_and_authors_format_weights(files, capsys):
@@ -245,3 +264,32 @@ def test_make_says_where_the_depth_came_from_and_records_it(files, capsys):
     assert meta["depth_source"] == source and meta["config"]["depth_kind"] == "depth"
     assert meta["save"]["viewer"] is False and meta["save"]["videos"] == []
     assert meta["inpainter"]["name"] == "structured"  # the default
+
+
+@pytest.mark.parametrize("command", ["make", "batch"])
+def test_edges_option_reaches_the_config_of_make_and_batch(files, command):
+    """``--edges exact`` turns the alignment off and is recorded; the default aligns."""
+    import argparse
+    import json
+
+    from photo3d.cli.options import add_make_options, config_from
+
+    p = argparse.ArgumentParser()
+    add_make_options(p, out_required=False)
+    assert config_from(p.parse_args([])).edges == "align"
+    assert config_from(p.parse_args(["--edges", "exact"])).edges == "exact"
+    if command == "make":
+        args = ["make", str(files / "photo.png"), "--depth", str(files / "depth.png"),
+                "-o", str(files / "out")]
+        written = files / "out"
+    else:
+        (files / "in").mkdir()
+        (files / "maps").mkdir()
+        (files / "photo.png").rename(files / "in" / "photo.png")
+        (files / "depth.png").rename(files / "maps" / "photo.png")
+        args = ["batch", str(files / "in"), "--depth", str(files / "maps"),
+                "-o", str(files / "outs")]
+        written = files / "outs" / "photo"
+    assert main([*args, "--size", "64", "--no-video", "--no-viewer", "--no-glb",
+                 "--edges", "exact", "-q"]) == 0
+    assert json.loads((written / "config.json").read_text())["config"]["edges"] == "exact"

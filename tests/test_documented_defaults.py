@@ -1,5 +1,6 @@
 """The defaults that docs state and that can drift from the code: the default fill named
-in ``make``'s docstring, in docs/ui.md's option table and in the UI's request options."""
+in ``make``'s docstring, in docs/ui.md's option table and in the UI's request options;
+the default depth edges in docs/ui.md's table, the UI's options and docs/cli.md."""
 
 import re
 from pathlib import Path
@@ -22,3 +23,12 @@ def test_ui_docs_and_page_take_the_default_fill():
                if line.startswith("| `fill` |"))
     default = row.split("|")[3].strip().strip("`")
     assert default == Config().inpainter == JobOptions().fill
+
+
+def test_ui_and_cli_docs_take_the_default_edges():
+    row = next(line for line in (DOCS / "ui.md").read_text().splitlines()
+               if line.startswith("| `edges` |"))
+    assert row.split("|")[3].strip().strip("`") == Config().edges == JobOptions().edges
+    cli = next(line for line in (DOCS / "cli.md").read_text().splitlines()
+               if line.startswith("| `--edges"))
+    assert f"`{Config().edges}` (default" in cli

@@ -45,6 +45,11 @@ CHANGES = {
     "save.exports": ({"save": SaveOptions(exports=("splats.spz",))},
                      lambda m: m["save"]["exports"] == ["splats.spz"]
                      and m["written"] == ["splats.spz"]),
+    # recorded with splat exports only (what they change); the defaults are adaptive, 3
+    "save.splats": ({"save": SaveOptions(exports=("splats.spz",), splats="dense")},
+                    lambda m: m["save"]["splats"] == "dense"),
+    "save.spz_version": ({"save": SaveOptions(exports=("splats.spz",), spz_version=4)},
+                         lambda m: m["save"]["spz_version"] == 4),
 }
 NOT_RECORDED = {
     "depth_model": "the model for photos without any depth: a depth array is used here "
@@ -163,3 +168,33 @@ def test_the_photo_is_decoded_and_its_depth_prepared_once(tmp_path, monkeypatch)
                           config=BASE.config)
     assert np.array_equal(photo.ldi.color, direct.ldi.color)
     assert np.array_equal(photo.ldi.disparity, direct.ldi.disparity)
+
+
+def test_a_photo_too_large_for_memory_is_refused_before_it_is_decoded(tmp_path, monkeypatch,
+                                                                      capsys):
+    # issue 45: `make --size 0` of a 13000x13000 PNG (0.5 MB) was refused only after
+    # decoding it (17 s, 6.5 GB); the header's size is checked first now
+    from PIL import Image
+
+    from photo3d.cli import main
+    from photo3d.io import images
+
+    Image.new("L", (3000, 2000)).save(tmp_path / "big.png")
+    np.save(tmp_path / "d.npy", np.ones((20, 30), np.float32))
+    monkeypatch.setattr("photo3d.resources.available_memory", lambda: 700_000_000)
+
+    def never(*args, **kwargs):
+        raise AssertionError("the photo was decoded")
+
+    monkeypatch.setattr(images, "_read_pixels", never)
+    out = tmp_path / "out"
+    assert main(["make", str(tmp_path / "big.png"), "--depth", str(tmp_path / "d.npy"),
+                 "--size", "0", "-o", str(out), "--no-video", "-q"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("photo3d: error: a 3000x2000 working size needs about ")
+    assert not out.exists()
+    import photo3d
+
+    with pytest.raises(photo3d.ConfigError, match="a 3000x2000 working size needs"):
+        photo3d.make(tmp_path / "big.png", depth=np.ones((20, 30)),
+                     config=photo3d.Config(size=None))

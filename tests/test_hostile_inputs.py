@@ -110,7 +110,7 @@ DEEP = "[" * 100_000 + "]" * 100_000
 
 
 @pytest.mark.parametrize(("name", "text", "message"), [
-    ("deep.json", DEEP, "nested too deeply"),
+    ("deep.json", DEEP, "nested deeper than 64 levels"),
     ("deep.yaml", DEEP, "nested too deeply"),
     ("deep_block.yaml", "- " * 100_000 + "1", "nested too deeply"),
     ("bad.yaml", "a: [1, 2\nb: {", "cannot parse camera path"),  # YAML's message is 5 lines

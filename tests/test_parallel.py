@@ -21,11 +21,13 @@ SRC = Path(__file__).resolve().parents[1] / "src" / "photo3d"
 
 # what only photo3d.parallel may call or import
 FORBIDDEN_CALLS = {("os", "cpu_count"), ("os", "sched_getaffinity"), ("threading", "Thread"),
+                   ("threading", "Timer"),
                    ("numba", "set_num_threads"), ("torch", "set_num_threads"),
                    ("subprocess", "Popen"), ("multiprocessing", "get_context"),
                    ("multiprocessing", "Pool"), ("multiprocessing", "Process"),
                    ("multiprocessing", "active_children")}
-FORBIDDEN_NAMES = {"ThreadPoolExecutor", "ProcessPoolExecutor", "Thread", "Pool", "Process",
+FORBIDDEN_NAMES = {"ThreadPoolExecutor", "ProcessPoolExecutor", "Thread", "Timer", "Pool",
+                   "Process",
                    "cpu_count", "set_num_threads", "sched_getaffinity", "Popen"}
 FORBIDDEN_MODULES = {"multiprocessing"}
 # the named exceptions: none needed today (the web servers' threads are Gradio's and

@@ -20,11 +20,13 @@ import numpy as np
 
 HERE = Path(__file__).parent
 sys.path.insert(0, str(HERE))
+from results_edges import section_edges  # noqa: E402
 from results_light import section_light  # noqa: E402
 from results_speed import (  # noqa: E402
     section_export,
     section_hard_depth,
     section_parts,
+    section_splats,
     section_ui,
     section_videos,
 )
@@ -65,11 +67,15 @@ BENCHMARKS = [
     ["bench_alpha_cost.py"],
     ["bench_later_passes.py"],
     ["bench_stereo.py"],
+    ["bench_edges.py"],
+    ["bench_edges.py", "--time", "3"],
     ["bench_viewer.py"],
     ["bench_memory.py"],
     ["bench_batch.py"],
+    ["bench_ray.py"],
     ["bench_heldout.py"],
     ["bench_border.py"],
+    ["bench_splats.py"],  # needs PHOTO3D_NODE_MODULES (make test installs .node/)
 ]
 
 
@@ -915,10 +921,12 @@ def main() -> None:
         section_alpha(),
         section_later_passes(),
         section_compact_quality(),
-        section_stereo(), section_viewer(),
+        section_stereo(), section_edges(load, machine_line, missing), section_viewer(),
         section_json("memory.json", "Peak memory of make (what --size can fit)",
                      "python benchmarks/bench_memory.py"),
         section_batch(),
+        section_json("ray.json", "Many photos on a Ray cluster: one node against two "
+                     "(issue 43)", "python benchmarks/bench_ray.py"),
         section_json("heldout.json", "Held-out fills: first-pass regions and the border on "
                      "photos (issue 27)", "python benchmarks/bench_heldout.py"),
         section_json("heldout_debian.json", "Held-out fills on the held-out split of the "
@@ -937,8 +945,19 @@ def main() -> None:
         section_parts(load, machine_line, missing),
         section_json("first_run.json", "The first run: an empty numba cache against a warm one "
                      "(issue 35)", "python benchmarks/bench_first_run.py"),
+        section_json("first_run_wheel.json", "The first run from the release wheel: shipped "
+                     "kernels, fresh venv, read-only (issue 47)",
+                     "python benchmarks/bench_first_run.py --wheel auto --no-clone --ref none "
+                     "--out benchmarks/results/first_run_wheel.json"),
+        section_json("portable.json", "The wheel's portable kernels against kernels compiled "
+                     "for this CPU (issue 47)", "python benchmarks/bench_portable.py"),
+        section_json("portable_render.json", "The wheel's kernel sets in `render` against "
+                     "kernels compiled for this CPU (issue 47)",
+                     "python benchmarks/bench_portable.py --commands render "
+                     "--out benchmarks/results/portable_render.json"),
         section_ui(load, machine_line, missing),
         section_export(load, machine_line, missing),
+        section_splats(load, machine_line, missing),
         (BENCHMARKS_DIR / "history.md").read_text(),  # measurement history, written by hand
     ]
     (BENCHMARKS_DIR / "RESULTS.md").write_text("\n".join(parts).rstrip() + "\n")

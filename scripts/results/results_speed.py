@@ -1,4 +1,5 @@
-"""RESULTS.md sections of issues 35-37: hard depth maps, videos, the first run, export.
+"""RESULTS.md sections of issues 35-37 and 46: hard depth maps, videos, the first run,
+export, the splats.
 
 Each reads the JSON its benchmark writes (``benchmarks/results/``) and is called by
 ``make_results.py`` with its ``load``, ``machine_line`` and ``missing`` helpers.
@@ -170,4 +171,42 @@ def section_export(load, machine_line, missing) -> str:
         out.append(f"| {kind} | {now['wall']:.2f} s ({now['cpu']:.2f}) | {ref['wall']:.2f} s "
                    f"({ref['cpu']:.2f}) | {now['load']:.1f} |")
     out += ["", "Files: " + ", ".join(f"{k} {v} MB" for k, v in rec["files_mb"].items()) + "."]
+    if "peak_rss_mb" in rec:
+        peaks = rec["peak_rss_mb"]
+        out += ["", "Peak resident memory of the processes: " + ", ".join(
+            f"{'now' if k == 'now' else 'reference'} {v:.0f} MB" for k, v in peaks.items())
+            + f"; what `photo3d export` states before it starts (now): "
+            f"{rec['stated_mb']:.0f} MB. Splats: " + ", ".join(
+                f"{'now' if k == 'now' else 'reference'} "
+                + ", ".join(f"{n} {c:,}" for n, c in v.items())
+                for k, v in rec.get("splats", {}).items()) + "."]
+    return "\n".join(out + [""])
+
+
+def section_splats(load, machine_line, missing) -> str:
+    """``splats.json``: the sample's splats, dense and adaptive, in Spark (issue 46)."""
+    rec = load("splats.json")
+    out = _head("Splats of the sample: dense and adaptive, in Spark (issue 46)", rec,
+                "PHOTO3D_NODE_MODULES=.node python benchmarks/bench_splats.py", machine_line,
+                missing)
+    if isinstance(out, str):
+        return out
+    t = rec["targets"]
+    out += ["Spark 2.2 (headless Chromium) against photo3d's own render of the 3D photo: "
+            "PSNR over the pixels photo3d's render covers; empty: the share of those Spark "
+            f"leaves empty. Issue 46's targets: at most {t['splats']:,} splats, "
+            f"`splats.spz` at most {t['spz_mb']} MB, input camera at least "
+            f"{t['input_db']} dB, widest circle camera at least {t['widest_db']} dB with at "
+            f"most {100 * t['widest_empty']} % empty. build s: median seconds to build the "
+            "splats in that session (the machine's load shows in it; "
+            f"{rec.get('load_note', 'see the machine line')}).", "",
+            "| layout | splats | build s | PLY MB | GLB MB | SPZ 3 MB | SPZ 4 MB | input dB "
+            "| widest dB | widest empty |", "| --- | --- | --- | --- | --- | --- | --- | --- "
+            "| --- | --- |"]
+    for name, r in rec["results"].items():
+        f = r["files_mb"]
+        out.append(f"| {name} | {r['splats']:,} | {r['build_s']:.2f} | {f['splats.ply']:.1f} "
+                   f"| {f['splats.glb']:.1f} | {f['splats.spz v3']:.2f} | "
+                   f"{f['splats.spz v4']:.2f} | {r['input_db']:.2f} | {r['widest_db']:.2f} | "
+                   f"{100 * r['widest_empty']:.3f} % |")
     return "\n".join(out + [""])

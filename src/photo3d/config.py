@@ -20,6 +20,8 @@ from typing import Any
 from photo3d.errors import ConfigError
 
 REFERENCE_SIZE = 1024
+EDGES = ("align", "exact")
+"""The values of :attr:`Config.edges`."""
 
 
 @dataclass(frozen=True)
@@ -46,6 +48,16 @@ class PreprocessConfig:
     behind as a thin foreground-coloured line along every revealed area, on the near
     side they move with the object they mostly show, and the background behind them
     is inpainted. The input view is unchanged."""
+    align_radius: int = 4
+    """``edges="align"``: window radius of the colour-guided median that moves depth
+    steps onto the photo's colour edges, in working pixels (:mod:`photo3d.stages.align`;
+    not scaled with the working size: its time grows with the cube of the radius, and 4
+    keeps ``make`` at 1024 px within about 15 % of its time without it)."""
+    align_iterations: int = 4
+    """``edges="align"``: passes of that median (each moves a step up to about the
+    radius)."""
+    align_sigma_color: float = 0.1
+    """``edges="align"``: colour sigma of that median (RGB distance, colours in [0, 1])."""
 
 
 @dataclass(frozen=True)
@@ -96,7 +108,11 @@ class RegionConfig:
 @dataclass(frozen=True)
 class SilhouetteConfig:
     """Soft silhouettes: coverage of the mixed pixels along occluding contours
-    (:mod:`photo3d.stages.silhouettes`; on when :attr:`Config.edges` is ``align``)."""
+    (:mod:`photo3d.stages.silhouettes`; with :attr:`Config.edges` ``align`` only)."""
+
+    soft: bool = True
+    """Give the mixed pixels along occluding contours a coverage (alpha) and their
+    foreground colour; False cuts every silhouette hard (``docs/edges.md``)."""
 
     band: int = 3
     """Near-side pixels this close to a depth edge (px at 1024) get an alpha and a
@@ -121,16 +137,16 @@ class Config:
     """Inpainting backend name (see :func:`photo3d.inpaint.available`); the default,
     ``structured``, was chosen by measurement on held-out photos, the stereo pairs
     and time (``docs/fills.md``)."""
+    edges: str = "align"
+    """Where the depth edges go: ``align`` moves every depth step onto the photo's
+    colour edge within a few pixels before the LDI is cut (depth from networks and
+    stereo is fat or smooth at silhouettes; ``docs/edges.md``), ``exact`` keeps them
+    where the depth map puts them (depth known to be exact, or the old behaviour)."""
     metric: bool = False
     """Keep the depth input's units (needs ``depth_kind="depth"``): z of every LDI pixel
     is the input depth instead of the authors' normalised [1/3, 20] range."""
     spatial_scale: float | None = None
     """Factor applied to spatial sizes (None: working size / 1024, as the paper)."""
-    edges: str = "align"
-    """How the occlusion edges are drawn: ``align`` (soft silhouettes: the mixed pixels
-    along each foreground's outline get a coverage and their foreground colour,
-    :attr:`silhouettes`) or ``exact`` (the depth map's edges cut hard, every pixel
-    opaque: photo3d before issue 44)."""
     preprocess: PreprocessConfig = field(default_factory=PreprocessConfig)
     regions: RegionConfig = field(default_factory=RegionConfig)
     silhouettes: SilhouetteConfig = field(default_factory=SilhouetteConfig)
@@ -140,8 +156,8 @@ class Config:
             raise ConfigError(f"size must be between 16 and 16384 or None, got {self.size}")
         if self.depth_kind not in ("disparity", "depth"):
             raise ConfigError(f"depth_kind must be 'disparity' or 'depth', got {self.depth_kind!r}")
-        if self.edges not in ("align", "exact"):
-            raise ConfigError(f"edges must be 'align' or 'exact', got {self.edges!r}")
+        if self.edges not in EDGES:
+            raise ConfigError(f"edges must be one of {', '.join(EDGES)}, got {self.edges!r}")
         if self.silhouettes.method not in ("pairs", "means"):
             raise ConfigError("silhouettes.method must be 'pairs' or 'means', got "
                               f"{self.silhouettes.method!r}")

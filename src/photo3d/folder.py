@@ -137,8 +137,9 @@ def prepare(options: MakeOptions) -> Inpainter:
     """Check what can be checked before any photo is read, and build the inpainter
     (build it once and pass it to every :func:`make_folder`).
 
-    Checks that memory suffices for a 16:9 photo at ``config.size`` and that the
-    OpenGL backend works if videos ask for it.
+    Checks that memory suffices for a 16:9 photo at ``config.size``, that the
+    packages the exports need are installed and that the OpenGL backend works if
+    videos ask for it.
 
     Raises:
         ConfigError: not enough memory, no OpenGL, bad inpainter or its options.
@@ -152,6 +153,10 @@ def prepare(options: MakeOptions) -> Inpainter:
 
     check_memory((9, 16), options.config, at_least=True)
     save = options.save
+    if save.exports:  # a missing package (usd-core) now, not after the photo is made
+        from photo3d.export import require_extras
+
+        require_extras(save.exports, spz_version=save.spz_version)
     if save.videos and save.render_settings and save.render_settings.backend == "gl":
         from photo3d.render.renderer import select_backend
 
@@ -214,8 +219,10 @@ def make_folder(image: np.ndarray | PathLike, out: PathLike, *,
     from photo3d import pipeline
     from photo3d.depth.sources import read_photo, resolve_depth
     from photo3d.output import stage_photo
+    from photo3d.pipeline import check_photo_memory
 
     options = options or MakeOptions()
+    check_photo_memory(image, options.config)  # from the header, before any decoding
     report = progress or (lambda stage, fraction: None)
     backend = inpainter or options.inpainter()
     inputs = _inputs(image, depth, right, depth_model, options)

@@ -44,6 +44,7 @@ def kernels() -> list[tuple[object, tuple[str, ...]]]:
     from photo3d.mesh._collapse import KERNELS as COLLAPSE
     from photo3d.mesh._faces import KERNELS as FACES
     from photo3d.mesh._planar import KERNELS as PLANAR
+    from photo3d.stages.align import KERNELS as ALIGN
     from photo3d.stages.edges import KERNELS as EDGES
     from photo3d.stages.filters import KERNELS as FILTERS
     from photo3d.stages.merge import KERNELS as MERGE
@@ -51,7 +52,7 @@ def kernels() -> list[tuple[object, tuple[str, ...]]]:
     from photo3d.stages.silhouettes import KERNELS as SILHOUETTES
 
     pairs: dict[object, list[str]] = {}
-    for kernel, signature in (*FILTERS, *EDGES, *SILHOUETTES, *REGIONS, *DIFFUSION, *CONTINUATION,
+    for kernel, signature in (*FILTERS, *ALIGN, *EDGES, *SILHOUETTES, *REGIONS, *DIFFUSION, *CONTINUATION,
                               *EXEMPLAR, *MERGE, *FACES, *PLANAR, *CHARTS, *COLLAPSE):
         pairs.setdefault(kernel, []).append(signature)
     return [(kernel, tuple(sigs)) for kernel, sigs in pairs.items()]
@@ -71,9 +72,12 @@ def compile_kernels(progress: Callable[[float], None] | None = None, *,
     Returns:
         How many kernels this process compiled (0: all loaded from the cache).
     """
+    from photo3d.kernel_cache import adopt
+
     todo = kernels()
     if not todo or not hasattr(todo[0][0], "compile"):  # NUMBA_DISABLE_JIT
         return 0
+    adopt()  # the wheel's compiled kernels, if they fit: then nothing compiles here
     claims: Path | None = None
     proc = None
     compiled = 0

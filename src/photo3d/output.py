@@ -16,7 +16,6 @@ nothing but these files.
 from __future__ import annotations
 
 import dataclasses
-import json
 from collections.abc import Callable, Sequence
 from concurrent.futures import Executor
 from pathlib import Path
@@ -24,7 +23,9 @@ from typing import TYPE_CHECKING, Protocol
 
 from photo3d.config import Config
 from photo3d.errors import InputError, OutputError
+from photo3d.files.atomic import write_json
 from photo3d.files.staging import Staging, stage_output
+from photo3d.io.bounded import read_json
 from photo3d.io.gltf import write_glb
 from photo3d.io.gltf_textured import write_textured_glb
 from photo3d.io.npz import load_npz, save_npz
@@ -170,7 +171,7 @@ def _write_photo(photo: SavedPhoto, tmp: Path, *, title: str, options: SaveOptio
         preload([fmt for _, fmt in _export_targets(photo.ldi, options)])  # before threads
     with thread_pool(2, name="write") as pool:
         jobs = [pool.submit(save_npz, photo.ldi, tmp / LDI_FILE, meta=meta)]
-        (tmp / "config.json").write_text(json.dumps(meta, indent=2))
+        write_json(tmp / "config.json", meta)
         mesh, light = _write_meshes(photo, tmp, pool, jobs, title=title, options=options)
         if options.exports:
             light = _write_exports(photo, tmp, pool, jobs, mesh=mesh, light=light,
@@ -215,6 +216,8 @@ def photo_meta(photo: SavedPhoto, options: SaveOptions | None = None) -> dict:
             "light_error": light_error(options), "viewer": options.viewer,
             "videos": [dataclasses.asdict(v) for v in videos], "render_settings": None,
             "exports": list(options.exports)}
+    if options.exports:
+        save |= {"splats": options.splats, "spz_version": options.spz_version}
     written = sorted([f"video/{v.name}.{v.format}" for v in videos]
                      + [path for path, _ in _export_targets(photo.ldi, options)])
     if videos:
@@ -246,7 +249,7 @@ def _video_mesh(photo: SavedPhoto, mesh, light, options: SaveOptions, *,
         from photo3d.io.light_glb import read_light_glb
 
         try:
-            save = json.loads((folder / "config.json").read_text()).get("save")
+            save = read_json(folder / "config.json").get("save")
             if (isinstance(save, dict) and save.get("glb") == "light"
                     and save.get("light_error") == max_error):
                 return read_light_glb(folder / "mesh.glb", intrinsics=photo.ldi.intrinsics,
@@ -303,7 +306,8 @@ def _write_exports(photo: SavedPhoto, tmp: Path, pool: Executor, jobs: list, *,
     if light is None and any("mesh" in fmt.options for _, fmt in targets):
         light = build_light_mesh(photo.ldi, full=mesh, max_error=light_error(options))
     jobs += submit_writers(pool, photo.ldi, [(fmt, tmp / name) for name, fmt in targets],
-                           mesh=light)
+                           mesh=light, density=options.splats,
+                           spz_version=options.spz_version)
     return light
 
 
@@ -323,9 +327,11 @@ def write_videos(photo: SavedPhoto, mesh, folder: Path, videos: Sequence[VideoSp
     before anything is rendered. The videos written are added to that list.
     """
     from photo3d.files.atomic import refuse_symlink
+    from photo3d.kernel_cache import adopt
     from photo3d.render.animate import render_video
     from photo3d.render.renderer import Renderer
 
+    adopt()  # the wheel's compiled kernels, if they fit (once per process)
     refuse_symlink(folder / "video")
     names = [f"video/{spec.name}.{spec.format}" for spec in videos]
     claim_files(folder, names)

@@ -16,13 +16,15 @@ Folders saved before the list existed: their videos are the ones ``config.json``
 from __future__ import annotations
 
 import fnmatch
-import json
+import os
 from collections.abc import Iterable
 from pathlib import Path
 
-from photo3d.errors import OutputError
+from photo3d.errors import InputError, OutputError
 from photo3d.files.atomic import refuse_symlink, write_json
+from photo3d.files.gate import locked
 from photo3d.files.staging import owned_by_names
+from photo3d.io.bounded import read_json
 
 LDI_FILE = "photo3d.npz"
 EXPORT_FILES = ("splats.ply", "splats.spz", "splats.glb", "mesh.usdz", "*_qs*x*a*.png")
@@ -121,9 +123,13 @@ def claim_files(folder: str | Path, names: Iterable[str]) -> None:
 
 
 def record_files(folder: str | Path, names: Iterable[str]) -> None:
-    """Add ``names`` to the files ``config.json`` lists as photo3d's (atomically).
+    """Add ``names`` to the files ``config.json`` lists as photo3d's.
 
-    A folder without a readable ``config.json`` is left as it is.
+    The read-modify-write holds a lock on ``folder``
+    (:func:`photo3d.files.gate.locked`), so processes recording at once lose no
+    entry; the file is replaced atomically. A folder without ``config.json`` gets
+    one holding only the list; a damaged or foreign one is left as it is (nothing
+    is recorded, so nothing is replaced later).
 
     Example:
         >>> import pathlib, tempfile
@@ -133,11 +139,15 @@ def record_files(folder: str | Path, names: Iterable[str]) -> None:
         ['still.png']
     """
     folder = Path(folder)
-    meta = _config(folder)
-    if meta is None:
-        return
-    meta["written"] = sorted(recorded_files(folder) | set(names))
-    write_json(refuse_symlink(folder / "config.json"), meta)
+    path = refuse_symlink(folder / "config.json")
+    with locked(folder):
+        meta = _config(folder)
+        if meta is None:
+            if os.path.lexists(path):
+                return
+            meta = {}
+        meta["written"] = sorted(recorded_files(folder) | set(names))
+        write_json(path, meta)
 
 
 def _recordable(folder: Path) -> list[str]:
@@ -154,10 +164,10 @@ def _config(folder: Path) -> dict | None:
     """``config.json`` of ``folder``; None if missing, a link, too large or damaged."""
     path = folder / "config.json"
     try:
-        if path.is_symlink() or not path.is_file() or path.stat().st_size > _MAX_CONFIG:
+        if path.is_symlink() or not path.is_file():
             return None
-        meta = json.loads(path.read_bytes())
-    except (OSError, ValueError):
+        meta = read_json(path, max_bytes=_MAX_CONFIG)
+    except (OSError, InputError):
         return None
     return meta if isinstance(meta, dict) else None
 

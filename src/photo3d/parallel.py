@@ -22,6 +22,7 @@ scans the source; the web servers' own threads and Ray's are the exceptions). Th
   :func:`ahead` - an iterator's next item made on it;
 * :func:`process_pool` - worker processes (``spawn``), each with its share;
 * :func:`start_thread` - a long-lived service thread (the UI's requests, watchers);
+  :func:`later` - a timer;
 * :func:`spawn_python` - a helper Python process.
 
 With a budget of one, :func:`thread_pool` and :func:`overlap` run each task in the
@@ -59,7 +60,7 @@ if TYPE_CHECKING:  # loaded when used: `import photo3d` stays light
     from concurrent.futures import Executor, Future, ProcessPoolExecutor
 
 __all__ = ["ENV", "Inline", "active_children", "affinity", "ahead", "cores", "idle_cores",
-           "library_defaults", "map_completed", "map_ordered", "overlap", "process_pool",
+           "later", "library_defaults", "map_completed", "map_ordered", "overlap", "process_pool",
            "process_threads", "quota", "set_threads", "share", "shared_steps", "spawn_python",
            "start_thread", "thread_pool", "thread_safe_kernels", "threads", "width",
            "worker_share"]
@@ -511,6 +512,24 @@ def start_thread(target: Callable[[], object], *, name: str, daemon: bool = True
     thread = threading.Thread(target=run, name=f"photo3d-{name}", daemon=daemon)
     thread.start()
     return thread
+
+
+def later(seconds: float, fn: Callable[..., object], *args: object) -> threading.Timer:
+    """Call ``fn(*args)`` on a daemon thread ``seconds`` from now (a timer).
+
+    Raises:
+        RuntimeError: no thread can start (the interpreter is shutting down).
+
+    Example:
+        >>> done = threading.Event()
+        >>> later(0.01, done.set).join()
+        >>> done.is_set()
+        True
+    """
+    timer = threading.Timer(seconds, fn, args)
+    timer.daemon = True
+    timer.start()
+    return timer
 
 
 # -- processes -------------------------------------------------------------------------

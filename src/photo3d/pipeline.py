@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import time
 from collections.abc import Iterator
 from concurrent.futures import Future
@@ -20,7 +21,7 @@ from photo3d.inpaint import get_inpainter
 from photo3d.inpaint.base import Inpainter
 from photo3d.inpaint.frame import fill_frame
 from photo3d.io.depth import read_depth
-from photo3d.io.images import MIN_SIDE
+from photo3d.io.images import MIN_SIDE, image_shape
 from photo3d.parallel import ahead, overlap
 from photo3d.photo import Photo3D
 from photo3d.progress import CountProgress, StageProgress
@@ -64,7 +65,8 @@ def make(
             (``config.depth_kind``); NaN/inf/negative values are filled. Or a
             :class:`~photo3d.depth.normalize.DepthInput` already prepared for that kind
             (:attr:`~photo3d.depth.sources.DepthEstimate.prepared`).
-        config: :class:`Config` (defaults: 1024 px, structured inpainting). With
+        config: :class:`Config` (defaults: 1024 px, structured inpainting, depth steps
+            moved onto the photo's colour edges: ``edges="align"``). With
             ``config.metric`` (and ``depth_kind="depth"``) the geometry keeps the
             depth's own units instead of the authors' [1/3, 20] range.
         intrinsics: the camera of the input image (at the input's resolution; it is
@@ -84,9 +86,12 @@ def make(
         >>> photo.stats["edges"][0] > 0, photo.ldi.size > 64 * 96
         (True, True)
     """
+    from photo3d.kernel_cache import adopt
+
     config = config or Config()
     backend = inpainter or get_inpainter(config.inpainter)
     report = progress or (lambda stage, fraction: None)
+    adopt()  # the wheel's compiled kernels, if they fit (once per process)
     timings: dict[str, float] = {}
     t = time.perf_counter()
 
@@ -163,7 +168,9 @@ def make(
 
 def _load(image: np.ndarray | str | Path, depth: np.ndarray | str | Path | DepthInput,
           config: Config) -> tuple[np.ndarray, DepthInput]:
-    """The photo and its prepared depth, the photo's size and the memory checked."""
+    """The photo and its prepared depth, the photo's size and the memory checked (for a
+    file, from its header first: before a pixel is decoded)."""
+    check_photo_memory(image, config)
     img = read_photo(image)
     if min(img.shape[:2]) < MIN_SIDE:
         raise InputError(f"image is {img.shape[1]}x{img.shape[0]} pixels; photo3d needs at "
@@ -190,6 +197,19 @@ def _first_pass_input(pre: Preprocessed, shape: tuple[int, int], config: Config,
         lo, hi = pre.disparity_range  # of 1 / z: normalised d maps back to z exactly
         mapping = DepthMapping.from_inverse_depth(lo, hi)
     return start(pre, config=config, intrinsics=intrinsics, mapping=mapping)
+
+
+def check_photo_memory(image: np.ndarray | str | Path, config: Config) -> None:
+    """:func:`photo3d.resources.check_memory` for a photo file's own size, read from its
+    header (nothing for an array): a photo too large for ``config.size`` (``--size 0``
+    keeps a 13000x13000 photo's size) is refused before it is decoded, not after.
+
+    Example:
+        >>> check_photo_memory(np.zeros((8, 8, 3)), Config())  # an array: nothing to do
+    """
+    shape = image_shape(image) if isinstance(image, str | os.PathLike) else None
+    if shape is not None:
+        check_memory(shape, config)
 
 
 def fill_pass(state: PassInput, plan: PassPlan, backend: Inpainter, *, pass_index: int = 0,

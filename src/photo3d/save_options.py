@@ -24,6 +24,11 @@ EXPORT_FORMATS = ("splats.ply", "splats.spz", "splats.glb", "mesh.usdz", "quilt"
 """What ``exports`` may hold: the names of :data:`photo3d.export.FORMATS` (spelled out
 here so that this module stays light; a test checks they agree)."""
 
+SPLAT_DENSITIES = ("adaptive", "dense")
+"""What ``splats`` may be (:data:`photo3d.export.splats.DENSITIES`, the default first)."""
+SPZ_VERSIONS = (3, 4)
+"""What ``spz_version`` may be (3, the default: docs/outputs.md says why)."""
+
 
 @dataclass(frozen=True)
 class SaveOptions:
@@ -42,6 +47,9 @@ class SaveOptions:
         exports: formats of :mod:`photo3d.export` written into the folder too
             (:data:`EXPORT_FORMATS`: ``"splats.spz"``, ``"mesh.usdz"``, ...; repeats
             are written once), as ``photo3d export`` writes them.
+        splats: the splat exports' layout: ``"adaptive"`` (fewer, larger splats
+            where the photo is flat) or ``"dense"`` (one per LDI pixel).
+        spz_version: the version of ``splats.spz``: 3 (gzip) or 4 (zstd streams).
 
     Example:
         >>> options = SaveOptions(ply=None, viewer=False)
@@ -53,6 +61,10 @@ class SaveOptions:
         photo3d.errors.ConfigError: ply must be 'binary', 'ascii' or None, got 'text'
         >>> SaveOptions(exports=["splats.spz", "quilt", "splats.spz"]).exports
         ('splats.spz', 'quilt')
+        >>> SaveOptions(spz_version=2)
+        Traceback (most recent call last):
+        ...
+        photo3d.errors.ConfigError: spz_version must be 3 or 4, got 2
         >>> SaveOptions(exports=["splats.obj"])  # doctest: +ELLIPSIS
         Traceback (most recent call last):
         ...
@@ -67,6 +79,8 @@ class SaveOptions:
     videos: tuple[VideoSpec, ...] = ()
     render_settings: RenderSettings | None = None
     exports: tuple[str, ...] = ()
+    splats: str = "adaptive"
+    spz_version: int = 3
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "videos", tuple(self.videos))
@@ -80,6 +94,11 @@ class SaveOptions:
             raise ConfigError(f"unknown export format {unknown[0]!r}; choose from "
                               + ", ".join(EXPORT_FORMATS))
         object.__setattr__(self, "exports", tuple(dict.fromkeys(exports)))
+        if self.splats not in SPLAT_DENSITIES:
+            raise ConfigError(f"splats must be one of {', '.join(SPLAT_DENSITIES)}, "
+                              f"got {self.splats!r}")
+        if self.spz_version not in SPZ_VERSIONS or isinstance(self.spz_version, bool):
+            raise ConfigError(f"spz_version must be 3 or 4, got {self.spz_version!r}")
 
     def with_(self, **changes) -> SaveOptions:
         """A copy with fields replaced (:func:`dataclasses.replace`)."""

@@ -37,7 +37,8 @@ def refused(capsys, argv: list[str], root, message: str) -> str:
     return err
 
 
-@pytest.mark.parametrize("text", ["my notes about this batch\n", "", "12 monkeys\n"])
+@pytest.mark.parametrize("text", ["my notes about this batch\n", "", "12 monkeys\n", "7\n",
+                                  "4242\n"])
 def test_a_lock_file_photo3d_did_not_write_is_refused_and_kept(folders, capsys, text):
     src, depth, out = folders
     (out / "batch.lock").write_text(text)  # before: taken over, then unlinked at the end
@@ -46,7 +47,7 @@ def test_a_lock_file_photo3d_did_not_write_is_refused_and_kept(folders, capsys, 
     assert (out / "batch.lock").read_text() == text
 
 
-@pytest.mark.parametrize("text", ["photo3d batch 4242\n", "4242\n"])
+@pytest.mark.parametrize("text", ["photo3d batch 4242\n"])
 def test_the_lock_of_a_killed_batch_is_taken_over(folders, capsys, text):
     src, depth, out = folders
     (out / "batch.lock").write_text(text)  # what a batch killed with SIGKILL leaves
@@ -66,6 +67,24 @@ def test_a_manifest_photo3d_did_not_write_is_refused_and_kept(folders, capsys, l
     (out / "batch.jsonl").write_text("\n".join(lines) + "\n")  # before: rewritten, lines gone
     err = refused(capsys, batch(src, depth, out), src.parent, "photo3d did not write this file")
     assert "line 1 is " in err and str(out / "batch.jsonl") in err
+
+
+@pytest.mark.parametrize("kind", ["fifo", "socket"])
+def test_a_manifest_that_is_not_a_regular_file_is_refused_and_kept(folders, capsys, kind):
+    """Issue 45, defect 3: a FIFO named batch.jsonl was replaced by a regular file."""
+    import socket
+
+    src, depth, out = folders
+    manifest = out / "batch.jsonl"
+    if kind == "fifo":
+        os.mkfifo(manifest)
+    else:
+        sock = socket.socket(socket.AF_UNIX)
+        sock.bind(str(manifest))
+        sock.close()
+    err = refused(capsys, batch(src, depth, out), src.parent, "is not a regular file")
+    assert str(manifest) in err
+    assert not manifest.is_file() and manifest.exists()
 
 
 def test_a_manifest_cut_short_by_a_crash_is_still_photo3ds(folders, capsys):

@@ -13,7 +13,8 @@ from ``file://``); nothing is fetched from the network: three.js and Spark come 
 the three.js camera gets the same pose and vertical field of view. Spark's defaults
 are kept (``blurAmount`` 0.3 with its opacity compensation, radial sorting).
 
-Run as a script to write the screenshots of docs/outputs.md::
+Run as a script to write the pictures of docs/outputs.md (Spark's view beside
+photo3d's render of the mesh)::
 
     PHOTO3D_NODE_MODULES=.node python tests/export/spark_renderer.py out/demo docs/img
 """
@@ -120,11 +121,12 @@ def missing() -> str | None:
 
 
 @contextmanager
-def _served(splat_file: Path):
-    """A local HTTP server for the page, the splat file and node_modules."""
+def served(splat_file: Path, page: str = PAGE):
+    """A local HTTP server for ``page`` (as ``index.html``), the splat file and
+    node_modules (also for spz_readers' page)."""
     with tempfile.TemporaryDirectory() as root:
         root = Path(root)
-        (root / "index.html").write_text(PAGE)
+        (root / "index.html").write_text(page)
         os.symlink(Path(NODE_DIR).resolve() / "node_modules", root / "node_modules")
         os.symlink(Path(splat_file).resolve(), root / splat_file.name)
         handler = functools.partial(_Quiet, directory=str(root))
@@ -169,7 +171,7 @@ def spark_page(splat_file: Path, width: int, height: int, vfov: float, *, browse
                             timeout=timeout) as page:
                 yield page
         return
-    with _served(Path(splat_file)) as url:
+    with served(Path(splat_file)) as url:
         page = browser.new_page(viewport={"width": width, "height": height},
                                 device_scale_factor=1)
         try:
@@ -218,21 +220,30 @@ def read_splats(splat_file: Path, *, browser=None) -> np.ndarray:
 
 
 def _screenshots(folder: Path, out: Path) -> None:
-    """docs/outputs.md's pictures: the sample's splats.ply in Spark from the input
-    camera and from the circle path's widest camera."""
+    """docs/outputs.md's pictures: the sample's ``splats.ply`` (adaptive, as ``photo3d
+    export`` writes it) in Spark from the input camera and from the circle path's
+    widest camera, each beside photo3d's own render of the mesh from that camera."""
     from PIL import Image
 
+    from photo3d.config import Config
     from photo3d.export import export_folder
     from photo3d.io.npz import load_npz
+    from photo3d.photo import Photo3D
+    from photo3d.render.renderer import Renderer, RenderSettings
 
     ldi, _ = load_npz(folder / "photo3d.npz")
+    cameras = [Camera(ldi.intrinsics, np.eye(4)), widest_circle_camera(ldi.intrinsics)]
     with tempfile.TemporaryDirectory() as tmp:
         ply = export_folder(folder, ["splats.ply"], output=Path(tmp) / "splats.ply")[0]
-        cameras = [Camera(ldi.intrinsics, np.eye(4)), widest_circle_camera(ldi.intrinsics)]
         views = render_views(ply, cameras)
-    for name, view in zip(("splats_input.jpg", "splats_circle.jpg"), views, strict=True):
-        image = np.rint(view[..., :3] * 255).astype(np.uint8)  # over black
-        Image.fromarray(image).save(out / name, quality=85)
+    with Renderer(Photo3D(ldi, Config()).mesh(), RenderSettings(backend="numba")) as r:
+        meshes = [r.render(c).color for c in cameras]
+    for name, view, mesh in zip(("splats_input.jpg", "splats_circle.jpg"), views, meshes,
+                                strict=True):
+        pair = np.concatenate([view[..., :3], np.ones((len(mesh), 8, 3)), mesh], axis=1)
+        image = np.rint(np.clip(pair, 0, 1) * 255).astype(np.uint8)  # splats over black
+        Image.fromarray(image).resize((image.shape[1] // 2, image.shape[0] // 2),
+                                      Image.LANCZOS).save(out / name, quality=85)
         print(out / name)  # noqa: T201 - a script
 
 

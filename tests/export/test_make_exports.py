@@ -22,7 +22,7 @@ import photo3d.output
 from photo3d.cli import main
 from photo3d.errors import ConfigError, OutputError
 from photo3d.export import FORMATS, export_folder
-from photo3d.export.splats import splat_count
+from photo3d.export.splats import build_splats, splat_count
 from photo3d.owned import owned_photo, recorded_files
 from photo3d.render.animate import VideoSpec
 from photo3d.save_options import EXPORT_FORMATS, SaveOptions
@@ -101,7 +101,7 @@ def test_save_writes_every_export_from_the_light_mesh_it_built(photo, tmp_path, 
     assert meta["written"] == sorted([*names, "video/swing.mp4"])
     assert recorded_files(out) == {*names, "video/swing.mp4"}
     assert owned_photo(out) == []  # make --overwrite may replace it
-    assert [splat_count(out / n) for n in names[:3]] == [photo.ldi.size] * 3
+    assert [splat_count(out / n) for n in names[:3]] == [len(build_splats(photo.ldi))] * 3
     with Image.open(out / QUILT) as quilt:
         assert quilt.size == (3360, 3360)
 

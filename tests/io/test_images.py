@@ -283,7 +283,7 @@ def test_write_image_errors(tmp_path):
     image = np.zeros((8, 8, 3), np.float32)
     with pytest.raises(OutputError, match=r"unsupported extension '\.bmp'"):
         write_image(tmp_path / "out.bmp", image)
-    with pytest.raises(OutputError, match=r"cannot write image .*missing"):
+    with pytest.raises(OutputError, match=r"cannot write .*missing"):
         write_image(tmp_path / "missing" / "out.png", image)
     with pytest.raises(InputError, match=r"shape \(8, 8, 4\)"):
         write_image(tmp_path / "out.png", np.zeros((8, 8, 4)))
@@ -471,3 +471,19 @@ def test_pillows_decompression_bomb_warning_is_not_shown(tmp_path, monkeypatch, 
     monkeypatch.setattr(Image, "MAX_IMAGE_PIXELS", 1_000_000)
     assert read_image(path).shape == (1000, 1200, 3)
     assert read_image(path, working_size=64).shape == (110, 132, 3)
+
+
+@pytest.mark.parametrize(("suffix", "kind"), [(".gif", "frames"), (".webp", "frames"),
+                                              (".tif", "pages")])
+def test_a_file_of_many_frames_is_read_at_its_first_with_a_warning(tmp_path, suffix, kind):
+    # issue 45: animated GIF/WebP and multi-page TIFF used their first frame silently
+    from PIL import Image
+
+    from photo3d.io.images import read_image
+
+    frames = [Image.new("RGB", (16, 12), colour) for colour in ("red", "lime", "blue")]
+    path = tmp_path / f"moving{suffix}"
+    frames[0].save(path, save_all=True, append_images=frames[1:])
+    with pytest.warns(UserWarning, match=f"moving{suffix} has 3 {kind}; photo3d uses the first"):
+        image = read_image(path)
+    assert image[0, 0, 0] > 0.9 and image[0, 0, 1] < 0.1  # red: the first frame

@@ -85,14 +85,35 @@ def test_ply_round_trip_and_refusals(tmp_path):
 # --- SPZ ---------------------------------------------------------------------------
 
 def spz_reference_read(path: Path) -> dict:
-    """An SPZ v2 reader written from Niantic's format description (README, load-spz.cc):
-    gzip, a 16-byte header, then positions, alphas, colours, scales, rotations."""
-    data = gzip.decompress(path.read_bytes())
-    magic, version, n, degree, bits, flags, reserved = struct.unpack_from("<IIIBBBB", data)
-    assert (magic, version, degree, flags, reserved) == (0x5053474E, 2, 0, 0, 0)
+    """An SPZ reader written from Niantic's format description (README): versions 2
+    and 3 are gzip around a 16-byte header; version 4 a 32-byte plain header
+    (``numStreams`` at byte 15, ``tocByteOffset`` at 16), a table of (compressed,
+    uncompressed) uint64 sizes and one zstd stream per non-empty attribute. Then
+    positions, alphas, colours, scales, rotations (v2: x y z bytes; v3, v4: the
+    smallest three in 10 bits each under a 2-bit index of the largest)."""
+    raw = path.read_bytes()
+    if raw[:4] == b"NGSP":
+        from backports import zstd  # the package photo3d[spz4] installs
+
+        magic, version, n, degree, bits, flags, streams, toc = struct.unpack_from(
+            "<IIIBBBBI", raw)
+        assert (version, flags, toc) == (4, 0, 32) and raw[20:32] == bytes(12)
+        sizes = [struct.unpack_from("<QQ", raw, toc + 16 * i) for i in range(streams)]
+        at, parts = toc + 16 * streams, []
+        for packed, unpacked in sizes:
+            parts.append(zstd.decompress(raw[at:at + packed]))
+            assert len(parts[-1]) == unpacked
+            at += packed
+        assert at == len(raw) and streams == 5  # SH degree 0: no SH stream
+        data = bytes(16) + b"".join(parts)
+        reserved = 0
+    else:
+        data = gzip.decompress(raw)
+        magic, version, n, degree, bits, flags, reserved = struct.unpack_from("<IIIBBBB", data)
+    assert (magic, degree, flags, reserved) == (0x5053474E, 0, 0, 0)
     at = 16
-    raw = np.frombuffer(data, np.uint8, 9 * n, at).reshape(n, 3, 3).astype(np.int64)
-    fixed = raw[..., 0] | raw[..., 1] << 8 | raw[..., 2] << 16
+    raw_pos = np.frombuffer(data, np.uint8, 9 * n, at).reshape(n, 3, 3).astype(np.int64)
+    fixed = raw_pos[..., 0] | raw_pos[..., 1] << 8 | raw_pos[..., 2] << 16
     fixed = np.where(fixed >= 1 << 23, fixed - (1 << 24), fixed)
     at += 9 * n
     alpha = np.frombuffer(data, np.uint8, n, at) / 255.0
@@ -101,21 +122,41 @@ def spz_reference_read(path: Path) -> dict:
     at += 3 * n
     scale = np.frombuffer(data, np.uint8, 3 * n, at).reshape(n, 3) / 16.0 - 10.0
     at += 3 * n
-    xyz = np.frombuffer(data, np.uint8, 3 * n, at).reshape(n, 3) / 127.5 - 1.0
-    assert at + 3 * n == len(data)
-    w = np.sqrt(np.maximum(0, 1 - (xyz**2).sum(axis=1)))
+    if version == 2:
+        xyz = np.frombuffer(data, np.uint8, 3 * n, at).reshape(n, 3) / 127.5 - 1.0
+        at += 3 * n
+        w = np.sqrt(np.maximum(0, 1 - (xyz**2).sum(axis=1)))
+        rotations = np.concatenate([w[:, None], xyz], axis=1)
+    else:
+        words = np.frombuffer(data, "<u4", n, at).astype(np.int64)
+        at += 4 * n
+        rotations = np.zeros((n, 4))
+        for i, word in enumerate(words):
+            largest, xyzw, shift = word >> 30, [0.0] * 4, 0
+            for c in (3, 2, 1, 0):  # the last component is in the lowest bits
+                if c == largest:
+                    continue
+                value = (word >> shift) & 1023
+                shift += 10
+                xyzw[c] = (value & 511) / 511 * np.sqrt(0.5) * (-1 if value & 512 else 1)
+            xyzw[largest] = np.sqrt(max(0.0, 1 - sum(v * v for v in xyzw)))
+            rotations[i] = [xyzw[3], *xyzw[:3]]
+    assert at == len(data)
     return {"positions": fixed / 2.0**bits, "bits": bits, "opacity": alpha,
-            "colors": 0.5 + SH_C0 * color, "scales": np.exp(scale),
-            "rotations": np.concatenate([w[:, None], xyz], axis=1), "count": n}
+            "colors": 0.5 + SH_C0 * color, "scales": np.exp(scale), "version": version,
+            "rotations": rotations, "count": n}
 
 
-def test_spz_matches_the_published_layout_in_rub_axes(tmp_path):
+@pytest.mark.parametrize("version", [2, 3, 4])
+def test_spz_matches_the_published_layout_in_rub_axes(tmp_path, version):
     splats = random_splats(300)
-    write_spz(tmp_path / "s.spz", splats)
-    assert (tmp_path / "s.spz").read_bytes()[:2] == b"\x1f\x8b"  # gzip
+    write_spz(tmp_path / "s.spz", splats, version=version)
+    magic = b"NGSP" if version == 4 else b"\x1f\x8b"  # v4: plain header; else gzip
+    assert (tmp_path / "s.spz").read_bytes()[:len(magic)] == magic
     ref = spz_reference_read(tmp_path / "s.spz")
+    assert ref["version"] == version
     step = 2.0 ** -ref["bits"]
-    assert ref["count"] == 300 and step <= splats.scales.max(axis=1).min() / 3
+    assert ref["count"] == 300 and step <= splats.scales.max(axis=1).min()
     flip = np.array([1, -1, -1])  # OpenCV (right, down, forward) -> SPZ (right, up, back)
     np.testing.assert_allclose(ref["positions"], splats.positions * flip, atol=step / 2 + 1e-6)
     np.testing.assert_allclose(ref["opacity"], splats.opacity, atol=0.5 / 255 + 1e-6)
@@ -123,10 +164,18 @@ def test_spz_matches_the_published_layout_in_rub_axes(tmp_path):
     np.testing.assert_allclose(ref["colors"], splats.colors, atol=colour_step / 2 + 1e-6)
     np.testing.assert_allclose(np.log(ref["scales"]), np.log(splats.scales), atol=1 / 32 + 1e-6)
     q = splats.rotations * np.array([1, 1, -1, -1])  # the same turn in RUB axes
-    assert same_rotation(ref["rotations"], q).min() > 0.98
+    assert same_rotation(ref["rotations"], q).min() > (0.98 if version == 2 else 0.9995)
 
 
-@pytest.mark.parametrize("version", [2, 3])
+def test_spz_default_is_version_3_and_version_4_is_smaller(tmp_path):
+    splats = random_splats(3000, rotated=False)
+    write_spz(tmp_path / "3.spz", splats)
+    write_spz(tmp_path / "4.spz", splats, version=4)
+    assert spz_reference_read(tmp_path / "3.spz")["version"] == 3
+    assert (tmp_path / "4.spz").stat().st_size < (tmp_path / "3.spz").stat().st_size
+
+
+@pytest.mark.parametrize("version", [2, 3, 4])
 def test_spz_round_trip_within_quantization(tmp_path, version):
     splats = random_splats(400, seed=version)
     write_spz(tmp_path / "s.spz", splats, version=version)
@@ -153,6 +202,19 @@ def test_spz_refuses_what_it_cannot_hold(tmp_path):
     (tmp_path / "plain.spz").write_bytes(b"plain")
     with pytest.raises(InputError, match="gzip"):
         read_spz(tmp_path / "plain.spz")
+    with pytest.raises(InputError, match="version must be one of 2, 3, 4"):
+        write_spz(tmp_path / "v5.spz", random_splats(3), version=5)
+    write_spz(tmp_path / "v4.spz", random_splats(50), version=4)
+    whole = (tmp_path / "v4.spz").read_bytes()
+    (tmp_path / "cut.spz").write_bytes(whole[:-10])
+    with pytest.raises(InputError, match="truncated"):
+        read_spz(tmp_path / "cut.spz")
+    (tmp_path / "six.spz").write_bytes(whole[:15] + bytes([6]) + whole[16:])
+    with pytest.raises(InputError, match="6 streams for SH degree 0, expected 5"):
+        read_spz(tmp_path / "six.spz")
+    (tmp_path / "v3.spz").write_bytes(whole[:4] + struct.pack("<I", 3) + whole[8:])
+    with pytest.raises(InputError, match="says version 3"):
+        read_spz(tmp_path / "v3.spz")
 
 
 # --- glTF --------------------------------------------------------------------------
@@ -190,6 +252,8 @@ def test_glb_has_the_khr_gaussian_splatting_primitive(tmp_path):
     np.testing.assert_allclose(xyzw, np.concatenate([q[:, 1:], q[:, :1]], axis=1), atol=1e-6)
     np.testing.assert_allclose(0.5 + SH_C0 * attribute(
         "KHR_gaussian_splatting:SH_DEGREE_0_COEF_0"), splats.colors, atol=1e-6)
+    # the fallback colour: linear RGB and, as the spec says it should, the opacity
+    np.testing.assert_allclose(attribute("COLOR_0")[:, 3], splats.opacity * 255, atol=0.5)
     back = read_splat_glb(tmp_path / "s.glb")
     np.testing.assert_allclose(back.positions, splats.positions)
     assert same_rotation(back.rotations, splats.rotations).min() > 0.99999

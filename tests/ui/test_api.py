@@ -28,6 +28,8 @@ from uikit import (
     write_sample,
 )
 
+from photo3d.export.splats import build_splats
+from photo3d.io.npz import load_npz
 from photo3d.io.spz import read_spz
 
 gradio_client = pytest.importorskip("gradio_client", reason="needs pip install 'photo3d[ui]'")
@@ -72,7 +74,9 @@ def test_the_sample_and_its_depth_give_a_glb_a_zip_a_depth_map_and_a_video(
     with zipfile.ZipFile(bundle) as z:  # the splats reach the API in the zip
         splats = tmp_path / "splats.spz"
         splats.write_bytes(z.read("splats.spz"))
-    assert len(read_spz(splats)) > 256 * 173  # every pixel, and the hidden layers'
+        (tmp_path / "photo3d.npz").write_bytes(z.read("photo3d.npz"))
+    # the adaptive splats of the 3D photo in the zip, hidden layers included
+    assert len(read_spz(splats)) == len(build_splats(load_npz(tmp_path / "photo3d.npz")[0]))
     assert "mesh.ply" not in names  # off unless asked for
     with zipfile.ZipFile(bundle) as z:
         assert b'"size": 256' in z.read("config.json")
@@ -133,11 +137,12 @@ def test_malformed_requests_get_one_line_and_leave_no_traceback(server, tmp_path
     photo = tmp_path / "photo.png"
     Image.new("RGB", (64, 48), "gray").save(photo)
     sent = uploaded(server, photo)
-    rest = [None, None, 256, "diffusion", "auto", "disparity", False, ["circle"], False]
+    rest = [None, None, 256, "diffusion", "auto", "disparity", False, ["circle"], False,
+            "align"]
     capfd.readouterr()
     for data, message in [
         ([sent], "bad request: An event handler (make) didn't receive enough input values "
-                 "(needed: 10, got: 1)."),
+                 "(needed: 11, got: 1)."),
         ([sent["path"], *rest], "bad request: a file must be sent as an uploaded file"),
         ([{**sent, "path": "/etc/passwd"}, *rest],
          "bad request: a file was not uploaded to this server"),
@@ -153,7 +158,7 @@ def test_malformed_requests_get_one_line_and_leave_no_traceback(server, tmp_path
 def test_results_are_addresses_and_only_they_are_served(server, sample, tmp_path):
     photo, depth = sample
     data = [uploaded(server, photo), uploaded(server, depth), None, 256, "diffusion", "auto",
-            "disparity", False, ["circle"], False]
+            "disparity", False, ["circle"], False, "align"]
     kind, payload = call(server, data)
     assert kind == "complete"
     for folder in (server.workspace.root, server.workspace.root.parent):
@@ -206,7 +211,8 @@ def test_a_path_the_client_names_is_never_opened(server, tmp_path):
     secret = tmp_path / "secret.png"
     Image.new("RGB", (64, 48), "red").save(secret)  # a valid photo, outside the uploads
     fake = {"path": str(secret), "meta": {"_type": "gradio.FileData"}, "orig_name": "p.png"}
-    data = [fake, None, None, 256, "diffusion", "auto", "disparity", False, ["circle"], False]
+    data = [fake, None, None, 256, "diffusion", "auto", "disparity", False, ["circle"], False,
+            "align"]
     before = set(server.workspace.root.glob("request-*"))
     with httpx.Client(base_url=server.url, timeout=60) as http:
         event = http.post("gradio_api/call/make", json={"data": data}).json()["event_id"]
@@ -318,6 +324,8 @@ def test_with_a_login_the_page_the_api_and_the_results_need_it(tmp_path):
             url = f"photo3d/file/{server.workspace.publish(folder / 'a.zip')}/a.zip"
         with httpx.Client(base_url=server.url, timeout=60) as http:
             assert http.get("config").status_code == 401
+            for page in ("openapi.json", "docs", "redoc"):  # issue 45: served to anyone
+                assert http.get(page).status_code == 401, page
             assert http.post("gradio_api/upload",
                              files={"files": ("a.png", b"x", "image/png")}).status_code == 401
             assert http.get(url).status_code == 401

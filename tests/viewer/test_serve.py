@@ -70,7 +70,8 @@ def test_serve_runs_until_ctrl_c(folder):
     # would make interrupt_main() do nothing: use Python's Ctrl-C handler for this test.
     previous = signal.signal(signal.SIGINT, signal.default_int_handler)
     try:
-        serve(folder, open_browser=False, on_ready=on_ready)  # returns after "Ctrl-C"
+        with pytest.raises(KeyboardInterrupt):  # raised once the server is closed
+            serve(folder, open_browser=False, on_ready=on_ready)
     finally:
         signal.signal(signal.SIGINT, previous)
     seen["thread"].join()

@@ -8,7 +8,8 @@ second batch is opening it could hand both a lock on different files; the taker
 checks that the file it locked is still the one named ``batch.lock``.)
 
 The file is photo3d's only if it holds what a batch writes there
-(:func:`is_lock_text`: ``photo3d batch PID``, or an older batch's bare PID): it is
+(:func:`is_lock_text`: ``photo3d batch PID``; a bare PID, which older batches
+wrote, is refused too, since a user's file may hold one): it is
 created with that content in one step (written to a hidden temporary file, locked,
 then linked to its name), so a batch never leaves it empty. A ``batch.lock`` that
 holds anything else was not written by photo3d: it is refused in one line, never
@@ -28,7 +29,7 @@ from photo3d.errors import OutputError
 from photo3d.files.atomic import remove_temp_files, temp_sibling
 
 LOCK = "batch.lock"
-_TEXT = re.compile(rb"(photo3d batch )?[0-9]{1,12}\n")
+_TEXT = re.compile(rb"photo3d batch [0-9]{1,12}\n")
 _MAX_TEXT = 64  # a lock photo3d wrote holds one short line
 
 
@@ -43,12 +44,12 @@ def lock_text() -> bytes:
 
 
 def is_lock_text(data: bytes) -> bool:
-    """True if ``data`` is what a batch (this version's or an older one's) writes into
-    its lock file.
+    """True if ``data`` is what a batch writes into its lock file. A bare number (what
+    older batches wrote) is not enough: a user's file may hold one.
 
     Example:
         >>> [is_lock_text(t) for t in (b"photo3d batch 12\\n", b"12\\n", b"", b"my notes\\n")]
-        [True, True, False, False]
+        [True, False, False, False]
     """
     return _TEXT.fullmatch(data) is not None
 

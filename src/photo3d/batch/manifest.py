@@ -28,14 +28,17 @@ import os
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
-from photo3d.errors import OutputError
+from photo3d.errors import InputError, OutputError
 from photo3d.files.atomic import refuse_symlink, write_text
+from photo3d.files.gate import check_target
+from photo3d.io.bounded import loads_json, read_bytes
 
 MANIFEST = "batch.jsonl"
 STATUSES = ("ok", "failed", "skipped")
 RECORD_KEYS = ("name", "status", "error", "seconds", "output", "depth", "warnings", "worker")
 """The keys of a manifest record, in the order photo3d writes them."""
 _LINK_HINT = "remove it, or choose another output folder"
+_MAX_MANIFEST = 1 << 30  # a manifest line is about 200 bytes: 5 million photos
 _HEAD = '{"name": '  # how every line photo3d writes starts (PhotoResult.to_json)
 
 
@@ -208,15 +211,16 @@ def read_records(path: str | Path) -> ManifestRecords:
     if not path.is_file() or path.is_symlink():
         return ManifestRecords(records)
     try:
-        text = path.read_text(encoding="utf-8", errors="replace")
-    except OSError as err:
-        raise OutputError(f"cannot read the manifest {path}: {err.strerror or err}") from None
+        text = read_bytes(path, max_bytes=_MAX_MANIFEST).decode("utf-8", errors="replace")
+    except InputError as err:
+        raise OutputError(f"{err}".replace("cannot read", "cannot read the manifest", 1)
+                          ) from None
     for number, line in enumerate(text.splitlines(), 1):
         if not line.strip():
             continue
         try:
-            record = json.loads(line)
-        except (ValueError, RecursionError):
+            record = loads_json(line, what=f"line {number}")
+        except InputError:
             record = None
         why = foreign_line(line, record)
         if why is not None:
@@ -257,6 +261,7 @@ def check_manifest(path: str | Path) -> ManifestRecords:
     """  # noqa: E501
     path = Path(path)
     refuse_symlink(path, hint=_LINK_HINT)
+    check_target(path)  # a FIFO, socket or device is not photo3d's manifest
     found = read_records(path)
     if found.foreign:
         where, _, why = found.foreign[0].partition(": ")

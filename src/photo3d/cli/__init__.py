@@ -16,12 +16,15 @@ from __future__ import annotations
 
 import argparse
 import gc
+import os
 import signal
 import sys
 import warnings
+from pathlib import Path
 
 from photo3d.cli import batch, demo, depth, evaluate, export, make, render, train, ui, view
 from photo3d.errors import Photo3DError
+from photo3d.files.gate import reading
 from photo3d.files.signals import handle_signals
 from photo3d.parallel import ENV, process_threads, set_threads
 
@@ -68,7 +71,8 @@ def main(argv: list[str] | None = None) -> int:
             else:
                 process_threads()  # a bad PHOTO3D_THREADS is told before any work
             warnings.showwarning = show
-            status = args.run(args)
+            with reading(*command_inputs(args)):  # no write may reach them
+                status = args.run(args)
             if argv is None:  # the photo3d command: the process ends next
                 # Python's last garbage collections at exit walk numba's object graph
                 # and free what they find (0.2-0.4 s after a make); frozen objects are
@@ -88,6 +92,25 @@ def main(argv: list[str] | None = None) -> int:
             name = "" if signum == signal.SIGINT else f" ({signal.Signals(signum).name})"
             print(f"photo3d: interrupted{name}", file=sys.stderr)
             return 128 + signum
+
+
+def command_inputs(args: argparse.Namespace) -> list[Path]:
+    """The files a command reads, which the write gate keeps every write away from
+    (:func:`photo3d.files.gate.reading`): the photo, its depth map, right view and
+    depth model, keyframe files, and a 3D photo folder's ``photo3d.npz``.
+
+    Example:
+        >>> command_inputs(argparse.Namespace(photo=Path("out"), image=None))
+        [PosixPath('out/photo3d.npz')]
+    """
+    found = [value for name in ("image", "depth", "right", "depth_model")
+             if isinstance(value := getattr(args, name, None), str | Path)
+             and os.path.isfile(value)]
+    found += [p for p in getattr(args, "paths", None) or () if os.path.isfile(p)]
+    photo = getattr(args, "photo", None)
+    if isinstance(photo, Path):
+        found.append(photo / "photo3d.npz")
+    return [Path(p) for p in found]
 
 
 def _interrupted(err: BaseException) -> bool:

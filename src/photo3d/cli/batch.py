@@ -35,8 +35,8 @@ def add_parser(sub) -> None:
                      help="local: a process pool on this machine (default); ray: Ray actors "
                           "(extra photo3d[ray])")
     run.add_argument("--workers", type=int, metavar="N",
-                     help="processes or Ray actors (default: the CPU cores, or the Ray "
-                          "cluster's CPUs)")
+                     help="processes or Ray actors (default: the thread budget, "
+                          "--threads, or the Ray cluster's CPUs)")
     run.add_argument("--ray-address", metavar="ADDRESS",
                      help="Ray cluster to use (default: RAY_ADDRESS, else a local Ray)")
     add_make_options(bt, out_required=True, out_help="output folder: one folder per photo "

@@ -7,6 +7,7 @@ import argparse
 import time
 from pathlib import Path
 
+from photo3d.cli.options import add_splat_options
 from photo3d.cli.progress import count_bar
 from photo3d.save_options import EXPORT_FORMATS
 
@@ -27,8 +28,7 @@ def add_parser(sub) -> None:
                     help="write the one FORMAT given to FILE instead of into the folder")
     ex.add_argument("--overwrite", action="store_true",
                     help="with -o: replace FILE if it exists")
-    ex.add_argument("--merge", action="store_true",
-                    help="splats: join flat, smooth areas into larger splats (fewer splats)")
+    add_splat_options(ex)
     ex.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
     ex.set_defaults(run=run)
 
@@ -38,11 +38,14 @@ def run(args: argparse.Namespace) -> int:
     from photo3d.export import export_folder
     from photo3d.export.splats import splat_count
 
+    if not args.quiet:
+        _say_memory(args)
     bar = count_bar(len(set(args.formats)), "export", quiet=args.quiet)
     t = time.perf_counter()
     try:
         written = export_folder(args.photo, args.formats, output=args.output,
-                                overwrite=args.overwrite, merge=args.merge,
+                                overwrite=args.overwrite, density=args.splats,
+                                spz_version=args.spz_version,
                                 progress=lambda stage, fraction: bar.update(
                                     round(fraction * bar.total) - bar.n))
     finally:
@@ -54,3 +57,22 @@ def run(args: argparse.Namespace) -> int:
             what = f"  {count:,} splats" if count is not None else ""
             print(f"  {path}  {path.stat().st_size / 1e6:.2f} MB{what}")
     return 0
+
+
+def _say_memory(args: argparse.Namespace) -> None:
+    """Say, before the work, how much memory the export will take at most (what
+    :func:`photo3d.resources.check_export_memory` checks); nothing when the folder
+    has no readable 3D photo (export_folder says why)."""
+    from photo3d.errors import InputError
+    from photo3d.io.limits import format_bytes
+    from photo3d.io.npz import ldi_pixels
+    from photo3d.owned import LDI_FILE
+    from photo3d.resources import export_memory_estimate
+
+    try:
+        pixels = ldi_pixels(args.photo / LDI_FILE)
+    except InputError:
+        return
+    need = export_memory_estimate(pixels, list(dict.fromkeys(args.formats)))
+    print(f"export: {pixels:,} LDI pixels, {args.splats} splats, at most about "
+          f"{format_bytes(need)} of memory", flush=True)

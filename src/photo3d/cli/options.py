@@ -14,9 +14,9 @@ import sys
 from pathlib import Path
 
 from photo3d.cli.progress import download_bar
-from photo3d.config import PRESETS, Config
+from photo3d.config import EDGES, PRESETS, Config
 from photo3d.errors import ConfigError
-from photo3d.save_options import EXPORT_FORMATS
+from photo3d.save_options import EXPORT_FORMATS, SPLAT_DENSITIES, SPZ_VERSIONS
 
 
 def add_depth_sources(p: argparse.ArgumentParser) -> None:
@@ -125,6 +125,11 @@ def add_make_options(p: argparse.ArgumentParser, *, out_required: bool,
                    "(default 1024; 0 keeps the input size)")
     p.add_argument("--inpainter", help="inpainting backend: structured (default), diffusion "
                    "or learned")
+    p.add_argument("--edges", choices=EDGES, default="align",
+                   help="where the depth edges go: align (default) moves each depth step "
+                        "onto the photo's colour edge within a few pixels (depth from "
+                        "networks and stereo is fat or smooth at silhouettes); exact keeps "
+                        "them where the depth map puts them")
     p.add_argument("--weights", type=weights_arg, metavar="DIR|authors|compact",
                    help="weights of the learned inpainter: a folder with the authors' "
                         "edge-model.pth, depth-model.pth, color-model.pth or photo3d "
@@ -149,9 +154,23 @@ def add_make_options(p: argparse.ArgumentParser, *, out_required: bool,
                    metavar="FORMAT",
                    help="also write FORMAT into the folder, as photo3d export does "
                         "(repeatable): " + ", ".join(EXPORT_FORMATS))
+    add_splat_options(p)
     p.add_argument("--overwrite", action="store_true", help=overwrite_help)
     add_video_options(p, command="make")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
+
+
+def add_splat_options(p: argparse.ArgumentParser) -> None:
+    """``--splats`` and ``--spz-version``: how the splat exports are made (``export``,
+    and ``make``, ``demo`` and ``batch`` with ``--export``)."""
+    p.add_argument("--splats", choices=SPLAT_DENSITIES, default=SPLAT_DENSITIES[0],
+                   help="splat exports: adaptive (the default: one splat per pixel where "
+                        "there is texture and at depth edges, fewer and larger where the "
+                        "photo is flat) or dense (one splat per LDI pixel)")
+    p.add_argument("--spz-version", type=int, choices=SPZ_VERSIONS, default=SPZ_VERSIONS[0],
+                   help="splats.spz: version 3 (the default: gzip; Spark 2, three.js, "
+                        "SuperSplat) or 4 (zstd streams; three.js, SuperSplat, PlayCanvas; "
+                        "needs photo3d[spz4])")
 
 
 def video_size(text: str) -> tuple[int, int]:
@@ -197,12 +216,14 @@ def add_video_options(p: argparse.ArgumentParser, *, command: str) -> None:
 
 
 def config_from(args: argparse.Namespace, **changes) -> Config:
-    """The :class:`Config` of ``--preset``, ``--size`` and ``--inpainter``."""
+    """The :class:`Config` of ``--preset``, ``--size``, ``--inpainter`` and ``--edges``."""
     cfg = PRESETS[args.preset]
     if args.size is not None:
         changes["size"] = None if args.size == 0 else args.size
     if args.inpainter:
         changes["inpainter"] = args.inpainter
+    if getattr(args, "edges", None):
+        changes["edges"] = args.edges
     return cfg.with_(**changes)
 
 
@@ -285,8 +306,8 @@ def make_options(args: argparse.Namespace):
         >>> options = make_options(args)
         >>> options.save.full_glb, options.save.videos, options.config.size
         (True, (), 512)
-        >>> options.save.exports
-        ('splats.spz',)
+        >>> options.save.exports, options.save.splats, options.save.spz_version
+        (('splats.spz',), 'adaptive', 3)
     """
     from photo3d.folder import MakeOptions
     from photo3d.save_options import SaveOptions
@@ -301,7 +322,8 @@ def make_options(args: argparse.Namespace):
                            full_glb=args.full_glb, viewer=not args.no_viewer,
                            videos=() if args.no_video else tuple(videos_from(args)),
                            render_settings=render_settings_from(args),
-                           exports=tuple(args.exports or ())),
+                           exports=tuple(args.exports or ()),
+                           splats=args.splats, spz_version=args.spz_version),
                        overwrite=args.overwrite)
 
 

@@ -16,7 +16,8 @@ def add_parser(sub) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Run ``photo3d view`` until Ctrl-C; returns the exit status."""
+    """Run ``photo3d view`` until Ctrl-C or a termination signal (the command line then
+    exits with 130, or 128 + the signal's number); returns the exit status."""
     from photo3d.files.atomic import atomic_path, refuse_symlink
     from photo3d.photo import load
     from photo3d.viewer import VIEWER_FILE, serve, write_viewer

@@ -37,7 +37,6 @@ changes nothing after the pipeline's min-max normalisation.
 from __future__ import annotations
 
 import functools
-import json
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -46,6 +45,7 @@ from PIL import Image
 
 from photo3d.depth.fetch import check_model_name, failure_reason
 from photo3d.errors import InputError, require
+from photo3d.io.bounded import read_json
 from photo3d.io.images import read_image, to_float_image
 
 DEPTH_TYPES = ("zoedepth", "glpn", "depth_pro", "prompt_depth_anything")
@@ -226,8 +226,10 @@ def _sidecar(path: Path, filename: str) -> dict:
         candidate = folder / filename
         if candidate.is_file():
             try:
-                return json.loads(candidate.read_text())
-            except (OSError, ValueError) as err:
+                return read_json(candidate, max_bytes=1 << 20)
+            except InputError:
+                raise
+            except OSError as err:
                 raise InputError(f"cannot read {candidate}: {err}") from err
     return {}
 

@@ -2,17 +2,17 @@
 
 from __future__ import annotations
 
-import json
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import numpy as np
 
-from photo3d.errors import OutputError
+from photo3d.errors import InputError, OutputError
 from photo3d.eval.evaluate import METHODS, evaluate, grid, table
 from photo3d.eval.stereo_pair import StereoPair
 from photo3d.files.atomic import atomic_path, check_writable, write_json, write_text
+from photo3d.io.bounded import read_json
 
 
 def mean_scores(per_pair: dict[str, dict]) -> dict:
@@ -83,9 +83,9 @@ def check_results_folder(out: str | Path, *, overwrite: bool) -> Path:
         raise OutputError(f"results folder {out} exists and is not empty (use --overwrite "
                           "to replace the results photo3d eval wrote)")
     try:
-        record = json.loads((out / "results.json").read_text())
+        record = read_json(out / "results.json", max_bytes=256 << 20)
         ours = isinstance(record, dict) and {"methods", "pairs"} <= set(record)
-    except (OSError, UnicodeDecodeError, ValueError):
+    except InputError:
         ours = False
     if not ours:
         raise OutputError(f"--overwrite only replaces results photo3d eval wrote, but {out} "

@@ -24,8 +24,10 @@ and the light textured mesh that ``mesh.usdz`` and the quilt are made of.
 
 from __future__ import annotations
 
+import fnmatch
 import importlib
 import math
+import os
 from collections.abc import Callable, Sequence
 from concurrent.futures import Executor, Future
 from dataclasses import dataclass
@@ -33,10 +35,12 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from photo3d.errors import ConfigError, InputError, OutputError
-from photo3d.io.npz import load_npz
-from photo3d.owned import LDI_FILE, claim_files, record_files
+from photo3d.files.gate import check_target, reading
+from photo3d.io.npz import ldi_pixels, load_npz
+from photo3d.owned import EXPORT_FILES, LDI_FILE, claim_files, record_files
 from photo3d.parallel import thread_pool
 from photo3d.progress import StageProgress
+from photo3d.resources import check_export_memory
 from photo3d.structures.ldi import LDI
 
 if TYPE_CHECKING:
@@ -90,13 +94,14 @@ def _named_by(module: str, attribute: str) -> Callable[[LDI], str]:
 
 
 _SPLATS = "photo3d.export.splats"
-_SPLAT_OPTIONS = ("merge", "splats")  # splats: built once for several splat formats
+_SPLAT_OPTIONS = ("density", "splats")  # splats: built once for several splat formats
 _MESH_OPTIONS = ("mesh",)  # the light textured mesh, built once for all that take it
 _USD = ("pxr.Gf", "pxr.Kind", "pxr.Sdf", "pxr.Usd", "pxr.UsdGeom", "pxr.UsdShade",
         "pxr.UsdUtils", "pxr.Vt")  # what write_usdz imports (usd-core)
 FORMATS: dict[str, Format] = {
     "splats.ply": Format("splats.ply", _SPLATS, "write_ply", _fixed("splats.ply"), _SPLAT_OPTIONS),
-    "splats.spz": Format("splats.spz", _SPLATS, "write_spz", _fixed("splats.spz"), _SPLAT_OPTIONS),
+    "splats.spz": Format("splats.spz", _SPLATS, "write_spz", _fixed("splats.spz"),
+                         (*_SPLAT_OPTIONS, "spz_version")),
     "splats.glb": Format("splats.glb", _SPLATS, "write_glb", _fixed("splats.glb"), _SPLAT_OPTIONS),
     "mesh.usdz": Format("mesh.usdz", "photo3d.export.usdz", "write_usdz",
                         _named_by("photo3d.export.usdz", "USDZ_NAME"), _MESH_OPTIONS, _USD),
@@ -109,18 +114,23 @@ FORMATS: dict[str, Format] = {
 
 def export_folder(folder: str | Path, formats: Sequence[str], *,
                   output: str | Path | None = None, overwrite: bool = False,
-                  merge: bool = False, progress: StageProgress | None = None) -> list[Path]:
+                  density: str = "adaptive", spz_version: int = 3,
+                  progress: StageProgress | None = None) -> list[Path]:
     """Write ``formats`` of the 3D photo saved in ``folder``.
 
     Args:
         folder: a 3D photo folder (``photo3d make``'s output).
         formats: names from :data:`FORMATS` (repeats are written once).
         output: write the one format asked for to this file instead of into the
-            folder (nothing is recorded).
+            folder. Inside a 3D photo folder (this one or another) it must be an
+            export file's name, new or recorded there, and it is recorded there;
+            never the photo's own files (``photo3d.npz``, ``config.json``, ...).
         overwrite: replace ``output`` if it exists (files in the folder are
             replaced when photo3d wrote them, whatever this says).
-        merge: splat formats: join flat, smooth areas into larger splats
-            (:func:`photo3d.export.splats.build_splats`).
+        density: splat formats: ``"adaptive"`` (fewer, larger splats where the
+            photo is flat) or ``"dense"`` (one per LDI pixel;
+            :func:`photo3d.export.splats.build_splats`).
+        spz_version: ``splats.spz``'s version, 3 (gzip) or 4 (zstd streams).
         progress: ``progress("export", fraction)`` after each file.
 
     The files are written two at a time (the machine's cores), each atomically, and
@@ -131,10 +141,16 @@ def export_folder(folder: str | Path, formats: Sequence[str], *,
         The files written, in the order of ``formats``.
 
     Raises:
-        ConfigError: an unknown format, no format, or several with ``output``.
+        ConfigError: an unknown format, no format, or several with ``output``; an
+            unknown density or SPZ version; not enough memory
+            (:func:`photo3d.resources.check_export_memory`, checked before the 3D
+            photo is read).
         InputError: no 3D photo in ``folder`` (or a damaged one).
-        OutputError: a file to write is a symbolic link, or exists and photo3d did
-            not write it (``output``: exists, without ``overwrite``); nothing is
+        MissingExtra: a package a format needs is missing (:func:`require_extras`).
+        OutputError: a file to write is a symbolic link (dangling too), not a
+            regular file, the 3D photo being read, a file of a 3D photo folder that
+            export does not write, or exists and photo3d did not write it
+            (``output`` elsewhere: exists, without ``overwrite``); nothing is
             written then.
 
     Example:
@@ -148,25 +164,65 @@ def export_folder(folder: str | Path, formats: Sequence[str], *,
         >>> sorted(recorded_files(out))
         ['splats.ply', 'splats.spz']
     """
+    from photo3d.kernel_cache import adopt
+
     chosen = check_formats(formats, output=output)
+    from photo3d.save_options import SaveOptions
+
+    SaveOptions(splats=density, spz_version=spz_version)  # checks both
+    require_extras([f.name for f in chosen], spz_version=spz_version)
+    adopt()  # the wheel's compiled kernels, if they fit (once per process)
     folder = Path(folder)
     if not folder.is_dir():
         raise InputError(f"no 3D photo folder at {folder}")
-    if output is not None:
-        output = Path(output)
-        if (output.exists() or output.is_symlink()) and not overwrite:
-            raise OutputError(f"{output} exists; pass overwrite (--overwrite) to replace it")
     if not (folder / LDI_FILE).is_file():
         raise InputError(f"no 3D photo in {folder} (it has no {LDI_FILE})")
-    ldi, meta = load_npz(folder / LDI_FILE)
+    with reading(folder / LDI_FILE):  # no write may reach it (the gate refuses)
+        record_in = None if output is None else _check_output(Path(output), overwrite)
+        check_export_memory(ldi_pixels(folder / LDI_FILE), [f.name for f in chosen])
+        ldi, meta = load_npz(folder / LDI_FILE)
+        return _export(folder, chosen, ldi, meta, output=output, record_in=record_in,
+                       density=density, spz_version=spz_version, progress=progress)
+
+
+def _check_output(output: Path, overwrite: bool) -> Path | None:
+    """Refuse an ``-o`` photo3d must not write, before the work; returns the 3D photo
+    folder it lies in (where it is recorded), or None.
+
+    In a 3D photo folder (one holding ``photo3d.npz``) ``-o`` may name only an
+    export file (:data:`~photo3d.owned.EXPORT_FILES`), one that is new or that the
+    folder's record lists: never ``photo3d.npz``, ``config.json`` or the meshes.
+    Elsewhere an existing file needs ``overwrite``. Links and inputs are the gate's
+    (:func:`photo3d.files.gate.check_target`)."""
+    check_target(output)
+    photo = output.parent
+    if (photo / LDI_FILE).is_file():
+        if not any(fnmatch.fnmatchcase(output.name, p) for p in EXPORT_FILES):
+            raise OutputError(f"{output} is a file of the 3D photo folder {photo}; export "
+                              "writes there only its own files (" + ", ".join(EXPORT_FILES[:4])
+                              + ", quilts): choose another name")
+        claim_files(photo, [output.name])
+        return photo
+    if os.path.lexists(output) and not overwrite:
+        raise OutputError(f"{output} exists; pass overwrite (--overwrite) to replace it")
+    return None
+
+
+def _export(folder: Path, chosen: list[Format], ldi: LDI, meta: dict, *,
+            output: Path | None, record_in: Path | None, density: str,
+            spz_version: int, progress: StageProgress | None) -> list[Path]:
+    """Write ``chosen`` (:func:`export_folder` once the checks are done)."""
+    output = None if output is None else Path(output)
     targets = [output] if output is not None else [folder / f.filename(ldi) for f in chosen]
     if output is None:
         claim_files(folder, [t.name for t in targets])  # before writing anything
+        record_in = folder
     preload(chosen)  # before the writer threads start
     written: list[Path] = []
     with thread_pool(2, name="export") as pool:  # zlib, numpy and writes release the GIL
         jobs = submit_writers(pool, ldi, list(zip(chosen, targets, strict=True)),
-                              merge=merge, light_error=_light_error(meta))
+                              density=density, spz_version=spz_version,
+                              light_error=_light_error(meta))
         error = None
         for job, target in zip(jobs, targets, strict=True):
             try:
@@ -174,8 +230,8 @@ def export_folder(folder: str | Path, formats: Sequence[str], *,
             except BaseException as err:  # noqa: B036 - raised below, once all are done
                 error = error or err
                 continue
-            if output is None:
-                record_files(folder, [target.name])  # as each file is in place
+            if record_in is not None:
+                record_files(record_in, [target.name])  # as each file is in place
             written.append(target)
             if progress:
                 progress("export", len(written) / len(targets))
@@ -185,7 +241,8 @@ def export_folder(folder: str | Path, formats: Sequence[str], *,
 
 
 def submit_writers(pool: Executor, ldi: LDI, targets: Sequence[tuple[Format, Path]], *,
-                   merge: bool = False, mesh: TexturedMesh | None = None,
+                   density: str = "adaptive", spz_version: int = 3,
+                   mesh: TexturedMesh | None = None,
                    light_error: float | None = None) -> list[Future]:
     """Have ``pool`` write each ``(format, path)`` of ``targets``; returns the writers'
     futures, in the order of ``targets``.
@@ -204,7 +261,8 @@ def submit_writers(pool: Executor, ldi: LDI, targets: Sequence[tuple[Format, Pat
             numpy release the GIL).
         ldi: the 3D photo's layered depth image.
         targets: what to write where (:func:`check_formats`' formats, each once).
-        merge: splat formats: join flat, smooth areas into larger splats.
+        density: splat formats: ``"adaptive"`` or ``"dense"``.
+        spz_version: ``splats.spz``'s version (3 or 4).
         mesh: the light textured mesh of ``ldi`` if already built.
         light_error: its error bound when it is built here (pixels).
 
@@ -222,11 +280,11 @@ def submit_writers(pool: Executor, ldi: LDI, targets: Sequence[tuple[Format, Pat
         >>> sorted(p.name for p in out.iterdir())
         ['a.ply', 'a.spz']
     """
-    options: dict[str, object] = {"merge": merge}
+    options: dict[str, object] = {"density": density, "spz_version": spz_version}
     if sum(f.module == _SPLATS for f, _ in targets) > 1:  # build the splats once
         from photo3d.export.splats import build_splats
 
-        options["splats"] = build_splats(ldi, merge=merge)
+        options["splats"] = build_splats(ldi, density=density)
     light: Future | None = None
     if mesh is None and any("mesh" in f.options for f, _ in targets):
         from photo3d.mesh.light import LIGHT_ERROR, build_light_mesh
@@ -268,6 +326,25 @@ def preload(formats: Sequence[Format]) -> None:
                 importlib.import_module(module)
             except ImportError:  # the writer raises MissingExtra naming the extra
                 break
+
+
+def require_extras(formats: Sequence[str], *, spz_version: int = 3) -> None:
+    """Raise :class:`~photo3d.errors.MissingExtra` now if a package that one of
+    ``formats`` needs is missing (``mesh.usdz``: usd-core; ``splats.spz`` of
+    ``spz_version`` 4: zstd), so that ``make``, ``batch`` and ``export`` fail before
+    the work, not after it.
+
+    Example:
+        >>> require_extras(["splats.spz", "quilt"])  # nothing more to install
+    """
+    if "mesh.usdz" in formats:
+        from photo3d.export.usdz import require_usd
+
+        require_usd()
+    if "splats.spz" in formats and spz_version == 4:
+        from photo3d.io.spz import zstd_module
+
+        zstd_module()
 
 
 def _light_error(meta: dict) -> float | None:

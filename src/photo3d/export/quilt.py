@@ -49,7 +49,7 @@ import numpy as np
 
 from photo3d.camera import Camera, Intrinsics
 from photo3d.errors import ConfigError
-from photo3d.files.atomic import atomic_path
+from photo3d.files.atomic import atomic_path, open_write
 from photo3d.parallel import overlap
 from photo3d.structures.ldi import LABEL_ORIGINAL, LDI
 
@@ -199,7 +199,7 @@ def write_quilt(ldi: LDI, path: str | Path, *, preset: QuiltPreset = DEFAULT,
             from photo3d.mesh.light import build_light_mesh
 
             mesh = build_light_mesh(ldi)
-        with (open(tmp, "wb") as file, overlap(name="quilt") as encoder,
+        with (open_write(tmp) as file, overlap(name="quilt") as encoder,
               Renderer(mesh, RenderSettings(ssaa=1, backend=backend)) as renderer):
             png = _PNGStream(file, tw * cols, th * preset.rows)
             jobs = []

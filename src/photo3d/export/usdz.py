@@ -34,7 +34,7 @@ import numpy as np
 
 from photo3d.errors import InputError, OutputError, require
 from photo3d.export.quilt import focus_depth
-from photo3d.files.atomic import atomic_path
+from photo3d.files.atomic import atomic_path, open_write
 from photo3d.io.gltf_textured import encode_jpeg
 from photo3d.structures.ldi import LDI
 
@@ -94,8 +94,8 @@ def write_usdz(ldi: LDI, path: str | Path, *, mesh: TexturedMesh | None = None,
         points = usd_points(ldi, vertices, frame_width=frame_width)
         st = np.column_stack([uv[:, 0], 1.0 - uv[:, 1]]).astype(np.float32)  # USD: v up
         layer = Path(work) / "photo3d.usdc"
-        (Path(work) / "texture.jpg").write_bytes(
-            encode_jpeg(np.asarray(mesh.texture), quality=quality))
+        with open_write(Path(work) / "texture.jpg") as file:
+            file.write(encode_jpeg(np.asarray(mesh.texture), quality=quality))
         _write_stage(pxr, layer, points, st, faces)
         if mesh.overlay is not None:  # the soft silhouettes, blended (displayOpacity)
             _write_fringe(pxr, layer, mesh.overlay, usd_points(
@@ -169,9 +169,22 @@ def usd_points(ldi: LDI, vertices: np.ndarray, *, frame_width: float = FRAME_WID
     return ((vertices - origin) * _TO_USD * metres).astype(np.float32)
 
 
+def require_usd() -> None:
+    """Raise :class:`~photo3d.errors.MissingExtra` now if usd-core is not installed
+    (``make``, ``batch`` and ``export`` ask before any work).
+
+    Example:
+        >>> try:
+        ...     require_usd()
+        ... except ImportError as err:  # an extra
+        ...     assert "photo3d[usdz]" in str(err)
+    """
+    require("pxr.UsdUtils", "usdz", purpose="writing USDZ", package="usd-core")
+
+
 def _import_pxr():
     """The pxr modules :func:`write_usdz` uses (usd-core), or MissingExtra."""
-    require("pxr.UsdUtils", "usdz", purpose="writing USDZ", package="usd-core")
+    require_usd()
     from types import SimpleNamespace
 
     from pxr import Gf, Kind, Sdf, Usd, UsdGeom, UsdShade, UsdUtils, Vt

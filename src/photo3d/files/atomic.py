@@ -21,12 +21,17 @@ files are written with :mod:`photo3d.files.staging` instead.
 * :func:`check_writable` checks a target early; :func:`remove_temp_files` removes
   what a killed writer left.
 
-A target that is a symbolic link is followed: the file it points to is replaced
-and the link stays, as ``open(path, "w")`` would do. With ``follow_symlinks=False``
-(every writer takes it) a link is refused instead (:func:`refuse_symlink`), so a
-link placed in an output folder can never make photo3d write outside it; the
-commit renames over the name itself, so a link that appears meanwhile is
-replaced, never written through.
+Every target first passes the gate (:func:`photo3d.files.gate.check_target`): a
+symbolic link (to anything or to nothing), a FIFO, socket or device, or one of the
+command's inputs is refused, so a link placed in an output folder can never make
+photo3d write outside it; the commit renames over the name itself, so a link that
+appears meanwhile is replaced, never written through. ``follow_symlinks=True``
+follows a link instead, for programs that ask for it.
+
+* :func:`writing` and :func:`open_write` are what the format writers
+  (:mod:`photo3d.io`) write through: a temporary file this module handed out, or a
+  new file in a temporary folder of :mod:`photo3d.files.staging`, is written as it
+  is; any other path gets the whole atomic write above.
 
 Example:
     >>> import pathlib, tempfile
@@ -45,11 +50,13 @@ import errno
 import json
 import os
 import secrets
+import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import IO, Any
 
 from photo3d.errors import OutputError
+from photo3d.files.gate import check_target, in_issued_folder
 
 PathLike = str | os.PathLike[str]
 
@@ -57,6 +64,11 @@ _LIVE: set[Path] = set()
 """Temporary files not yet committed or discarded (removed at exit as a last resort)."""
 
 _HEX = frozenset("0123456789abcdef")
+_HELD: dict[Path, int] = {}
+"""The open descriptor holding each live temporary file's or folder's lock."""
+ORPHAN_AGE_S = 5.0
+"""A temporary file or folder unlocked this long after it was made is an orphan (its
+writer locks it a moment after creating it)."""
 
 
 def temp_sibling(path: PathLike) -> Path:
@@ -71,6 +83,24 @@ def temp_sibling(path: PathLike) -> Path:
     """
     path = Path(path)
     return path.with_name(f".{path.name[:64]}.{secrets.token_hex(4)}.tmp")
+
+
+def temp_entries(path: PathLike, *, suffixed: bool = True) -> list[Path]:
+    """What lies beside ``path`` (symbolic links resolved) under one of its temporary
+    names (:func:`is_temp_of`); ``[]`` if its folder cannot be listed.
+
+    Example:
+        >>> import pathlib, tempfile
+        >>> target = pathlib.Path(tempfile.mkdtemp()) / "a.png"
+        >>> temp_entries(target)
+        []
+    """
+    final = Path(os.path.realpath(path))
+    try:
+        entries = list(final.parent.iterdir())
+    except OSError:
+        return []
+    return [e for e in entries if is_temp_of(e.name, final.name, suffixed=suffixed)]
 
 
 def is_temp_of(name: str, target: str, *, suffixed: bool = True) -> bool:
@@ -142,9 +172,11 @@ class PendingFile(Pending):
         suffix: appended to the temporary name ``.NAME.XXXXXXXX.tmp`` (default
             none), e.g. the target's own suffix for a library that infers the
             format from it.
-        follow_symlinks: True (default): a target that is a symbolic link is
-            followed. False: it is refused (:func:`refuse_symlink`) and
-            :meth:`commit` renames over ``path`` itself.
+        follow_symlinks: False (default): a target that is a symbolic link is
+            refused and :meth:`commit` renames over ``path`` itself. True: the
+            link is followed (for programs that ask for it). Either way the
+            target passes :func:`photo3d.files.gate.check_target` (not a FIFO or
+            device, not an input of the command).
 
     Attributes:
         path: the temporary file to write into.
@@ -166,19 +198,17 @@ class PendingFile(Pending):
     """
 
     def __init__(self, path: PathLike, *, suffix: str = "",
-                 follow_symlinks: bool = True) -> None:
+                 follow_symlinks: bool = False) -> None:
         self.target = Path(path)
         self._done = False
-        if not follow_symlinks:
-            refuse_symlink(self.target)
+        self.final = check_target(self.target, follow_symlinks=follow_symlinks)
         try:
-            self.final = (Path(os.path.realpath(path)) if self.target.is_symlink()
-                          else self.target)
             _check_target(self.final, self.target)
             self.path = _create_temp(self.final, suffix)
         except OSError as err:
             raise OutputError(f"cannot write {self.target}: {err.strerror or err}") from None
         _LIVE.add(self.path)
+        hold(self.path)
 
     def commit(self) -> Path:
         """Rename the temporary file over the target; return the target as given.
@@ -200,6 +230,7 @@ class PendingFile(Pending):
             raise OutputError(f"cannot write {self.target}: {err.strerror or err}") from None
         self._done = True
         _LIVE.discard(self.path)
+        release(self.path)
         return self.target
 
     def discard(self) -> None:
@@ -216,11 +247,12 @@ class PendingFile(Pending):
         with contextlib.suppress(FileNotFoundError):
             os.unlink(self.path)
         _LIVE.discard(self.path)
+        release(self.path)
 
 
 @contextlib.contextmanager
 def atomic_path(path: PathLike, *, suffix: str | None = None,
-                follow_symlinks: bool = True) -> Iterator[Path]:
+                follow_symlinks: bool = False) -> Iterator[Path]:
     """Yield a temporary sibling of ``path`` to write to; rename it over ``path`` when
     the block ends without an error, remove it otherwise.
 
@@ -265,7 +297,7 @@ def atomic_path(path: PathLike, *, suffix: str | None = None,
 
 @contextlib.contextmanager
 def atomic_write(path: PathLike, mode: str = "wb", *,
-                 follow_symlinks: bool = True) -> Iterator[IO]:
+                 follow_symlinks: bool = False) -> Iterator[IO]:
     """Open a temporary sibling of ``path`` for writing; rename it over ``path`` when
     the block ends without an error, remove it otherwise.
 
@@ -292,6 +324,99 @@ def atomic_write(path: PathLike, mode: str = "wb", *,
     with atomic_path(path, suffix="", follow_symlinks=follow_symlinks) as tmp:
         with open(tmp, mode, **({} if "b" in mode else {"encoding": "utf-8"})) as f:
             yield f
+
+
+@contextlib.contextmanager
+def writing(path: PathLike, *, suffix: str | None = None) -> Iterator[Path]:
+    """The path a format writer writes ``path`` through.
+
+    ``path`` itself when it is a temporary file this module handed out (the
+    caller's :func:`atomic_path`) or a new file inside a temporary folder of
+    :mod:`photo3d.files.staging`; else a temporary sibling renamed over ``path`` at
+    the end (:func:`atomic_path`, with every check of the gate).
+
+    Example:
+        >>> import pathlib, tempfile
+        >>> target = pathlib.Path(tempfile.mkdtemp()) / "a.bin"
+        >>> with atomic_path(target) as tmp:
+        ...     with writing(tmp) as same:
+        ...         _ = same.write_bytes(b"x")
+        ...     same == tmp
+        True
+        >>> with writing(target) as other:
+        ...     other != target
+        True
+    """
+    path = Path(path)
+    if _issued(path):
+        yield path
+        return
+    with atomic_path(path, suffix=suffix) as tmp:
+        yield tmp
+
+
+@contextlib.contextmanager
+def open_write(path: PathLike, mode: str = "wb") -> Iterator[IO]:
+    """Open ``path`` for a format writer to stream into, through :func:`writing`.
+
+    Args:
+        path: the file to write.
+        mode: ``"wb"`` or ``"w"`` (text, UTF-8).
+
+    Example:
+        >>> import pathlib, tempfile
+        >>> target = pathlib.Path(tempfile.mkdtemp()) / "a.txt"
+        >>> with open_write(target, "w") as f:
+        ...     _ = f.write("hi")
+        >>> target.read_text()
+        'hi'
+    """
+    if mode not in ("wb", "w"):
+        raise ValueError(f"mode must be 'wb' or 'w', got {mode!r}")
+    with writing(path, suffix="") as tmp, open(
+            tmp, mode, **({} if "b" in mode else {"encoding": "utf-8"})) as f:
+        yield f
+
+
+@contextlib.contextmanager
+def open_append(path: PathLike) -> Iterator[IO]:
+    """Open ``path`` to append text lines (UTF-8, ``newline=""``), created if missing.
+
+    The one write that is not atomic: a log that grows a line at a time
+    (``losses.csv``). The target passes the gate first (no symbolic link, FIFO or
+    input), and is opened with ``O_NOFOLLOW``, so a link that appears meanwhile is
+    refused, never written through.
+
+    Raises:
+        OutputError: one line naming ``path``.
+
+    Example:
+        >>> import pathlib, tempfile
+        >>> target = pathlib.Path(tempfile.mkdtemp()) / "log.csv"
+        >>> for row in ("a\\n", "b\\n"):
+        ...     with open_append(target) as f:
+        ...         _ = f.write(row)
+        >>> target.read_text()
+        'a\\nb\\n'
+    """
+    check_target(path)
+    flags = os.O_WRONLY | os.O_APPEND | os.O_CREAT | os.O_NOFOLLOW | os.O_CLOEXEC
+    try:
+        fd = os.open(path, flags, 0o666)
+    except OSError as err:
+        raise OutputError(f"cannot write {path}: {err.strerror or err}") from None
+    try:
+        with open(fd, "a", encoding="utf-8", newline="") as f:
+            yield f
+    except OSError as err:
+        raise OutputError(f"cannot write {path}: {err.strerror or err}") from None
+
+
+def _issued(path: Path) -> bool:
+    """True if ``path`` is a temporary file handed out here or lies in a staged folder."""
+    if path.is_symlink():
+        return False
+    return path in _LIVE or Path(os.path.abspath(path)) in _LIVE or in_issued_folder(path)
 
 
 def write_bytes(path: PathLike, data: bytes) -> Path:
@@ -332,7 +457,7 @@ def write_json(path: PathLike, value: Any, *, indent: int | None = 2) -> Path:
     return write_text(path, json.dumps(value, indent=indent))
 
 
-def check_writable(file: PathLike, *, follow_symlinks: bool = True) -> Path:
+def check_writable(file: PathLike, *, follow_symlinks: bool = False) -> Path:
     """Check early that ``file`` can be written: its folder exists and takes a new file.
 
     A hidden temporary file is created beside it and removed (see
@@ -394,14 +519,9 @@ def remove_temp_files(path: PathLike) -> list[Path]:
         >>> [p == pending.path for p in remove_temp_files(target)], pending.path.exists()
         ([True], False)
     """
-    final = Path(os.path.realpath(path))
-    try:
-        entries = list(final.parent.iterdir())
-    except OSError:
-        return []
     removed = []
-    for entry in entries:
-        if is_temp_of(entry.name, final.name) and entry.is_file() and not entry.is_symlink():
+    for entry in temp_entries(path):
+        if entry.is_file() and not entry.is_symlink():
             with contextlib.suppress(FileNotFoundError):
                 entry.unlink()
             _LIVE.discard(entry)
@@ -414,14 +534,133 @@ def _naming_target(err: OSError | OutputError, pending: PendingFile) -> OutputEr
     ``OSError``, the message with the temporary name replaced for an
     ``OutputError`` that names it; None for another ``OutputError``."""
     if isinstance(err, OSError):
-        return OutputError(f"cannot write {pending.target}: {err.strerror or err}")
+        return OutputError(f"cannot write {pending.target}: {_reason(err, pending.path)}")
     if str(pending.path) in str(err):
         return OutputError(str(err).replace(str(pending.path), str(pending.target)))
     return None
 
 
+def _reason(err: OSError, path: Path) -> str:
+    """Why writing ``path`` failed: the system's words; a full disk is named as one
+    even when the library raised its own message (numpy's ``tofile``: "N requested
+    and 0 written")."""
+    if err.strerror:
+        return err.strerror
+    try:
+        vfs = os.statvfs(path.parent)
+    except OSError:
+        return str(err)
+    if vfs.f_bavail * vfs.f_frsize < (1 << 20):
+        return os.strerror(errno.ENOSPC)
+    return str(err)
+
+
+WRITER_MARK = ".photo3d-writer"
+"""The file inside a temporary folder that its writer holds locked (:func:`hold`);
+removed before the folder is moved into place."""
+
+
+def hold(path: Path) -> None:
+    """Lock the temporary file ``path``, or a :data:`WRITER_MARK` file inside the
+    temporary folder ``path`` (not the folder itself, which the write gate locks to
+    record), with ``flock`` for as long as this process writes it: the kernel drops
+    the lock when the process ends, even killed with SIGKILL, which is how a later
+    run tells an orphan (:func:`orphaned`).
+
+    Example:
+        >>> import pathlib, tempfile
+        >>> folder = pathlib.Path(tempfile.mkdtemp())
+        >>> hold(folder); orphaned(folder, age=0.0)
+        False
+        >>> release(folder, keep=True); orphaned(folder, age=0.0)
+        True
+    """
+    try:
+        import fcntl
+    except ImportError:  # no flock (Windows): orphans are not recognised
+        return
+    path = Path(path)
+    try:
+        if path.is_dir() and not path.is_symlink():
+            fd = os.open(path / WRITER_MARK, os.O_RDWR | os.O_CREAT | os.O_EXCL
+                         | getattr(os, "O_NOFOLLOW", 0), 0o600)
+        else:
+            fd = os.open(path, os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0))
+    except OSError:
+        return
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError:
+        os.close(fd)
+        return
+    _HELD[path] = fd
+
+
+def release(path: Path, *, keep: bool = False) -> None:
+    """Drop :func:`hold`'s lock of ``path`` (committed or discarded); a folder's
+    :data:`WRITER_MARK` is removed first, unless ``keep`` (tests)."""
+    fd = _HELD.pop(Path(path), None)
+    if fd is None:
+        return
+    if not keep:
+        with contextlib.suppress(OSError):
+            os.unlink(Path(path) / WRITER_MARK)  # a file's: no such entry
+    os.close(fd)
+
+
+def orphaned(path: Path, *, age: float | None = None) -> bool:
+    """True if the temporary file or folder ``path`` (not a link) was made more than
+    ``age`` seconds ago (default :data:`ORPHAN_AGE_S`) and no process holds it
+    (:func:`hold`; a folder without its :data:`WRITER_MARK` is being moved into
+    place, or is not photo3d's: never an orphan): its writer is gone."""
+    try:
+        import fcntl
+    except ImportError:
+        return False
+    path = Path(path)
+    nofollow = getattr(os, "O_NOFOLLOW", 0)
+    try:
+        if path.is_symlink():
+            return False
+        target = path / WRITER_MARK if path.is_dir() else path
+        fd = os.open(target, os.O_RDONLY | nofollow)
+    except OSError:  # gone, no mark
+        return False
+    try:
+        if time.time() - os.fstat(fd).st_ctime < (ORPHAN_AGE_S if age is None else age):
+            return False
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)  # free: its writer is gone
+        return True
+    except OSError:  # held: its writer is alive
+        return False
+    finally:
+        os.close(fd)
+
+
+def remove_orphan_files(path: PathLike) -> list[Path]:
+    """Remove the temporary files of ``path`` (:func:`is_temp_of`) whose writer is
+    gone (:func:`orphaned`); safe while other processes write ``path``. Every
+    atomic write does this first. Returns what was removed.
+
+    Example:
+        >>> import pathlib, tempfile
+        >>> target = pathlib.Path(tempfile.mkdtemp()) / "a.png"
+        >>> remove_orphan_files(target)
+        []
+    """
+    removed = []
+    for entry in temp_entries(path):
+        if entry.is_file() and entry not in _LIVE and orphaned(entry):
+            with contextlib.suppress(FileNotFoundError):
+                entry.unlink()
+            removed.append(entry)
+    return removed
+
+
 def _create_temp(final: Path, suffix: str) -> Path:
-    """A new empty file ``.NAME.XXXXXXXX.tmp`` + ``suffix`` beside ``final``."""
+    """A new empty file ``.NAME.XXXXXXXX.tmp`` + ``suffix`` beside ``final``, after
+    removing the orphans of killed writers of ``final`` (:func:`remove_orphan_files`)."""
+    remove_orphan_files(final)
     for _ in range(100):
         tmp = temp_sibling(final)
         tmp = tmp.with_name(tmp.name + suffix)

@@ -18,8 +18,9 @@ import contextlib
 import os
 import signal
 import sys
-import threading
 from collections.abc import Callable, Iterator
+
+from photo3d.parallel import later
 
 
 class Interrupted(KeyboardInterrupt):
@@ -65,10 +66,8 @@ def redeliver_swallowed(kinds: tuple[type[BaseException], ...],
             if signum is None:
                 return
             # later, so that it does not land in this hook again
-            timer = threading.Timer(_REDELIVER_S, os.kill, (os.getpid(), signum))
-            timer.daemon = True
             try:
-                timer.start()
+                later(_REDELIVER_S, os.kill, os.getpid(), signum)
                 return
             except RuntimeError:  # "can't create new thread at interpreter shutdown":
                 return  # the process is exiting already, there is nothing left to stop

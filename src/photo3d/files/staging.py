@@ -21,6 +21,10 @@ The rules (what photo3d promises, README "Inputs"):
 * Signals: run the work inside :func:`photo3d.files.signals.handle_signals` so that
   SIGTERM and SIGHUP, like Ctrl-C, unwind through the ``with`` block.
 * New folders get the usual permissions (``0o777`` minus the umask).
+* A temporary folder is locked (``flock``) by the process writing it for as long as
+  it does; the kernel drops the lock when that process ends, even killed with
+  SIGKILL. The next :func:`stage_output` of the same output removes the temporary
+  folders nobody holds any more (:func:`remove_orphans`).
 
 Example:
     >>> import pathlib, tempfile
@@ -43,7 +47,15 @@ from collections.abc import Callable, Iterable, Mapping, Sequence
 from pathlib import Path
 
 from photo3d.errors import OutputError
-from photo3d.files.atomic import Pending, is_temp_of, temp_sibling
+from photo3d.files.atomic import (
+    Pending,
+    hold,
+    orphaned,
+    release,
+    temp_entries,
+    temp_sibling,
+)
+from photo3d.files.gate import issue_folder, release_folder
 from photo3d.files.rename import claim, identity, swap
 
 PathLike = str | os.PathLike[str]
@@ -134,6 +146,7 @@ class Staging(Pending):
                 (another run wrote it), or the rename failed. The temporary folder
                 is removed and nothing already there is touched.
         """
+        release(self.path)  # its writer mark out before it moves into place
         try:
             now = identity(self.final)
             if now != self._seen and not (self._seen is None and _is_empty_dir(self.final)):
@@ -158,6 +171,7 @@ class Staging(Pending):
                               f"{err.strerror or err}") from None
         self._done = True
         _LIVE.discard(self.path)
+        release_folder(self.path)
         return self.final
 
     def discard(self) -> None:
@@ -165,6 +179,8 @@ class Staging(Pending):
         self._done = True
         shutil.rmtree(self.path, ignore_errors=True)
         _LIVE.discard(self.path)
+        release(self.path)
+        release_folder(self.path)
         for parent in reversed(self._made):
             try:
                 parent.rmdir()
@@ -239,6 +255,7 @@ def _stage(out: Path, *, overwrite, inputs, owned, need_bytes) -> Staging:
         _remove_empty(made)
         raise OutputError(f"output name {final.name[:40]}... is {len(os.fsencode(final.name))} "
                           f"bytes long; this file system allows {name_max}")
+    remove_orphans(final)  # what killed writers of this output left
     try:
         tmp = _make_temp(parent, final.name)
     except OSError as err:
@@ -248,6 +265,8 @@ def _stage(out: Path, *, overwrite, inputs, owned, need_bytes) -> Staging:
     if free < need_bytes:
         shutil.rmtree(tmp, ignore_errors=True)
         _LIVE.discard(tmp)
+        release(tmp)
+        release_folder(tmp)
         _remove_empty(made)
         raise OutputError(f"only {_mb(free)} free in {parent}; this output needs about "
                           f"{_mb(need_bytes)}")
@@ -318,8 +337,34 @@ def _make_temp(parent: Path, name: str) -> Path:
         except FileExistsError:
             continue
         _LIVE.add(tmp)
+        hold(tmp)
+        issue_folder(tmp)
         return tmp
     raise OSError(errno.EEXIST, "no free temporary name")
+
+
+def remove_orphans(out: PathLike) -> list[Path]:
+    """Remove the temporary folders of ``out`` whose writer is gone: named as
+    :func:`stage_output` names them, made more than
+    :data:`~photo3d.files.atomic.ORPHAN_AGE_S` ago and
+    locked by no process (a live writer holds its folder's lock; the kernel drops it
+    when the writer dies, even of SIGKILL). Safe while other processes write ``out``.
+    Returns what was removed.
+
+    Example:
+        >>> import pathlib, tempfile
+        >>> out = pathlib.Path(tempfile.mkdtemp()) / "result"
+        >>> staging = stage_output(out)  # alive: this process holds its lock
+        >>> remove_orphans(out), staging.path.exists()
+        ([], True)
+        >>> staging.discard()
+    """
+    removed = []
+    for tmp in temp_entries(out, suffixed=False):
+        if tmp.is_dir() and not tmp.is_symlink() and orphaned(tmp):
+            shutil.rmtree(tmp, ignore_errors=True)
+            removed.append(tmp)
+    return removed
 
 
 def remove_leftovers(out: PathLike) -> list[Path]:
@@ -336,17 +381,12 @@ def remove_leftovers(out: PathLike) -> list[Path]:
         >>> [p == staging.path for p in remove_leftovers(out)], staging.path.exists()
         ([True], False)
     """
-    final = Path(os.path.realpath(out))
     removed = []
-    try:
-        entries = list(final.parent.iterdir())
-    except OSError:
-        return removed
-    for tmp in entries:
-        if (is_temp_of(tmp.name, final.name, suffixed=False)
-                and tmp.is_dir() and not tmp.is_symlink()):
+    for tmp in temp_entries(out, suffixed=False):
+        if tmp.is_dir() and not tmp.is_symlink():
             shutil.rmtree(tmp, ignore_errors=True)
             _LIVE.discard(tmp)
+            release_folder(tmp)
             removed.append(tmp)
     return removed
 

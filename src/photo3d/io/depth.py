@@ -25,6 +25,7 @@ import numpy as np
 from PIL import Image, UnidentifiedImageError
 
 from photo3d.errors import InputError, OutputError
+from photo3d.files.atomic import open_write, writing
 from photo3d.io.images import decoded_shape, load_pixels, open_image, read_tiff_page
 from photo3d.io.limits import check_available
 from photo3d.io.npy import read_npy
@@ -179,7 +180,8 @@ def write_depth_png16(
     scale = 65535.0 / (vmax - vmin) if vmax > vmin else 0.0
     mapped = np.clip((np.where(finite, depth, vmin) - vmin) * scale, 0.0, 65535.0)
     try:
-        Image.fromarray(np.round(mapped).astype(np.uint16)).save(path, format="PNG")
+        with writing(path) as target:
+            Image.fromarray(np.round(mapped).astype(np.uint16)).save(target, format="PNG")
     except OSError as err:
         raise OutputError(f"cannot write depth {path}: {err.strerror or err}") from err
     return vmin, vmax
@@ -339,6 +341,7 @@ _READERS = {
 def _write_bytes(path: Path, data: bytes, what: str) -> None:
     """Write ``data`` to ``path``, turning OS failures into :class:`OutputError`."""
     try:
-        path.write_bytes(data)
+        with open_write(path) as file:
+            file.write(data)
     except OSError as err:
         raise OutputError(f"cannot write {what} {path}: {err.strerror or err}") from err

@@ -16,6 +16,9 @@ import struct
 import numpy as np
 
 from photo3d.errors import InputError, OutputError
+from photo3d.files.atomic import open_write
+from photo3d.io.bounded import loads_json, read_bytes
+from photo3d.io.limits import check_available
 
 PathLike = str | os.PathLike[str]
 
@@ -147,13 +150,13 @@ def read_fringe(document: dict, binary: bytes, path: PathLike, extras: dict):
     attributes = primitive["attributes"]
     positions = accessor(document, binary, attributes["POSITION"], path)
     rgba = accessor(document, binary, attributes["COLOR_0"], path)
-    labels = accessor(document, binary, attributes["_LABEL"], path)[:, 0]
-    faces = accessor(document, binary, primitive["indices"], path).reshape(-1, 3)
+    labels = accessor(document, binary, attributes["_LABEL"], path, kinds=(5121,))[:, 0]
     count = len(positions)
-    if rgba.shape != (count, 4) or len(labels) != count:
+    faces = triangles(document, binary, primitive["indices"], path, count)
+    if positions.shape[1] != 3 or rgba.shape != (count, 4) or len(labels) != count:
         raise InputError(f"glTF {path} has soft silhouette attributes of different lengths")
-    if faces.size and faces.max() >= count:
-        raise InputError(f"glTF {path} has indices outside [0, {count})")
+    if not (np.isfinite(positions).all() and np.isfinite(rgba).all()):
+        raise InputError(f"glTF {path} has NaN or infinite soft silhouette attributes")
     value = np.clip(rgba[:, :3].astype(np.float64), 0.0, 1.0)
     srgb = np.where(value <= 0.0031308, value * 12.92, 1.055 * value ** (1 / 2.4) - 0.055)
     return Mesh(vertices=(positions * TO_GLTF).astype(np.float32),
@@ -213,7 +216,7 @@ def write_container(path: PathLike, document: dict, chunks: list[bytes]) -> None
     text += b" " * (-len(text) % 4)
     length = sum(len(chunk) for chunk in chunks)
     try:
-        with open(path, "wb") as file:
+        with open_write(path) as file:
             file.write(struct.pack("<III", MAGIC, 2, 12 + 8 + len(text) + 8 + length))
             file.write(struct.pack("<II", len(text), JSON_CHUNK) + text)
             file.write(struct.pack("<II", length, BIN_CHUNK))
@@ -233,22 +236,43 @@ def view_extras(mesh) -> dict:
     }
 
 
-def read_chunks(path: PathLike) -> tuple[dict, bytes]:
-    """The parsed JSON chunk and the BIN chunk (empty when absent) of the GLB file ``path``."""
-    try:
-        with open(path, "rb") as file:
-            data = file.read()
-    except OSError as err:
-        raise InputError(f"cannot read glTF {path}: {err.strerror or err}") from err
+MAX_GLB_BYTES = 2 << 30
+"""The largest GLB photo3d reads (a 4096 px photo's full mesh is about 0.7 GB)."""
+
+
+def read_chunks(path: PathLike, *, max_bytes: int = MAX_GLB_BYTES) -> tuple[dict, bytes]:
+    """The parsed JSON chunk and the BIN chunk (empty when absent) of the GLB file ``path``.
+
+    Bounded before anything is decoded: the file's size (``max_bytes``, and the
+    memory available), the chunk lengths against the file's, the JSON's nesting
+    (:func:`photo3d.io.bounded.loads_json`). Anything else is one line.
+
+    Raises:
+        InputError: the file is missing, too large, not a GLB, or its chunks are
+            damaged.
+
+    Example:
+        >>> import pathlib, tempfile
+        >>> path = pathlib.Path(tempfile.mkdtemp()) / "a.glb"
+        >>> write_container(path, {"asset": {"version": "2.0"}}, [bytes(4)])
+        >>> document, binary = read_chunks(path)
+        >>> document["asset"], len(binary)
+        ({'version': '2.0'}, 4)
+        >>> _ = path.write_bytes(path.read_bytes()[:16] + b"[" * 5000)
+        >>> read_chunks(path)
+        Traceback (most recent call last):
+        photo3d.errors.InputError: glTF ... has no complete JSON chunk
+    """
+    data = read_bytes(path, max_bytes=max_bytes, what=f"glTF {path}")
+    check_available(2 * len(data), f"glTF {path}")
     if len(data) < 20 or struct.unpack_from("<II", data) != (MAGIC, 2):
         raise InputError(f"{path} is not a binary glTF 2.0 file")
     length, kind = struct.unpack_from("<II", data, 12)
     if kind != JSON_CHUNK or 20 + length > len(data):
         raise InputError(f"glTF {path} has no complete JSON chunk")
-    try:
-        document = json.loads(data[20 : 20 + length])
-    except ValueError as err:
-        raise InputError(f"glTF {path} has invalid JSON ({err})") from err
+    document = loads_json(data[20 : 20 + length], what=f"glTF {path}'s JSON")
+    if not isinstance(document, dict):
+        raise InputError(f"glTF {path}'s JSON is not an object")
     start = 20 + length
     binary = b""
     if start + 8 <= len(data):
@@ -259,20 +283,107 @@ def read_chunks(path: PathLike) -> tuple[dict, bytes]:
     return document, binary
 
 
-def accessor(document: dict, binary: bytes, index: int, path: PathLike) -> np.ndarray:
-    """Accessor ``index`` as a ``(count, components)`` array (normalised -> float)."""
-    accessor = document["accessors"][index]
-    view = document["bufferViews"][accessor["bufferView"]]
-    if view.get("buffer", 0) != 0 or "sparse" in accessor:
-        raise InputError(f"glTF {path} accessor {index} uses external or sparse data")
-    dtype = np.dtype(COMPONENTS[accessor["componentType"]])
-    count, width = accessor["count"], WIDTHS[accessor["type"]]
-    stride = view.get("byteStride", dtype.itemsize * width)
-    start = view.get("byteOffset", 0) + accessor.get("byteOffset", 0)
+def _entry(document: dict, key: str, index, path: PathLike) -> dict:
+    """``document[key][index]``, checked to be an object."""
+    items = document.get(key)
+    if (not isinstance(items, list) or not isinstance(index, int) or isinstance(index, bool)
+            or not 0 <= index < len(items) or not isinstance(items[index], dict)):
+        raise InputError(f"glTF {path} has no {key}[{index!r}]")
+    return items[index]
+
+
+def _count(value, name: str, path: PathLike, *, low: int = 0) -> int:
+    if not isinstance(value, int) or isinstance(value, bool) or value < low:
+        raise InputError(f"glTF {path} has an invalid {name} ({value!r})")
+    return value
+
+
+def view_bytes(document: dict, binary: bytes, index, path: PathLike) -> bytes:
+    """The bytes of buffer view ``index`` (of the BIN chunk), checked to lie inside it.
+
+    Example:
+        >>> view_bytes({"bufferViews": [{"byteOffset": 1, "byteLength": 2}]}, b"abcd", 0, "x")
+        b'bc'
+    """
+    view = _entry(document, "bufferViews", index, path)
+    if view.get("buffer", 0) != 0:
+        raise InputError(f"glTF {path} buffer view {index} uses external data")
+    start = _count(view.get("byteOffset", 0), "byteOffset", path)
+    length = _count(view.get("byteLength"), "byteLength", path)
+    if start + length > len(binary):
+        raise InputError(f"glTF {path} buffer view {index} lies past its buffer")
+    return binary[start : start + length]
+
+
+def accessor(document: dict, binary: bytes, index, path: PathLike, *,
+             kinds: tuple[int, ...] | None = None) -> np.ndarray:
+    """Accessor ``index`` as a ``(count, components)`` array (normalised -> float).
+
+    Every field is checked before the data is touched: the accessor and its view
+    exist, the component type (one of ``kinds`` when given) and type are glTF's,
+    the count, offsets and stride are non-negative integers and the elements lie
+    inside the view and the BIN chunk, so the array is never larger than the file.
+
+    Raises:
+        InputError: one line naming the accessor.
+
+    Example:
+        >>> document = {"accessors": [{"bufferView": 0, "componentType": 5121,
+        ...                            "count": 2, "type": "VEC2"}],
+        ...             "bufferViews": [{"byteLength": 4}]}
+        >>> accessor(document, bytes([1, 2, 3, 4]), 0, "x").tolist()
+        [[1, 2], [3, 4]]
+        >>> document["accessors"][0]["count"] = 10**12
+        >>> accessor(document, bytes(4), 0, "x")
+        Traceback (most recent call last):
+        photo3d.errors.InputError: glTF x accessor 0 reads past its buffer view
+    """
+    entry = _entry(document, "accessors", index, path)
+    if "sparse" in entry:
+        raise InputError(f"glTF {path} accessor {index} uses sparse data")
+    code, kind = entry.get("componentType"), entry.get("type")
+    if code not in COMPONENTS or (kinds is not None and code not in kinds):
+        raise InputError(f"glTF {path} accessor {index} has component type {code!r}")
+    if kind not in WIDTHS:
+        raise InputError(f"glTF {path} accessor {index} has type {kind!r}")
+    view_index = entry.get("bufferView")
+    view = _entry(document, "bufferViews", view_index, path)
+    data = view_bytes(document, binary, view_index, path)
+    dtype, width = np.dtype(COMPONENTS[code]), WIDTHS[kind]
+    count = _count(entry.get("count"), "count", path)
+    stride = _count(view.get("byteStride", dtype.itemsize * width), "byteStride", path,
+                    low=dtype.itemsize * width)
+    start = _count(entry.get("byteOffset", 0), "byteOffset", path)
     end = start + stride * (count - 1) + dtype.itemsize * width if count else start
-    if end > min(len(binary), view.get("byteOffset", 0) + view["byteLength"]):
+    if end > len(data):
         raise InputError(f"glTF {path} accessor {index} reads past its buffer view")
-    array = np.ndarray((count, width), dtype, binary, start, (stride, dtype.itemsize)).copy()
-    if accessor.get("normalized", False):
+    array = np.ndarray((count, width), dtype, data, start, (stride, dtype.itemsize)).copy()
+    if entry.get("normalized", False) is True and dtype.kind in "iu":
         return array / float(np.iinfo(dtype).max)
     return array
+
+
+def triangles(document: dict, binary: bytes, index, path: PathLike, count: int) -> np.ndarray:
+    """``(M, 3) int64`` triangle indices of accessor ``index``, each in ``[0, count)``.
+
+    Raises:
+        InputError: not unsigned integer scalars, not a multiple of three, or an
+            index outside the vertices.
+
+    Example:
+        >>> document = {"accessors": [{"bufferView": 0, "componentType": 5121,
+        ...                            "count": 3, "type": "SCALAR"}],
+        ...             "bufferViews": [{"byteLength": 3}]}
+        >>> triangles(document, bytes([0, 1, 2]), 0, "x", 3).tolist()
+        [[0, 1, 2]]
+        >>> triangles(document, bytes([0, 1, 5]), 0, "x", 3)
+        Traceback (most recent call last):
+        photo3d.errors.InputError: glTF x has indices outside [0, 3)
+    """
+    raw = accessor(document, binary, index, path, kinds=(5121, 5123, 5125))
+    if raw.shape[1] != 1 or raw.size % 3:
+        raise InputError(f"glTF {path} indices are not triangles")
+    faces = raw.reshape(-1, 3).astype(np.int64)
+    if faces.size and faces.max() >= count:
+        raise InputError(f"glTF {path} has indices outside [0, {count})")
+    return faces

@@ -38,6 +38,7 @@ from photo3d.io.glb import (
     accessor,
     read_chunks,
     read_fringe,
+    triangles,
     write_glb_file,
 )
 from photo3d.structures.mesh import Mesh
@@ -148,14 +149,22 @@ def read_glb(path: PathLike) -> Mesh:
         attributes = primitive["attributes"]
         positions = accessor(document, binary, attributes["POSITION"], path)
         count = len(positions)
-        faces = accessor(document, binary, primitive["indices"], path).reshape(-1, 3)
+        faces = triangles(document, binary, primitive["indices"], path, count)
         colors = np.full((count, 3), 255, np.uint8)
         if "COLOR_0" in attributes:
             colors = _linear_to_srgb(accessor(document, binary, attributes["COLOR_0"], path))
         labels = np.full(count, _DEFAULT_LABEL, np.uint8)
         if "_LABEL" in attributes:
-            labels = accessor(document, binary, attributes["_LABEL"], path)[:, 0]
+            labels = accessor(document, binary, attributes["_LABEL"], path,
+                              kinds=(5121,))[:, 0]
         extras = document["meshes"][0].get("extras", {})
+        view = [float(extras.get(k, 0)) for k in ("width", "height", "hfov", "vfov")]
+        if not all(np.isfinite(v) and 0 <= v < 2**31 for v in view):
+            raise InputError(f"glTF {path} has an invalid view in its extras")
+        if len(colors) != count or len(labels) != count:
+            raise InputError(f"glTF {path} has attributes of different lengths")
+        if not np.isfinite(positions).all():
+            raise InputError(f"glTF {path} has NaN or infinite positions")
         if any(
             node.get("mesh") == 0 and {"matrix", "translation", "rotation", "scale"} & set(node)
             for node in document.get("nodes", [])
@@ -163,24 +172,26 @@ def read_glb(path: PathLike) -> Mesh:
             raise InputError(f"glTF {path} places its mesh with a node transform (unsupported)")
     except InputError:
         raise
-    except (KeyError, IndexError, TypeError, ValueError) as err:
-        raise InputError(f"glTF {path} has an unexpected structure ({err!r})") from err
-    if faces.size and faces.max() >= count:
-        raise InputError(f"glTF {path} has indices outside [0, {count})")
+    except (KeyError, IndexError, TypeError, ValueError, AttributeError, OverflowError) as err:
+        raise InputError(f"glTF {path} has an unexpected structure ({err!r})"[:300]) from None
+    if positions.shape[1] != 3:
+        raise InputError(f"glTF {path} has positions of another shape")
     mesh = Mesh(
         vertices=(positions * TO_GLTF).astype(np.float32),
         colors=colors,
         labels=labels.astype(np.uint8),
         faces=faces.astype(np.int32),
-        width=int(extras.get("width", 0)),
-        height=int(extras.get("height", 0)),
-        hfov=float(extras.get("hfov", 0.0)),
-        vfov=float(extras.get("vfov", 0.0)),
+        width=int(view[0]),
+        height=int(view[1]),
+        hfov=view[2],
+        vfov=view[3],
     )
     try:
         fringe = read_fringe(document, binary, path, extras)
-    except (KeyError, IndexError, TypeError, ValueError) as err:
-        raise InputError(f"glTF {path} has an unexpected structure ({err!r})") from err
+    except InputError:
+        raise
+    except (KeyError, IndexError, TypeError, ValueError, AttributeError, OverflowError) as err:
+        raise InputError(f"glTF {path} has an unexpected structure ({err!r})"[:300]) from None
     if fringe is None:
         return mesh
     if document["meshes"][0]["primitives"][1]["attributes"]["POSITION"] == attributes[
@@ -206,8 +217,11 @@ _SRGB_TO_LINEAR = _srgb_to_linear_table()
 
 
 def _linear_to_srgb(linear: np.ndarray) -> np.ndarray:
-    """``(N, C >= 3)`` linear float colours -> ``(N, 3) uint8`` sRGB, rounded."""
-    value = np.clip(linear[:, :3].astype(np.float64), 0.0, 1.0)
+    """``(N, C >= 3)`` linear float colours -> ``(N, 3) uint8`` sRGB, rounded (NaN: 0)."""
+    if linear.shape[1] < 3:
+        raise ValueError(f"COLOR_0 has {linear.shape[1]} components")
+    with np.errstate(invalid="ignore"):  # a signalling NaN in a damaged file
+        value = np.clip(np.nan_to_num(linear[:, :3].astype(np.float64)), 0.0, 1.0)
     srgb = np.where(value <= 0.0031308, value * 12.92, 1.055 * value ** (1 / 2.4) - 0.055)
     return np.rint(srgb * 255.0).astype(np.uint8)
 

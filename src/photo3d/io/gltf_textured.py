@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import io
 import os
+import struct
+import warnings
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -24,8 +26,11 @@ from photo3d.io.glb import (
     accessor,
     read_chunks,
     read_fringe,
+    triangles,
+    view_bytes,
     write_glb_file,
 )
+from photo3d.io.limits import check_available
 
 if TYPE_CHECKING:
     from photo3d.structures.mesh import TexturedMesh
@@ -83,8 +88,13 @@ def write_textured_glb(path: PathLike, mesh: TexturedMesh, *, quality: int = 90)
                    fringe=mesh.overlay)
 
 
-def read_textured_glb(path: PathLike) -> TexturedMesh:
+def read_textured_glb(path: PathLike, *, max_pixels: int | None = None) -> TexturedMesh:
     """Read a ``.glb`` written by :func:`write_textured_glb` (tests, tools).
+
+    Everything is checked before it is decoded (:func:`photo3d.io.glb.read_chunks`,
+    :func:`~photo3d.io.glb.accessor`); the texture's size is read from its header and
+    refused above ``max_pixels`` (default: Pillow's ``MAX_IMAGE_PIXELS``) or what
+    the available memory holds, before it is decoded.
 
     Returns:
         :class:`~photo3d.structures.mesh.TexturedMesh` (texture decoded from its JPEG).
@@ -97,30 +107,39 @@ def read_textured_glb(path: PathLike) -> TexturedMesh:
 
     document, binary = read_chunks(path)
     try:
-        primitive = document["meshes"][0]["primitives"][0]
+        mesh = document["meshes"][0]
+        primitive = mesh["primitives"][0]
         attributes = primitive["attributes"]
         positions = accessor(document, binary, attributes["POSITION"], path)
         uv = accessor(document, binary, attributes["TEXCOORD_0"], path)
-        faces = accessor(document, binary, primitive["indices"], path).reshape(-1, 3)
-        labels = accessor(document, binary, attributes["_LABEL"], path)[:, 0]
-        view = document["bufferViews"][document["images"][0]["bufferView"]]
-        start = view.get("byteOffset", 0)
-        texture = decode_jpeg(binary[start:start + view["byteLength"]])
-        extras = document["meshes"][0].get("extras", {})
+        labels = accessor(document, binary, attributes["_LABEL"], path,
+                              kinds=(5121,))[:, 0]
+        faces = triangles(document, binary, primitive["indices"], path, len(positions))
+        image = document["images"][0]
+        jpeg = view_bytes(document, binary, image["bufferView"], path)
+        extras = mesh.get("extras", {})
+        view = {k: float(extras.get(k, 0)) for k in ("width", "height", "hfov", "vfov")}
         overlay = read_fringe(document, binary, path, extras)
-    except (KeyError, IndexError, TypeError, ValueError) as err:
-        raise InputError(f"glTF {path} is not a photo3d textured mesh ({err!r})") from err
+    except InputError:
+        raise
+    except (KeyError, IndexError, TypeError, ValueError, AttributeError, OverflowError) as err:
+        raise InputError(f"glTF {path} is not a photo3d textured mesh ({err!r})"[:300]
+                         ) from None
     count = len(positions)
+    if positions.shape[1] != 3 or uv.shape[1] != 2:
+        raise InputError(f"glTF {path} has positions or texture coordinates of another shape")
     if len(uv) != count or len(labels) != count:
         raise InputError(f"glTF {path} has attributes of different lengths")
-    if faces.size and faces.max() >= count:
-        raise InputError(f"glTF {path} has indices outside [0, {count})")
+    if not (np.isfinite(positions).all() and np.isfinite(uv).all()):
+        raise InputError(f"glTF {path} has NaN or infinite positions or texture coordinates")
+    if not all(np.isfinite(v) and 0 <= v < 2**31 for v in view.values()):
+        raise InputError(f"glTF {path} has an invalid view in its extras")
+    texture = decode_jpeg(jpeg, max_pixels=max_pixels, what=f"glTF {path}'s texture")
     return TexturedMesh(
         vertices=(positions * TO_GLTF).astype(np.float32), uv=uv.astype(np.float32),
         texture=texture, labels=labels.astype(np.uint8), faces=faces.astype(np.int32),
-        n_input=0, width=int(extras.get("width", 0)), height=int(extras.get("height", 0)),
-        hfov=float(extras.get("hfov", 0.0)), vfov=float(extras.get("vfov", 0.0)),
-        overlay=overlay,
+        n_input=0, width=int(view["width"]), height=int(view["height"]),
+        hfov=view["hfov"], vfov=view["vfov"], overlay=overlay,
     )
 
 
@@ -141,9 +160,47 @@ def encode_jpeg(image: np.ndarray, *, quality: int = 90) -> bytes:
     return buffer.getvalue()
 
 
-def decode_jpeg(data: bytes) -> np.ndarray:
-    """JPEG (or PNG) bytes -> ``(H, W, 3) uint8``."""
-    from PIL import Image
+def decode_jpeg(data: bytes, *, max_pixels: int | None = None,
+                what: str = "the texture") -> np.ndarray:
+    """JPEG (or PNG) bytes -> ``(H, W, 3) uint8``.
 
-    with Image.open(io.BytesIO(data)) as im:
-        return np.asarray(im.convert("RGB"))
+    The size is read from the header first: more than ``max_pixels`` (default:
+    Pillow's ``MAX_IMAGE_PIXELS``) or more than the available memory holds is
+    refused before anything is decoded; anything Pillow cannot read is one line.
+
+    Raises:
+        InputError: ``cannot read WHAT: REASON``.
+
+    Example:
+        >>> decode_jpeg(encode_jpeg(np.zeros((16, 8, 3), np.uint8))).shape
+        (16, 8, 3)
+        >>> decode_jpeg(encode_jpeg(np.zeros((16, 8, 3), np.uint8)), max_pixels=100)
+        Traceback (most recent call last):
+        photo3d.errors.InputError: cannot read the texture: it is 8x16 pixels, more than the 100 expected
+        >>> decode_jpeg(b"not an image")
+        Traceback (most recent call last):
+        photo3d.errors.InputError: cannot read the texture: not a JPEG or PNG image
+    """  # noqa: E501
+    from PIL import Image, UnidentifiedImageError
+
+    limit = Image.MAX_IMAGE_PIXELS if max_pixels is None else max_pixels
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", Image.DecompressionBombWarning)
+            with Image.open(io.BytesIO(data)) as im:
+                if im.format not in ("JPEG", "PNG"):
+                    raise UnidentifiedImageError(im.format)
+                w, h = im.size
+                if limit is not None and w * h > limit:
+                    raise InputError(f"cannot read {what}: it is {w}x{h} pixels, more than "
+                                     f"the {limit} expected")
+                check_available(6 * w * h, f"{what}'s {w}x{h} pixels")
+                return np.asarray(im.convert("RGB"))
+    except InputError:
+        raise
+    except UnidentifiedImageError:
+        raise InputError(f"cannot read {what}: not a JPEG or PNG image") from None
+    except (OSError, ValueError, SyntaxError, EOFError, struct.error, Image.DecompressionBombError,
+            ZeroDivisionError) as err:
+        reason = str(err).splitlines()[0][:200] if str(err) else type(err).__name__
+        raise InputError(f"cannot read {what}: {reason}") from None

@@ -24,6 +24,7 @@ from __future__ import annotations
 import contextlib
 import math
 import os
+import struct
 import sys
 import tempfile
 import warnings
@@ -36,6 +37,7 @@ from PIL import Image, UnidentifiedImageError
 
 from photo3d.config import working_shape
 from photo3d.errors import InputError, OutputError, install_hint, require
+from photo3d.files.atomic import writing
 from photo3d.io.limits import check_available
 
 PathLike = str | os.PathLike[str]
@@ -113,7 +115,8 @@ def read_image(path: PathLike, *, working_size: int | None = None) -> np.ndarray
     palette) is composited over white, 16-bit values are divided by 65535. 16-bit
     RGB TIFFs are read with ``tifffile`` (extra ``photo3d[tiff]``), 16-bit colour
     PNGs with OpenCV (extra ``photo3d[stereo]``; without it they are read at 8 bits,
-    with a warning). Only the first frame of a multi-frame file is read.
+    with a warning). Only the first frame of a multi-frame file (an animated GIF,
+    WebP or PNG, a multi-page TIFF) is read, with a warning that says so.
 
     Given ``working_size``, a photo more than ``KEEP`` times larger is decoded at
     :func:`decoded_shape` (a JPEG first scaled by its decoder, then Lanczos as the
@@ -163,6 +166,33 @@ def read_image(path: PathLike, *, working_size: int | None = None) -> np.ndarray
     return image
 
 
+def image_shape(path: PathLike) -> tuple[int, int] | None:
+    """The upright ``(height, width)`` of an image file from its header, without
+    decoding a pixel (so that the memory a photo needs can be checked before it is
+    read); None if the header cannot be read (the reader then says why).
+
+    Example:
+        >>> import pathlib, tempfile
+        >>> path = pathlib.Path(tempfile.mkdtemp()) / "wide.png"
+        >>> write_image(path, np.zeros((8, 20, 3), np.float32))
+        >>> image_shape(path)
+        (8, 20)
+    """
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # the reader reports what it finds
+            with open_image(Path(path)) as im:
+                w, h = im.size
+                try:
+                    turned = orientation_of(im.getexif().get(0x0112)) >= 5
+                except InputError:
+                    turned = False
+    except (OSError, SyntaxError, ValueError, InputError, Image.DecompressionBombError,
+            UnidentifiedImageError):
+        return None
+    return (w, h) if turned else (h, w)
+
+
 def write_image(path: PathLike, image: np.ndarray, *, quality: int = 95) -> None:
     """Write an 8-bit PNG or JPEG (chosen by the extension), overwriting ``path``.
 
@@ -196,7 +226,8 @@ def write_image(path: PathLike, image: np.ndarray, *, quality: int = 95) -> None
     pixels = _to_uint8(image)
     try:
         options = {"quality": int(quality)} if fmt == "JPEG" else {}
-        Image.fromarray(pixels).save(path, format=fmt, **options)
+        with writing(path) as target:
+            Image.fromarray(pixels).save(target, format=fmt, **options)
     except OSError as err:
         raise OutputError(f"cannot write image {path}: {err.strerror or err}") from err
 
@@ -289,6 +320,7 @@ def _read_pixels(path: Path, working_size: int | None) -> np.ndarray:
     array that :func:`to_float_image` accepts, after checking the memory it needs."""
     try:
         with open_image(path) as im:
+            _note_frames(path, im)
             if _is_wide_colour_tiff(im):
                 return _read_tiff_with_tifffile(path, working_size)
             orientation = orientation_of(im.getexif().get(0x0112))
@@ -308,12 +340,26 @@ def _read_pixels(path: Path, working_size: int | None) -> np.ndarray:
             check_available(_decode_bytes(im) * im.size[0] * im.size[1] + returned, what)
             load_pixels(im)
             return _apply_orientation(_resized(im, (rh, rw), box), orientation)
+    except InputError:
+        raise
     except UnidentifiedImageError as err:
         if path.suffix.lower() in _TIFF_EXTENSIONS:
             return _read_tiff_with_tifffile(path, working_size)
         raise InputError("not a recognised image format") from err
-    except (OSError, SyntaxError, Image.DecompressionBombError) as err:
-        raise InputError(str(err)) from err
+    except (OSError, SyntaxError, EOFError, ValueError, struct.error,
+            Image.DecompressionBombError) as err:  # Pillow's words for a damaged file
+        raise InputError(str(err).splitlines()[0] if str(err) else type(err).__name__
+                         ) from err
+
+
+def _note_frames(path: Path, im: Image.Image) -> None:
+    """Warn that only the first frame of an animated or multi-page file is read (not
+    for a phone's MPO JPEG, whose further frames are its own previews and maps)."""
+    frames = getattr(im, "n_frames", 1)
+    if im.format != "MPO" and isinstance(frames, int) and frames > 1:
+        kind = "pages" if im.format == "TIFF" else "frames"
+        warnings.warn(f"{path.name} has {frames} {kind}; photo3d uses the first",
+                      stacklevel=4)
 
 
 def _decode_bytes(im: Image.Image) -> int:

@@ -32,6 +32,12 @@ if TYPE_CHECKING:
 
 PathLike = str | os.PathLike[str]
 
+TEXTURE_RATIO = 16
+"""A light mesh's texture holds at most this many pixels per lattice pixel (plus a
+megapixel), checked before it is decoded: the atlas of the input layer and the
+hidden layers' charts measures 1-5 lattices; a larger one is not photo3d's (its
+texture could take gigabytes), so the mesh is built again instead."""
+
 
 def read_light_glb(path: PathLike, *, intrinsics: Intrinsics,
                    lattice: tuple[int, int]) -> TexturedMesh:
@@ -51,7 +57,9 @@ def read_light_glb(path: PathLike, *, intrinsics: Intrinsics,
 
     Raises:
         InputError: the file is missing, not photo3d's, not a textured light mesh,
-            or of another view.
+            of another view, or damaged in any way (every field is checked before
+            it is used; a texture larger than :data:`TEXTURE_RATIO` lattices is
+            refused before it is decoded).
 
     Example:
         >>> import tempfile, pathlib
@@ -66,11 +74,12 @@ def read_light_glb(path: PathLike, *, intrinsics: Intrinsics,
         >>> back.n_input == built.n_input, np.array_equal(back.faces, built.faces)
         (True, True)
     """
+    rows, cols = lattice
     document, _ = read_chunks(path)
-    asset = document.get("asset") if isinstance(document, dict) else None
+    asset = document.get("asset")
     if not isinstance(asset, dict) or asset.get("generator") != "photo3d":
         raise InputError(f"{path} was not written by photo3d")
-    mesh = read_textured_glb(path)
+    mesh = read_textured_glb(path, max_pixels=TEXTURE_RATIO * rows * cols + (1 << 20))
     k = intrinsics
     hfov, vfov = k.fov
     if (mesh.width, mesh.height) != (k.width, k.height) or not (
@@ -78,7 +87,6 @@ def read_light_glb(path: PathLike, *, intrinsics: Intrinsics,
                                                                          rel_tol=1e-9)):
         raise InputError(f"{path} is the mesh of a {mesh.width}x{mesh.height} view, "
                          f"not of this {k.width}x{k.height} photo")
-    rows, cols = lattice
     if mesh.texture.shape[0] < rows or mesh.texture.shape[1] < cols:
         raise InputError(f"{path} has a {mesh.texture.shape[1]}x{mesh.texture.shape[0]} "
                          f"texture, smaller than the photo's {cols}x{rows} lattice")

@@ -34,6 +34,7 @@ from typing import BinaryIO
 import numpy as np
 
 from photo3d.errors import InputError, OutputError
+from photo3d.files.atomic import open_write
 from photo3d.structures.mesh import Mesh
 
 PathLike = str | os.PathLike[str]
@@ -91,7 +92,7 @@ def write_ply(path: PathLike, mesh: Mesh, *, binary: bool = True) -> None:
         f"element face {len(faces)}\nproperty list uchar int vertex_index\nend_header\n"
     )
     try:
-        with open(path, "wb") as file:
+        with open_write(path) as file:
             file.write(header.encode("ascii"))
             if binary:
                 records = np.empty(len(vertices), _VERTEX_DTYPE)

@@ -12,12 +12,17 @@ attribute                                   data
 ``KHR_gaussian_splatting:SCALE``            float32 VEC3, standard deviations (linear)
 ``KHR_gaussian_splatting:OPACITY``          float32 SCALAR in [0, 1]
 ``KHR_gaussian_splatting:SH_DEGREE_0_COEF_0``  float32 VEC3, the DC term ``(rgb - 0.5) / SH_C0``
-``COLOR_0``                                 normalized uint8 VEC4, linear RGB and 255: what
-                                            viewers without the extension show as points
+``COLOR_0``                                 normalized uint8 VEC4, linear RGB and the
+                                            opacity: what viewers without the extension
+                                            show as points (the spec's fallback)
 ==========================================  ============================================
 
 The primitive's extension object names the ``ellipse`` kernel and the
-``srgb_rec709_display`` colour space (the DC term is sRGB, as 3DGS trains it). The
+``srgb_rec709_display`` colour space (the DC term is sRGB, as 3DGS trains it), the
+two properties the ratified extension requires (KhronosGroup/glTF,
+``extensions/2.0/Khronos/KHR_gaussian_splatting``, as edited in April 2026);
+``projection`` and ``sortingMethod`` keep their defaults (``perspective``,
+``cameraDistance``) and are left out. The
 axes turn as in :mod:`photo3d.io.gltf` (a 180 degree rotation about x), so a
 Gaussian's rotation ``q = (w, x, y, z)`` becomes ``(w, x, -y, -z)``. The input view is
 a perspective camera node at the origin, and the mesh ``extras`` hold its exact
@@ -82,6 +87,7 @@ def write_splat_glb(path: PathLike, splats: Splats, *,
     xyzw = xyzw / np.linalg.norm(xyzw, axis=1, keepdims=True) * _QUATERNION_FLIP
     rgba = np.full((len(colors), 4), 255, np.uint8)
     rgba[:, :3] = np.rint(_srgb_to_linear(np.clip(colors, 0, 1)) * 255)
+    rgba[:, 3] = np.rint(opacity * 255)  # the extension's fallback: alpha = opacity
     arrays = {  # attribute: (data, type, normalized)
         "POSITION": (gl_positions, "VEC3", False),
         ROTATION: (xyzw.astype(np.float32), "VEC4", False),
@@ -136,8 +142,10 @@ def read_splat_glb(path: PathLike) -> Splats:
                 for name in ("POSITION", ROTATION, SCALE, OPACITY, SH_DC)}
     except InputError:
         raise
-    except (KeyError, IndexError, TypeError, ValueError) as err:
-        raise InputError(f"glTF {path} has an unexpected structure ({err!r})") from err
+    except (KeyError, IndexError, TypeError, ValueError, AttributeError) as err:
+        raise InputError(f"glTF {path} has an unexpected structure ({err!r})"[:300]) from None
+    if not all(np.isfinite(v).all() for v in read.values()):
+        raise InputError(f"glTF {path} has NaN or infinite splat values")
     xyzw = read[ROTATION] * _QUATERNION_FLIP
     return Splats(positions=read["POSITION"] * TO_GLTF,
                   colors=0.5 + SH_C0 * read[SH_DC],

@@ -23,6 +23,7 @@ import os
 import numpy as np
 
 from photo3d.errors import InputError
+from photo3d.files.atomic import open_write
 from photo3d.structures.splats import SH_C0, Splats
 
 PathLike = str | os.PathLike[str]
@@ -91,7 +92,7 @@ def write_splat_ply(path: PathLike, splats: Splats) -> None:
         (True, True)
     """
     rows = encode(splats)
-    with open(path, "wb") as file:
+    with open_write(path) as file:
         file.write(header(len(rows)))
         rows.tofile(file)
 
@@ -110,21 +111,41 @@ def read_splat_ply(path: PathLike) -> Splats:
             if not head.startswith(b"ply\n") or end < 0:
                 raise InputError(f"{path} is not a PLY file with a complete header")
             dtype, count = _vertex_dtype(head[:end].decode("ascii", "replace"), path)
-            file.seek(end + len(b"end_header\n"))
+            start = end + len(b"end_header\n")
+            if count * dtype.itemsize > os.fstat(file.fileno()).st_size - start:
+                raise InputError(f"{path} is truncated: it declares {count} splats")
+            file.seek(start)
             data = np.fromfile(file, dtype, count)
     except OSError as err:
         raise InputError(f"cannot read {path}: {err.strerror or err}") from None
     if len(data) != count:
         raise InputError(f"{path} is truncated: {len(data)} of {count} splats")
-    column = {name: data[name].astype(np.float32) for name in PROPERTIES}
     stack = lambda *names: np.stack([column[n] for n in names], axis=1)  # noqa: E731
-    rotations = stack("rot_0", "rot_1", "rot_2", "rot_3")
-    rotations /= np.maximum(np.linalg.norm(rotations, axis=1, keepdims=True), 1e-30)
-    return Splats(positions=stack("x", "y", "z"),
-                  colors=0.5 + SH_C0 * stack("f_dc_0", "f_dc_1", "f_dc_2"),
-                  opacity=(1 / (1 + np.exp(-column["opacity"]))).astype(np.float32),
-                  scales=np.exp(stack("scale_0", "scale_1", "scale_2")),
-                  rotations=rotations)
+    with np.errstate(all="ignore"):  # non-finite results are refused below
+        column = {name: data[name].astype(np.float32) for name in PROPERTIES}
+        rotations = stack("rot_0", "rot_1", "rot_2", "rot_3")
+        rotations /= np.maximum(np.linalg.norm(rotations, axis=1, keepdims=True), 1e-30)
+        splats = Splats(positions=stack("x", "y", "z"),
+                        colors=0.5 + SH_C0 * stack("f_dc_0", "f_dc_1", "f_dc_2"),
+                        opacity=(1 / (1 + np.exp(-column["opacity"]))).astype(np.float32),
+                        scales=np.exp(stack("scale_0", "scale_1", "scale_2")),
+                        rotations=rotations)
+    return finite_splats(splats, path)
+
+
+def finite_splats(splats: Splats, path: PathLike) -> Splats:
+    """``splats``, refused in one line when a value is NaN or infinite (a damaged file).
+
+    Example:
+        >>> s = Splats(np.zeros((1, 3)), np.zeros((1, 3)), np.ones(1), np.ones((1, 3)),
+        ...            np.array([[1.0, 0, 0, 0]]))
+        >>> finite_splats(s, "a.ply") is s
+        True
+    """
+    for name in ("positions", "colors", "opacity", "scales", "rotations"):
+        if not np.isfinite(getattr(splats, name)).all():
+            raise InputError(f"{path} has NaN or infinite splat {name}")
+    return splats
 
 
 def _vertex_dtype(text: str, path: PathLike) -> tuple[np.dtype, int]:

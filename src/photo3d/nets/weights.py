@@ -24,7 +24,9 @@ import torch
 from torch import Tensor, nn
 
 from photo3d.errors import InputError
+from photo3d.files.atomic import writing
 from photo3d.files.download import sha256_of
+from photo3d.io.bounded import loads_json
 from photo3d.nets.edge import EdgeGenerator
 from photo3d.nets.partialconv import PartialConvUNet, color_net, depth_net
 from photo3d.nets.refine import RefineNet
@@ -174,7 +176,8 @@ def load_net(kind: str, folder: str | Path) -> tuple[nn.Module, str]:
         if meta.get("photo3d_net", kind) != kind:
             raise InputError(f"{st.name} holds the {meta['photo3d_net']} net, not {kind}")
         try:
-            module = build_net(kind, **json.loads(meta.get("config", "{}")))
+            module = build_net(kind, **loads_json(meta.get("config", "{}"),
+                                                  what=f"{st.name}'s metadata"))
         except (TypeError, ValueError) as err:
             raise InputError(f"{st.name}: bad architecture metadata ({err})") from err
         check_state_dict(state, module, st.name)
@@ -239,5 +242,7 @@ def save_safetensors(module: nn.Module, path: str | Path, *,
     if dtype is not None:
         tensors = {k: v.to(dtype) if v.is_floating_point() else v for k, v in tensors.items()}
     path = Path(path)
-    save_file(tensors, str(path), metadata={"photo3d_net": kind, "config": json.dumps(config)})
+    with writing(path) as target:
+        save_file(tensors, str(target),
+                  metadata={"photo3d_net": kind, "config": json.dumps(config)})
     return path

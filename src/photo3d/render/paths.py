@@ -18,7 +18,6 @@ translation ``t = (x, y, z)`` of the camera-from-world pose:
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import replace
 from pathlib import Path
@@ -27,6 +26,7 @@ import numpy as np
 
 from photo3d.camera import Camera, Intrinsics
 from photo3d.errors import InputError, require
+from photo3d.io.bounded import MalformedJSON, loads_json, read_bytes
 
 STANDARD_PATHS = ("dolly-zoom-in", "zoom-in", "circle", "swing")
 _SHIFTS = {  # x, y, z of the authors' presets
@@ -267,8 +267,8 @@ def load_path(path: str | Path, intrinsics: Intrinsics, *, frames: int) -> list[
     if not path.is_file():
         raise InputError(f"camera path file not found: {path}")
     try:
-        text = path.read_text()
-    except (OSError, UnicodeDecodeError) as err:
+        text = read_bytes(path, max_bytes=16 << 20, what=f"camera path {path}").decode()
+    except UnicodeDecodeError as err:
         raise InputError(f"cannot read camera path {path}: {err}") from None
     is_yaml = path.suffix.lower() in (".yaml", ".yml")
     if is_yaml:
@@ -281,7 +281,10 @@ def load_path(path: str | Path, intrinsics: Intrinsics, *, frames: int) -> list[
                 raise InputError(f"cannot parse camera path {path}: "
                                  f"{' '.join(str(err).split())}") from None
         else:
-            data = json.loads(text)
+            try:
+                data = loads_json(text, what=f"camera path {path}")
+            except MalformedJSON as err:
+                raise InputError(f"cannot parse camera path {path}: {err.reason}") from None
     except InputError:  # the YAML message above, already one line naming the file
         raise
     except (ValueError, AttributeError) as err:

@@ -3,8 +3,9 @@
 ==============  ===========================================================
 module          stage
 ==============  ===========================================================
-``preprocess``  photo + disparity -> working size, filtered disparity, linked
-                depth edges (with ``filters`` and ``edges``)
+``preprocess``  photo + disparity -> working size, filtered disparity, its steps
+                on the photo's colour edges, linked depth edges (with
+                ``filters``, ``align`` and ``edges``)
 ``ldi``         the layered depth image, cut along the depth edges
 ``border``      the lattice extended past the frame
 ``regions``     per edge: synthesis and context regions

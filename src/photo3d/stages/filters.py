@@ -17,10 +17,17 @@ _CHUNKS = 4  # pieces per thread, so that no thread is left alone with the last
 
 
 @numba.njit(cache=True, nogil=True)
-def _weighted_median(vals, wts, n, half, top):  # pragma: no cover - jit
+def weighted_median(vals, wts, n, half, top):  # pragma: no cover - jit
     """The smallest of ``vals[:n] (float32)`` whose own and smaller values' weights
     ``wts[:n] (float32)`` sum to ``half`` or more (``top``, the largest, if none do),
-    by three-way partitions (quickselect; ``vals`` and ``wts`` are reordered)."""
+    by three-way partitions (quickselect; ``vals`` and ``wts`` are reordered). Called
+    from numba kernels (this filter's and :mod:`photo3d.stages.align`'s).
+
+    Example:
+        >>> vals = np.array([3, 1, 2], np.float32); wts = np.array([1, 1, 5], np.float32)
+        >>> float(weighted_median(vals, wts, 3, 3.5, 3.0))
+        2.0
+    """
     below = 0.0  # weight of the values known to be smaller than the answer
     lo, hi = 0, n  # the values still in question
     while lo < hi:
@@ -62,7 +69,7 @@ def _weighted_median_at(disp, ys, xs, radius, sigma_s, sigma_i, out, vals,
     """Fill ``out (K,) float32`` with the weighted median of the window of each pixel
     ``(ys[k], xs[k])`` of ``disp (H, W) float32`` (the window clipped at the image
     border): the smallest window value whose own and smaller values' weights (rounded
-    to float32) reach half of all its weights (:func:`_weighted_median`; ``vals`` and
+    to float32) reach half of all its weights (:func:`weighted_median`; ``vals`` and
     ``wts``: ``((2 radius + 1)^2,) float32`` scratch). Summed in float64, up to 64
     float32 weights give the same sums in any order while the largest is less than
     2^23 times the smallest (the defaults: 0.08 to 1), so this is the value the
@@ -91,7 +98,7 @@ def _weighted_median_at(disp, ys, xs, radius, sigma_s, sigma_i, out, vals,
                 n += 1
                 total += wt
                 top = max(top, v)
-        out[k] = _weighted_median(vals, wts, n, 0.5 * total, top)
+        out[k] = weighted_median(vals, wts, n, 0.5 * total, top)
 
 
 KERNELS = ((_weighted_median_at, "(float32[:, ::1], int64[::1], int64[::1], int64, float64, "

@@ -9,6 +9,7 @@ from PIL import Image
 
 from photo3d.config import Config, working_shape
 from photo3d.depth.normalize import normalize
+from photo3d.stages.align import align_edges
 from photo3d.stages.edges import DepthEdges, link_edges
 from photo3d.stages.filters import bilateral_median
 
@@ -92,7 +93,9 @@ def grow_foreground(disparity: np.ndarray, steps: int, threshold: float) -> np.n
 
 
 def preprocess(image: np.ndarray, disparity: np.ndarray, *, config: Config) -> Preprocessed:
-    """Resize, normalise, sharpen and find linked depth edges.
+    """Resize, normalise, sharpen, align the depth steps with the photo's colour edges
+    (``config.edges == "align"``: :func:`~photo3d.stages.align.align_edges`) and find
+    linked depth edges.
 
     Args:
         image: ``(H, W, 3) float32`` in [0, 1].
@@ -122,6 +125,10 @@ def preprocess(image: np.ndarray, disparity: np.ndarray, *, config: Config) -> P
         sigma_intensity=pre.sigma_intensity,
         threshold=pre.discontinuity,
     )
+    if config.edges == "align":
+        filtered = align_edges(img, filtered, radius=pre.align_radius,
+                               iterations=pre.align_iterations,
+                               sigma_color=pre.align_sigma_color, threshold=pre.discontinuity)
     if pre.grow_foreground > 0:
         scale = working / max(disparity.shape)  # working px per photo px
         filtered = grow_foreground(filtered, max(1, round(pre.grow_foreground * scale)),

@@ -206,7 +206,7 @@ def silhouettes_of(image: np.ndarray, disparity: np.ndarray, cuts: np.ndarray, *
         >>> silhouettes_of(img, disp, cuts, config=exact, working_size=1024).fringe
         0
     """
-    if config.edges == "exact":
+    if config.edges == "exact" or not config.silhouettes.soft:
         return Silhouettes(np.ones(disparity.shape, np.float32),
                            np.array(image, np.float32, copy=True), 0)
     sil = config.silhouettes

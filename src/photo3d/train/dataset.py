@@ -33,8 +33,9 @@ import numpy as np
 from photo3d.config import Config, working_shape
 from photo3d.depth.normalize import prepare_depth
 from photo3d.errors import InputError, OutputError
-from photo3d.files.atomic import is_temp_of, write_json
+from photo3d.files.atomic import is_temp_of, write_json, writing
 from photo3d.files.folders import IMAGE_SUFFIXES, depth_by_key, files_in
+from photo3d.io.bounded import read_json
 from photo3d.io.depth import read_depth
 from photo3d.io.images import read_image
 from photo3d.progress import StageProgress
@@ -260,8 +261,10 @@ def _signature(files: list[TrainingFile], options: dict) -> str:
 def _save_pool(path: Path, pool: list[RegionPair]) -> None:
     shapes = np.array([p.context.shape for p in pool], np.int64).reshape(-1, 2)
     flat = [np.concatenate([p.context.ravel(), p.synthesis.ravel()]) for p in pool]
-    np.savez_compressed(path, shapes=shapes, sources=np.array([p.source for p in pool]),
-                        masks=np.packbits(np.concatenate(flat)) if flat else np.zeros(0, np.uint8))
+    with writing(path) as target:
+        np.savez_compressed(target, shapes=shapes, sources=np.array([p.source for p in pool]),
+                            masks=(np.packbits(np.concatenate(flat)) if flat
+                                   else np.zeros(0, np.uint8)))
 
 
 def _load_pool(path: Path) -> list[RegionPair]:
@@ -281,8 +284,8 @@ def _load_pool(path: Path) -> list[RegionPair]:
 def _cache_signature(cache: Path) -> str | None:
     """The signature of a complete cache in ``cache``, None if there is none."""
     try:
-        index = json.loads((cache / "index.json").read_text())
-    except (OSError, UnicodeDecodeError, ValueError):  # missing, or not photo3d's
+        index = read_json(cache / "index.json")
+    except InputError:  # missing, or not photo3d's
         return None
     return index.get("signature") if isinstance(index, dict) else None
 
@@ -380,7 +383,8 @@ def prepare_data(files: list[TrainingFile], *, crop: int, region_size: int,
                 arrays = {"image": np.round(target.image * 255).astype(np.uint8)}
                 if target.disparity is not None:
                     arrays.update(disparity=target.disparity, edges=target.edges)
-                np.savez(path, **arrays)
+                with writing(path) as target:
+                    np.savez(target, **arrays)
                 targets.append(path)
         report("prepare", (i + 1) / (len(files) + builtin))
     if builtin:

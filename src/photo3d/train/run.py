@@ -32,7 +32,7 @@ from __future__ import annotations
 import csv
 import dataclasses
 import io
-import json
+import os
 import re
 import shutil
 import time
@@ -41,8 +41,16 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from photo3d.errors import ConfigError, InputError, OutputError
-from photo3d.files.atomic import atomic_path, write_bytes, write_json
+from photo3d.files.atomic import (
+    atomic_path,
+    open_append,
+    refuse_symlink,
+    write_bytes,
+    write_json,
+)
+from photo3d.files.gate import try_lock, unlock
 from photo3d.files.staging import remove_leftovers, stage_output
+from photo3d.io.bounded import read_json
 from photo3d.train.dataset import KINDS, TrainingData
 from photo3d.train.grid import sample_grid
 from photo3d.train.heldout import HeldoutLog, HeldoutSet, score_diffusion, score_net
@@ -108,8 +116,8 @@ def written_checkpoints(run_dir: str | Path) -> list[str]:
     try:
         if path.is_symlink() or path.stat().st_size > 1 << 20:
             return []
-        written = json.loads(path.read_text()).get("written")
-    except (OSError, UnicodeDecodeError, ValueError, AttributeError):
+        written = read_json(path, max_bytes=1 << 20).get("written")
+    except (OSError, InputError, AttributeError):
         return []
     if not isinstance(written, list):
         return []
@@ -181,10 +189,12 @@ def run_config(run_dir: str | Path) -> dict | None:
     path = run_dir / MARKER
     reason = ""
     try:
-        old = json.loads(path.read_text())
+        if not os.path.lexists(path):
+            raise FileNotFoundError(path)
+        old = read_json(path, max_bytes=1 << 20)
     except FileNotFoundError:
         reason = f"it has no {MARKER}"
-    except (OSError, UnicodeDecodeError, ValueError) as err:
+    except (OSError, InputError) as err:
         reason = f"its {MARKER} cannot be read ({str(err).splitlines()[0]})"
     else:
         fields = {f.name for f in dataclasses.fields(TrainConfig)}
@@ -202,12 +212,15 @@ def check_run(run_dir: str | Path, config: TrainConfig) -> None:
 
     Raises:
         OutputError: ``run_dir`` is not a folder, or not empty and not a photo3d
-            training run (:func:`run_config`).
+            training run (:func:`run_config`), or one of :data:`RUN_FILES` (or the
+            final weights) in it is a symbolic link.
         ConfigError: it holds a run of another architecture.
     """
     old = run_config(run_dir)
     if old is not None:
         _check_architecture(Path(run_dir), old, config)
+    for name in (*RUN_FILES, f"{config.kind}.safetensors"):
+        refuse_symlink(Path(run_dir) / name, hint="remove it, or choose a new --out folder")
 
 
 def open_run(run_dir: str | Path, config: TrainConfig) -> Path:
@@ -217,16 +230,20 @@ def open_run(run_dir: str | Path, config: TrainConfig) -> Path:
     until :func:`train` starts), so an interrupted data preparation leaves a folder
     that the next run recognises and resumes. Returns ``run_dir`` as a Path.
 
+    The folder is locked for this process (``flock``), so a second ``train`` on it
+    is refused (``another photo3d train is running in RUN_DIR``) until this one ends.
+
     Raises:
-        OutputError: as :func:`check_run`; or the folder or its marker cannot be
-            written (read-only or full disk: one line, and the folders this call
-            created are removed again).
+        OutputError: as :func:`check_run`; another process holds the folder; or the
+            folder or its marker cannot be written (read-only or full disk: one
+            line, and the folders this call created are removed again).
     """
     run_dir = Path(run_dir)
     check_run(run_dir, config)
     made = [p for p in (*reversed(run_dir.parents), run_dir) if not p.exists()]
     try:
         run_dir.mkdir(parents=True, exist_ok=True)
+        _hold(run_dir)
         if not (run_dir / MARKER).is_file():
             write_json(run_dir / MARKER, config.to_dict())
     except OSError as err:  # a read-only or full disk: one line, no empty folder left
@@ -237,6 +254,34 @@ def open_run(run_dir: str | Path, config: TrainConfig) -> Path:
         _remove_made(made)
         raise
     return run_dir
+
+
+RUN_FILES = (MARKER, RECORD, "losses.csv", "heldout.csv", "samples", "checkpoints", "data")
+"""What a run writes in its folder (and ``<kind>.safetensors``): none may be a
+symbolic link (:func:`check_run`), so nothing is written outside the folder."""
+
+_HELD: dict[str, int] = {}
+"""Run folders this process holds (real path -> the locked descriptor)."""
+
+
+def _hold(run_dir: Path) -> None:
+    """Lock ``run_dir`` for this process (once): a second ``train`` on the same folder
+    is refused instead of both writing it. The lock goes with the process (or
+    :func:`_release`)."""
+    key = os.path.realpath(run_dir)
+    if key in _HELD:
+        return
+    fd = try_lock(run_dir)
+    if fd is None:
+        raise OutputError(f"another photo3d train is running in {run_dir}; wait for it to "
+                          "finish or choose another --out folder")
+    _HELD[key] = fd
+
+
+def _release(run_dir: Path) -> None:
+    fd = _HELD.pop(os.path.realpath(run_dir), None)
+    if fd is not None:
+        unlock(fd)
 
 
 _DEFAULTS = {"center": False, "arch": "partialconv", "channels": 16, "edges": True}
@@ -298,7 +343,7 @@ class _LossLog:
                                                               for r in rows)]))
         values = {"step": step, "seconds": f"{seconds:.4f}",
                   **{k: f"{v:.6g}" for k, v in terms.items()}}
-        with open(self.path, "a", newline="") as f:
+        with open_append(self.path) as f:
             csv.writer(f).writerow([values.get(c, "") for c in self.columns])
 
 
@@ -343,6 +388,16 @@ def train(data: TrainingData, run_dir: str | Path, config: TrainConfig, *,
     """
     data.check(config.kind)
     run_dir = open_run(run_dir, config)
+    try:
+        return _train(data, run_dir, config, device=device, features=features,
+                      progress=progress, heldout=heldout)
+    finally:
+        _release(run_dir)
+
+
+def _train(data: TrainingData, run_dir: Path, config: TrainConfig, *, device, features,
+           progress: StepProgress | None, heldout: HeldoutSet | None) -> TrainResult:
+    """:func:`train` in the run folder it opened and holds."""
     trainer = Trainer(config, device=device, features=features)
     saved = checkpoints(run_dir)
     check_checkpoints(run_dir, config, start=saved[-1][0] if saved else 0)
@@ -390,9 +445,9 @@ def _resume(trainer: Trainer, checkpoint: tuple[int, Path]) -> int:
     step, folder = checkpoint
     path = folder / "state.json"
     try:
-        state = json.loads(path.read_text())
+        state = read_json(path, max_bytes=1 << 20)
         ok = isinstance(state, dict) and state.get("step") == step
-    except (OSError, UnicodeDecodeError, ValueError):
+    except (OSError, InputError):
         ok = False
     if not ok:
         raise InputError(f"checkpoint {path} is damaged (not the state of step {step}); "

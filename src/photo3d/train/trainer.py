@@ -15,7 +15,7 @@ optimiser states as ``optimizer.pt`` (tensors, numbers and lists only: read back
 from __future__ import annotations
 
 import dataclasses
-import json
+import io
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -24,6 +24,8 @@ import torch
 from torch import Tensor, nn
 
 from photo3d.errors import ConfigError, InputError
+from photo3d.files.atomic import open_write, write_json, writing
+from photo3d.io.bounded import read_bytes, read_json
 from photo3d.nets.edge import EdgeDiscriminator
 from photo3d.nets.weights import (
     build_net,
@@ -295,25 +297,21 @@ class Trainer:
         save_safetensors(self.net, folder / f"{self.config.kind}.safetensors")
         optim = {"generator": self.optimizer.state_dict()}
         if self.discriminator is not None:
-            save_file({k: v.detach().cpu().contiguous() for k, v in
-                       self.discriminator.state_dict().items()},
-                      str(folder / "discriminator.safetensors"))
+            with writing(folder / "discriminator.safetensors") as target:
+                save_file({k: v.detach().cpu().contiguous() for k, v in
+                           self.discriminator.state_dict().items()}, str(target))
             optim["discriminator"] = self.d_optimizer.state_dict()
-        torch.save(optim, folder / "optimizer.pt")
-        (folder / "state.json").write_text(json.dumps(
-            {"step": int(step), "config": self.config.to_dict()}, indent=2))
+        with open_write(folder / "optimizer.pt") as file:
+            torch.save(optim, file)
+        write_json(folder / "state.json", {"step": int(step), "config": self.config.to_dict()})
         return folder
 
     def load(self, folder: str | Path) -> int:
         """Restore a checkpoint written by :meth:`save`; returns its step."""
         folder = Path(folder)
-        state = json.loads((folder / "state.json").read_text())
+        state = read_json(folder / "state.json")
         _load_module(self.net, folder / f"{self.config.kind}.safetensors")
-        try:
-            optim = torch.load(folder / "optimizer.pt", map_location=self.device,
-                               weights_only=True)
-        except Exception as err:  # torch.load raises many types on malformed input
-            raise InputError(f"cannot read {folder / 'optimizer.pt'}: {err}") from err
+        optim = self._read_optimizer(folder / "optimizer.pt")
         self.optimizer.load_state_dict(optim["generator"])
         if self.discriminator is not None:
             if self.config.kind != "edge" and "discriminator" not in optim:
@@ -321,6 +319,24 @@ class Trainer:
             _load_module(self.discriminator, folder / "discriminator.safetensors")
             self.d_optimizer.load_state_dict(optim["discriminator"])
         return int(state["step"])
+
+    def _read_optimizer(self, path: Path) -> dict:
+        """The optimizer states of ``optimizer.pt``, its size bounded before it is read
+        (Adam keeps two tensors a parameter; 4x the nets' bytes plus 16 MB is far
+        more than any photo3d writes); anything torch cannot read is one line."""
+        nets = [self.net] + ([self.discriminator] if self.discriminator is not None else [])
+        limit = (16 << 20) + 4 * sum(p.numel() * p.element_size()
+                                     for net in nets for p in net.parameters())
+        data = read_bytes(path, max_bytes=limit)
+        try:
+            optim = torch.load(io.BytesIO(data), map_location=self.device, weights_only=True)
+        except Exception as err:  # noqa: BLE001 - torch.load raises many types on bad input
+            first = (str(err).strip().splitlines() or [type(err).__name__])[0]
+            raise InputError(f"cannot read {path}: not a checkpoint photo3d train wrote "
+                             f"({first[:160]})") from None
+        if not isinstance(optim, dict) or "generator" not in optim:
+            raise InputError(f"cannot read {path}: not a checkpoint photo3d train wrote")
+        return optim
 
     def export(self, path: str | Path) -> Path:
         """Write the net as ``.safetensors`` for ``photo3d make --inpainter learned``."""

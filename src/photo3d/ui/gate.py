@@ -13,7 +13,9 @@ the web framework that checks the ``Host:`` header and serves the requests' resu
   too. Any other ``/photo3d/`` address is 404. (Gradio itself serves only the
   server's upload folder.)
 * With a login, results need it as the rest of the server does (the session cookie
-  Gradio's login sets).
+  Gradio's login sets), and so does the web framework's own description of its API
+  (:data:`DESCRIPTIONS`: ``/openapi.json``, ``/docs``, ``/redoc``), which Gradio
+  serves to anyone.
 * A client that hangs up mid-request (an aborted upload) ends it quietly, and an
   upload Gradio fails on gets ``400`` with the one-line reason: neither leaves a
   traceback in the server's log.
@@ -45,6 +47,8 @@ PREFIX = "/photo3d/file/"
 
 _RESULT = re.compile(r"(?:/gradio_api/file[=/]https?:/+[^/]*)?/photo3d/file/"
                      r"([A-Za-z0-9_-]{22})/([^/]+)")
+DESCRIPTIONS = ("/openapi.json", "/docs", "/docs/oauth2-redirect", "/redoc")
+"""FastAPI's own pages about the API: they need the login too."""
 _INLINE = ("image/png", "image/jpeg", "video/mp4", "video/webm", "image/gif")
 """Types a browser may show in the page (the depth map, the videos); the rest is
 downloaded."""
@@ -94,6 +98,9 @@ class Gate:
                           if hosts else "Bad Request: exactly one Host header is required")
             return
         path = scope.get("path", "")
+        if path.rstrip("/") in DESCRIPTIONS and not _logged_in(scope):
+            await _refuse(scope, receive, send, 401, "Not authenticated")
+            return
         found = result_token(path)
         if found is None and not path.startswith("/photo3d/"):
             await self._pass(scope, receive, send)

@@ -28,7 +28,7 @@ from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from photo3d.config import Config
+from photo3d.config import EDGES, Config
 from photo3d.errors import ConfigError
 from photo3d.folder import MakeOptions, output_bytes
 from photo3d.save_options import SaveOptions
@@ -80,12 +80,16 @@ class JobOptions:
         paths: camera path presets (:data:`CAMERA_PATHS`), each made once, in the
             order first given (at most :data:`MAX_PATHS` entries).
         ply: also write ``mesh.ply`` (the full mesh, large; True or False).
+        edges: where the depth edges go (:attr:`~photo3d.config.Config.edges`):
+            ``align`` (on the photo's colour edges) or ``exact``.
 
     Example:
         >>> options = JobOptions(size=512, paths=["swing"])
         >>> make = options.make_options()
         >>> make.config.size, [v.path for v in make.save.videos], make.save.ply
         (512, ['swing'], None)
+        >>> make.config.edges, JobOptions(edges="exact").make_options().config.edges
+        ('align', 'exact')
         >>> make.save.exports
         ('splats.spz',)
         >>> JobOptions(paths=["swing", "circle", "swing"]).paths
@@ -105,6 +109,7 @@ class JobOptions:
     videos: bool = True
     paths: tuple[str, ...] = ("circle",)
     ply: bool = False
+    edges: str = Config.edges
 
     def __post_init__(self) -> None:
         paths = () if self.paths is None else self.paths
@@ -123,6 +128,7 @@ class JobOptions:
         _one_of("fill", self.fill, FILLS)
         _one_of("depth source", self.source, SOURCES)
         _one_of("depth kind", self.depth_kind, ("disparity", "depth"))
+        _one_of("edges", self.edges, EDGES)
         for name in ("videos", "ply"):
             if not isinstance(getattr(self, name), bool):
                 raise ConfigError(f"{name} must be true or false, got {getattr(self, name)!r}")
@@ -136,7 +142,8 @@ class JobOptions:
         from photo3d.render.animate import VideoSpec
         from photo3d.render.renderer import video_settings
 
-        config = Config().with_(size=self.size or None, inpainter=self.fill)
+        config = Config().with_(size=self.size or None, inpainter=self.fill,
+                                edges=self.edges)
         videos = tuple(VideoSpec(path=p) for p in self.paths) if self.videos else ()
         chosen = (("weights", weights),) if weights is not None and self.fill == "learned" else ()
         return MakeOptions(config=config, depth_kind=self.depth_kind, inpainter_options=chosen,

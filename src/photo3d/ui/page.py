@@ -10,9 +10,9 @@ error is one line there.
 
 The same job is the API endpoint ``/make`` (parameters ``photo``, ``depth``,
 ``right``, ``size``, ``fill``, ``source``, ``depth_kind``, ``videos``, ``paths``,
-``ply``; every one but ``photo`` has a default), returning the GLB, the zip (which
-holds ``splats.spz`` too), the depth preview and the videos; an error is raised to
-the client as one line (the server logs no traceback for it). Page and API share
+``ply``, ``edges``; every one but ``photo`` has a default), returning the GLB, the
+zip (which holds ``splats.spz`` too), the depth preview and the videos; an error is
+raised to the client as one line (the server logs no traceback for it). Page and API share
 one queue with ``workers`` places.
 
 Both take what the client sent as it is (Gradio's own conversions are off, so every
@@ -34,6 +34,7 @@ from contextlib import aclosing
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from photo3d.config import EDGES
 from photo3d.errors import Photo3DError, require
 from photo3d.files.folders import DEPTH_SUFFIXES, PHOTO_SUFFIXES
 from photo3d.ui.gate import result_url
@@ -140,6 +141,10 @@ def build_app(runner: Runner, warmup: Warmup, *, workers: int = 1,
                     paths = gr.CheckboxGroup(list(CAMERA_PATHS), value=list(DEFAULT.paths),
                                              label="Camera paths")
                     ply = gr.Checkbox(DEFAULT.ply, label="Also the full mesh as PLY (large)")
+                    edges = gr.Radio(list(EDGES), value=DEFAULT.edges, label="Depth edges "
+                                     "(align: moved onto the photo's colour edges; exact: "
+                                     "where the depth map puts them)",
+                                     elem_id="photo3d-edges")
             with gr.Column(scale=2, min_width=480):
                 viewer = gr.HTML(elem_id="photo3d-viewer", min_height=120)
                 with gr.Row():
@@ -155,19 +160,20 @@ def build_app(runner: Runner, warmup: Warmup, *, workers: int = 1,
                                             elem_id="photo3d-videos")
                 video_files = gr.File(file_count="multiple", visible=False)
 
-        inputs = [photo, depth, right, size, fill, source, depth_kind, videos, paths, ply]
+        inputs = [photo, depth, right, size, fill, source, depth_kind, videos, paths, ply,
+                  edges]
 
         async def make_page(photo, depth=None, right=None, size=DEFAULT.size,
                             fill=DEFAULT.fill, source=DEFAULT.source,
                             depth_kind=DEFAULT.depth_kind, videos=DEFAULT.videos,
-                            paths=DEFAULT.paths, ply=DEFAULT.ply,
+                            paths=DEFAULT.paths, ply=DEFAULT.ply, edges=DEFAULT.edges,
                             progress=gr.Progress(), request=None):  # noqa: B008
             served = Served(runner, request)
             shown = False
             try:
                 async with aclosing(_results(runner, progress, photo, depth, right, size,
                                              fill, source, depth_kind, videos, paths,
-                                             ply)) as results:
+                                             ply, edges)) as results:
                     async for result in results:
                         videos_out = served.gallery(result.videos)
                         if shown:  # the videos' turn: the 3D photo, depth, GLB, splats stay
@@ -186,13 +192,14 @@ def build_app(runner: Runner, warmup: Warmup, *, workers: int = 1,
         async def make(photo, depth=None, right=None, size=DEFAULT.size, fill=DEFAULT.fill,
                        source=DEFAULT.source, depth_kind=DEFAULT.depth_kind,
                        videos=DEFAULT.videos, paths=DEFAULT.paths, ply=DEFAULT.ply,
+                       edges=DEFAULT.edges,
                        progress=gr.Progress(), request=None):  # noqa: B008
             served = Served(runner, request)
             final = None
             try:
                 async with aclosing(_results(runner, progress, photo, depth, right, size,
                                              fill, source, depth_kind, videos, paths,
-                                             ply)) as results:
+                                             ply, edges)) as results:
                     async for result in results:
                         final = result
             except RequestError as err:
@@ -313,7 +320,7 @@ def _upload(value, what: str) -> tuple[str | None, str | None]:
 
 
 async def _results(runner: Runner, progress, photo, depth, right, size, fill, source,
-                   depth_kind, videos, paths, ply) -> AsyncIterator[JobResult]:
+                   depth_kind, videos, paths, ply, edges) -> AsyncIterator[JobResult]:
     """Check what the client sent and run the request in its own thread (the page's
     and the API's): the results :meth:`~photo3d.ui.runner.Runner.run` yields. When the
     consumer stops early (the client cancelled: Gradio cancels the task or closes
@@ -321,7 +328,7 @@ async def _results(runner: Runner, progress, photo, depth, right, size, fill, so
     progress report and its folder is removed."""
     try:
         options = JobOptions(size=size, fill=fill, source=source, depth_kind=depth_kind,
-                             videos=videos, paths=paths, ply=ply)
+                             videos=videos, paths=paths, ply=ply, edges=edges)
     except Photo3DError as err:
         raise RequestError(str(err)) from None
     (photo, name), (depth, _), (right, _) = (_upload(photo, "photo"),

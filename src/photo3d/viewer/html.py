@@ -34,6 +34,8 @@ from importlib import resources
 from pathlib import Path
 
 from photo3d.errors import InputError, OutputError
+from photo3d.files.atomic import open_write
+from photo3d.io.bounded import loads_json
 from photo3d.structures.mesh import Mesh, TexturedMesh
 from photo3d.viewer._codec import decode_mesh, encode_mesh
 
@@ -84,7 +86,7 @@ def write_viewer(mesh: Mesh | TexturedMesh, path: PathLike, *, title: str = "pho
     after = after.replace("{{SCRIPT}}", _script())
     path = Path(path)
     try:
-        with open(path, "wb") as f:
+        with open_write(path) as f:
             f.write(before.encode("utf-8"))
             f.write(base64.b64encode(payload))
             f.write(after.encode("utf-8"))
@@ -118,7 +120,7 @@ def read_viewer(path: PathLike) -> Mesh | TexturedMesh:
     if not all(parts):
         raise InputError(f"{path} is not a photo3d viewer page (no embedded mesh)")
     try:
-        header = json.loads(parts[0].group(1))
+        header = loads_json(parts[0].group(1), what=f"{path}'s header")
         payload = base64.b64decode(parts[1].group(1), validate=True)
     except ValueError as err:
         raise InputError(f"{path}: damaged viewer data: {err}") from None

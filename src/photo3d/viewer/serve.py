@@ -222,7 +222,9 @@ class ViewerServer:
 
 def serve(folder: str | os.PathLike[str], *, port: int = 0, open_browser: bool = True,
           on_ready: Callable[[str, bool], None] | None = None) -> None:
-    """Serve ``folder`` on 127.0.0.1 in the foreground until Ctrl-C, then return.
+    """Serve ``folder`` on 127.0.0.1 in the foreground until interrupted: Ctrl-C's
+    :class:`KeyboardInterrupt` (or a termination signal's, under
+    :func:`~photo3d.files.signals.handle_signals`) is raised once the server is closed.
 
     Args:
         folder: a 3D photo folder holding ``viewer.html``.
@@ -240,10 +242,7 @@ def serve(folder: str | os.PathLike[str], *, port: int = 0, open_browser: bool =
         opened = open_browser and open_in_browser(server.url)
         if on_ready is not None:
             on_ready(server.url, opened)
-        try:
-            server.serve_forever()
-        except KeyboardInterrupt:  # Ctrl-C is how the user stops serving
-            return
+        server.serve_forever()  # until Ctrl-C or a signal: raised after the server closes
 
 
 def open_in_browser(url: str) -> bool:

@@ -1,0 +1,64 @@
+"""The occlusion-edges section of ``RESULTS.md`` (issue 44; ``benchmarks/bench_edges.py``)."""
+
+from __future__ import annotations
+
+ROWS = ("exact", "spread1", "spread2", "spread3", "shrunk1", "shrunk2", "blurred",
+        "motorcycle/gt", "motorcycle/stereo")
+
+
+def _cell(s: dict) -> str:
+    return (f"{s['lpips_steps']:.4f} / {s['psnr_steps']:.2f} / {s['gross_steps']:.1%} | "
+            f"{s['lpips_disoccluded']:.4f} / {s['psnr_disoccluded']:.2f} | "
+            f"{s['lpips_all']:.4f} / {s['psnr_all']:.2f}")
+
+
+def section_edges(load, machine_line, missing) -> str:
+    """Per depth condition and version: steps LPIPS / PSNR / gross errors, disoccluded
+    and whole-view LPIPS / PSNR; the targets; ``make``'s time on the sample."""
+    out = ["## Occlusion edges: depth steps on the photo's colour edges (issue 44)", ""]
+    rec = load("edges.json")
+    if rec is None:
+        return "\n".join(out) + "\n" + missing("python benchmarks/bench_edges.py")
+    versions = rec["versions"]
+    others = ", ".join(f"`{k}`: {v['overrides']}" for k, v in versions.items() if v["overrides"])
+    if rec.get("parts"):  # several processes at once, joined by --merge
+        runs = "; ".join(f"`{c}`" for c in rec["parts"])
+        command = f"{runs}, joined by `{rec['command']}`"
+    else:
+        command = f"`{rec['command']}`"
+    out += [f"Command: {command}. Machine: {machine_line(rec)}. Sizes: {rec['size']}. "
+            f"`ref` is commit `{rec['ref']}` (the code before issue 44), `new` this tree's "
+            "defaults, other columns this tree with other settings "
+            f"({others}). "
+            "Scenes: the median over three layered scenes of the mean over 8 exact views; "
+            "the motorcycle: its right view. Cells: LPIPS / PSNR (dB) / share off by > 0.25 "
+            "within 4 px of depth steps | LPIPS / PSNR of the disoccluded pixels | of the "
+            "whole view (method: the script's docstring).", ""]
+    out += ["| depth | version | within 4 px of steps | disoccluded | whole view |",
+            "| --- | --- | --- | --- | --- |"]
+    for row in ROWS:
+        for name, v in versions.items():
+            s = v["summary"].get(row)
+            if s:
+                out.append(f"| {row} | {name} | {_cell(s)} |")
+    out.append("")
+    lines = []
+    for name, v in versions.items():
+        s = v["summary"]
+        if "exact" in s and "spread2" in s:
+            lines.append(f"`{name}` {s['spread2']['lpips_steps'] / s['exact']['lpips_steps']:.2f}x"
+                         f" (gross {s['spread2']['gross_steps']:.1%})")
+    out += ["Spread 2 px against exact depth, LPIPS within 4 px of steps (target <= 1.3x, "
+            "gross <= 3 %): " + ", ".join(lines) + ".", ""]
+    t = load("edges_time.json")
+    if t is not None:
+        m, load0 = t["median"], t["runs"]["new"][0]["load_1min"][0]
+        out += [f"`make` of the sample at 1024 px (`{t['command']}`, {len(t['runs']['new'])} "
+                f"alternating runs each, medians; load average {load0:.1f} at the start): "
+                f"ref {m['ref']['make_s']:.2f} s (preprocess "
+                f"{m['ref']['preprocess_s']:.2f} s), new {m['new']['make_s']:.2f} s (preprocess "
+                f"{m['new']['preprocess_s']:.2f} s): {t['ratio_make']:.2f}x (target <= 1.15x); "
+                f"CPU time {m['ref']['cpu_s']:.2f} -> {m['new']['cpu_s']:.2f} s "
+                f"({m['new']['cpu_s'] / m['ref']['cpu_s']:.2f}x).",
+                ""]
+    return "\n".join(out)
