@@ -20,7 +20,7 @@ from typing import Any
 from photo3d.errors import ConfigError
 
 REFERENCE_SIZE = 1024
-EDGES = ("align", "exact")
+EDGES = ("align", "soft", "exact")
 """The values of :attr:`Config.edges`."""
 
 
@@ -108,11 +108,7 @@ class RegionConfig:
 @dataclass(frozen=True)
 class SilhouetteConfig:
     """Soft silhouettes: coverage of the mixed pixels along occluding contours
-    (:mod:`photo3d.stages.silhouettes`; with :attr:`Config.edges` ``align`` only)."""
-
-    soft: bool = True
-    """Give the mixed pixels along occluding contours a coverage (alpha) and their
-    foreground colour; False cuts every silhouette hard (``docs/edges.md``)."""
+    (:mod:`photo3d.stages.silhouettes`; with :attr:`Config.edges` ``soft`` only)."""
 
     band: int = 3
     """Near-side pixels this close to a depth edge (px at 1024) get an alpha and a
@@ -140,8 +136,11 @@ class Config:
     edges: str = "align"
     """Where the depth edges go: ``align`` moves every depth step onto the photo's
     colour edge within a few pixels before the LDI is cut (depth from networks and
-    stereo is fat or smooth at silhouettes; ``docs/edges.md``), ``exact`` keeps them
-    where the depth map puts them (depth known to be exact, or the old behaviour)."""
+    stereo is fat or smooth at silhouettes; ``docs/edges.md``), ``soft`` does that and
+    gives the mixed pixels along each occluding contour a coverage (alpha) and their
+    foreground colour (soft silhouettes, :attr:`silhouettes`; not the default: measured
+    worse on novel views, ``docs/edges.md``), ``exact`` keeps the steps where the depth
+    map puts them (depth known to be exact, or the old behaviour)."""
     metric: bool = False
     """Keep the depth input's units (needs ``depth_kind="depth"``): z of every LDI pixel
     is the input depth instead of the authors' normalised [1/3, 20] range."""

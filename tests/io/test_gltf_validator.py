@@ -65,7 +65,7 @@ def test_soft_silhouettes_are_a_valid_blended_primitive(tmp_path):
     image[:, 30:34] = (0.9, 0.1, 0.1)  # a red pole, its depth 2 px too wide
     depth = np.full((48, 64), 6.0, np.float32)
     depth[:, 28:36] = 2.0
-    config = Config(size=None, depth_kind="depth", spatial_scale=1.0)
+    config = Config(size=None, depth_kind="depth", spatial_scale=1.0, edges="soft")
     photo = photo3d.make(image, depth=depth, config=config)
     light = photo.light_mesh()
     assert light.overlay is not None and photo.ldi.soft

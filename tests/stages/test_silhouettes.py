@@ -80,7 +80,7 @@ def _reddish(colors: np.ndarray) -> np.ndarray:
 
 def test_spread_depth_leaves_no_pole_colour_behind_or_around_the_pole():
     image, depth = _pole(spread=2)
-    config = Config(size=None, depth_kind="depth", spatial_scale=1.0)
+    config = Config(size=None, depth_kind="depth", spatial_scale=1.0, edges="soft")
     aligned = photo3d.make(image, depth=depth, config=config).ldi
     near = (aligned.depth() < 4.0) & (aligned.label == 1)
     assert not (near & ((aligned.x < 29) | (aligned.x > 34))).any()  # the step moved back
@@ -97,13 +97,14 @@ def test_spread_depth_leaves_no_pole_colour_behind_or_around_the_pole():
     assert ldi.alpha[near & (ldi.x >= 30) & (ldi.x < 34)].min() > 0.9
 
 
-def test_exact_edges_keep_the_hard_cut():
+@pytest.mark.parametrize("edges", ["exact", "align"])
+def test_other_edges_keep_the_hard_cut(edges):
     image, depth = _pole(spread=2)
-    config = Config(size=None, depth_kind="depth", spatial_scale=1.0, edges="exact")
+    config = Config(size=None, depth_kind="depth", spatial_scale=1.0, edges=edges)
     ldi = photo3d.make(image, depth=depth, config=config).ldi
     assert not ldi.soft and np.array_equal(ldi.color[:image.shape[0] * image.shape[1]],
                                            image.reshape(-1, 3))
-    soft = photo3d.make(image, depth=depth, config=config.with_(edges="align")).ldi
+    soft = photo3d.make(image, depth=depth, config=config.with_(edges="soft")).ldi
     assert soft.soft
 
 
@@ -113,13 +114,14 @@ def test_config_edges_round_trip_and_old_configs():
     old = Config().to_dict()
     del old["edges"], old["silhouettes"]
     assert Config.from_dict(old).edges == "align"
+    assert Config.from_dict(Config(edges="soft").to_dict()).edges == "soft"
     with pytest.raises(ValueError, match="edges must be"):
-        Config(edges="soft")
+        Config(edges="alpha")
 
 
 def _small_soft_ldi():
     image, depth = _pole(spread=1)
-    config = Config(size=None, depth_kind="depth", spatial_scale=1.0)
+    config = Config(size=None, depth_kind="depth", spatial_scale=1.0, edges="soft")
     return photo3d.make(image, depth=depth, config=config).ldi
 
 
@@ -207,7 +209,7 @@ def test_glb_files_keep_the_fringe_and_its_alpha(tmp_path):
     from photo3d.io.light_glb import read_light_glb
 
     image, depth = _pole(spread=2)
-    config = Config(size=None, depth_kind="depth", spatial_scale=1.0)
+    config = Config(size=None, depth_kind="depth", spatial_scale=1.0, edges="soft")
     photo = photo3d.make(image, depth=depth, config=config)
     light = photo.light_mesh()
     write_textured_glb(tmp_path / "light.glb", light)
@@ -236,7 +238,7 @@ def test_usdz_holds_the_fringe_with_its_opacity(tmp_path):
 
     del pxr
     image, depth = _pole(spread=2)
-    config = Config(size=None, depth_kind="depth", spatial_scale=1.0)
+    config = Config(size=None, depth_kind="depth", spatial_scale=1.0, edges="soft")
     ldi = photo3d.make(image, depth=depth, config=config).ldi
     path = tmp_path / "mesh.usdz"
     write_usdz(ldi, path)

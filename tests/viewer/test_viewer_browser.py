@@ -302,7 +302,7 @@ def test_soft_silhouettes_are_blended_in_the_page(browser, tmp_path):
     depth = np.full((HEIGHT, WIDTH), 6.0, np.float32)
     depth[:, 42:52] = 2.0
     photo = photo3d.make(image, depth=depth, config=Config(size=None, depth_kind="depth",
-                                                           spatial_scale=1.0))
+                                                           spatial_scale=1.0, edges="soft"))
     light = build_light_mesh(photo.ldi)
     assert light.overlay is not None
     hard = replace(light, overlay=replace(light.overlay,

@@ -142,7 +142,7 @@ def test_soft_silhouettes_round_trip(tmp_path):
     depth = np.full((40, 48), 6.0, np.float32)
     depth[:, 18:26] = 2.0
     photo = photo3d.make(image, depth=depth, config=Config(size=None, depth_kind="depth",
-                                                           spatial_scale=1.0))
+                                                           spatial_scale=1.0, edges="soft"))
     full = photo.mesh()
     back = read_viewer(write_viewer(full, tmp_path / "full.html"))
     assert len(back.faces) == len(full.faces)

@@ -101,7 +101,7 @@ def start(pre: Preprocessed, *, config: Config, border: bool = True,
           intrinsics: Intrinsics | None = None,
           mapping: DepthMapping | None = None) -> PassInput:
     """The first pass's input: ``pre``'s one-layer LDI cut along its depth edges (its
-    silhouettes soft unless ``config.edges`` is ``exact``:
+    silhouettes soft if ``config.edges`` is ``soft``:
     :func:`~photo3d.stages.silhouettes.silhouettes_of`), with the extrapolated frame
     (``config.regions.border`` px at 1024) unless ``border`` is off.
 

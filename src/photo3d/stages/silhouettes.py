@@ -189,8 +189,8 @@ def soft_silhouettes(image: np.ndarray, disparity: np.ndarray, cuts: np.ndarray,
 
 def silhouettes_of(image: np.ndarray, disparity: np.ndarray, cuts: np.ndarray, *,
                    config: Config, working_size: int) -> Silhouettes:
-    """:func:`soft_silhouettes` with ``config``'s settings (``config.edges == "exact"``:
-    none, alpha 1 everywhere and the photo's colours).
+    """:func:`soft_silhouettes` with ``config``'s settings (unless ``config.edges`` is
+    ``soft``: none, alpha 1 everywhere and the photo's colours).
 
     Args:
         image, disparity, cuts: as :func:`soft_silhouettes`, at the working size.
@@ -202,11 +202,12 @@ def silhouettes_of(image: np.ndarray, disparity: np.ndarray, cuts: np.ndarray, *
         >>> img = np.zeros((8, 12, 3), np.float32); img[:, 6:] = 1.0; img[:, 6] = 0.25
         >>> disp = np.zeros((8, 12), np.float32); disp[:, 6:] = 1.0
         >>> cuts = np.zeros((8, 12), np.uint8); cuts[:, 5] = 2  # right of column 5
-        >>> exact = Config(edges="exact")
-        >>> silhouettes_of(img, disp, cuts, config=exact, working_size=1024).fringe
+        >>> silhouettes_of(img, disp, cuts, config=Config(), working_size=1024).fringe
         0
+        >>> silhouettes_of(img, disp, cuts, config=Config(edges="soft"), working_size=1024).fringe
+        8
     """
-    if config.edges == "exact" or not config.silhouettes.soft:
+    if config.edges != "soft":
         return Silhouettes(np.ones(disparity.shape, np.float32),
                            np.array(image, np.float32, copy=True), 0)
     sil = config.silhouettes
