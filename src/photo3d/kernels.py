@@ -52,8 +52,9 @@ def kernels() -> list[tuple[object, tuple[str, ...]]]:
     from photo3d.stages.silhouettes import KERNELS as SILHOUETTES
 
     pairs: dict[object, list[str]] = {}
-    for kernel, signature in (*FILTERS, *ALIGN, *EDGES, *SILHOUETTES, *REGIONS, *DIFFUSION, *CONTINUATION,
-                              *EXEMPLAR, *MERGE, *FACES, *PLANAR, *CHARTS, *COLLAPSE):
+    for kernel, signature in (*FILTERS, *ALIGN, *EDGES, *SILHOUETTES, *REGIONS, *DIFFUSION,
+                              *CONTINUATION, *EXEMPLAR, *MERGE, *FACES, *PLANAR, *CHARTS,
+                              *COLLAPSE):
         pairs.setdefault(kernel, []).append(signature)
     return [(kernel, tuple(sigs)) for kernel, sigs in pairs.items()]
 

@@ -6,7 +6,6 @@ from __future__ import annotations
 import json
 import warnings
 import zipfile
-
 from dataclasses import replace
 
 import numpy as np
