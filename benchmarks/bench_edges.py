@@ -71,6 +71,7 @@ VARIANTS: dict[str, dict] = {
     "grow0": {"preprocess": {"grow_foreground": 0.0}},
     "grow1": {"preprocess": {"grow_foreground": 1.0}},
     "exact-grow0": {"edges": "exact", "preprocess": {"grow_foreground": 0.0}},
+    "soft": {"edges": "soft"},
 }
 """Settings of this tree's variants (nested ``Config.to_dict`` keys)."""
 

@@ -41,8 +41,8 @@ def two_planes(h: int = 64, w: int = 96, split: int = 48) -> tuple[np.ndarray, n
 
 def exact_config(**regions) -> Config:
     """Config with spatial sizes taken literally (no scaling), no border by default,
-    depth edges where the depth map puts them (no foreground growth), the diffusion
-    fill (smooth, exact answers)."""
+    depth edges where the depth map puts them (no foreground growth, hard cuts:
+    ``edges="exact"``), the diffusion fill (smooth, exact answers)."""
     base = dict(synthesis_iterations=6, context_iterations=10, edge_dilation=0, border=0)
     base.update(regions)
     return Config(size=None, spatial_scale=1.0, inpainter="diffusion", edges="exact",

@@ -61,6 +61,10 @@ BENCHMARKS = [
     ["bench_learned.py", "--edge-unit", "8", "--precision", "bf16"],
     ["bench_learned.py", "--runs", "3", "--out", "benchmarks/results/learned_shared.json"],
     ["bench_edge_crops.py"],
+    ["bench_alpha.py", "--scenes", "3", "--variants", "exact,soft,soft-means"],
+    ["bench_alpha.py", "--stereo"],
+    ["bench_alpha.py", "--accuracy"],
+    ["bench_alpha_cost.py"],
     ["bench_later_passes.py"],
     ["bench_stereo.py"],
     ["bench_edges.py"],
@@ -835,6 +839,61 @@ def section_json(name: str, title: str, cmd: str) -> str:
                             f"{machine_line(rec)}.", "", summary, ""])
 
 
+def section_alpha() -> str:
+    """Soft silhouettes (issue 44, item 3): ``alpha.json``, ``alpha_cost.json`` and
+    ``alpha_demo.json``."""
+    out = ["## Soft silhouettes: novel views near depth steps, cost (issue 44, item 3)", ""]
+    rec = load("alpha.json")
+    if rec is None:
+        return "\n".join(out) + "\n" + missing("python benchmarks/bench_alpha.py")
+    w, h = rec["size"]
+    out += [f"Command: `{rec['command']}`. Machine: {machine_line(rec)}.", "",
+            f"Layered scenes with exact answers ({w}x{h}: a photo-textured wall at z = 6, a "
+            "textured box, a ring, poles 3, 6 and 10 px wide, a 2 px wire and a fence at "
+            "z = 1.8-3.2), every view ray-cast with 4x4 samples per pixel; "
+            f"{len(rec['cameras'])} cameras moved 10-30 cm. `exact`: `Config(edges=\"exact\")` "
+            "(hard cuts, as before); `soft`: the default (sample pairs); `soft-means`: the "
+            "window means. Mean over the cameras, median over the scenes.", "",
+            "| depth given | variant | LPIPS within 4 px of steps | PSNR there | share off by "
+            "> 0.25 | LPIPS, whole view | PSNR, whole view |",
+            "| --- | --- | --- | --- | --- | --- | --- |"]
+    for key, v in sorted(rec["median_over_scenes"].items()):
+        depth, variant = key.split("/")
+        out.append(f"| {depth} | {variant} | {v['lpips_edges']:.4f} | {v['psnr_edges']:.2f} | "
+                   f"{100 * v['gross_edges']:.1f} % | {v['lpips']:.4f} | {v['psnr']:.2f} |")
+    out += ["", "Per scene (LPIPS within 4 px of steps): " + "; ".join(
+        f"{r['scene']} {r['depth']} {r['variant']} {r['lpips_edges']:.4f}"
+        for r in rec["rows"]) + ".", ""]
+    cost = load("alpha_cost.json")
+    if cost is not None:
+        m = cost["median_s"]
+        out += [f"Cost on the 1024 px sample (command: `{cost['command']}`; machine: "
+                f"{machine_line(cost)}): the stage {m['silhouettes']:.3f} s, the paint behind "
+                f"the fringe {m['paint_behind']:.3f} s, a video frame {m['frames_exact']:.3f} s "
+                f"without and {m['frames_align']:.3f} s with the blended fringe "
+                f"({cost['fringe_pixels']:,} fringe pixels, {cost['overlay_faces']:,} fringe "
+                "faces).", ""]
+    stereo = load("alpha_stereo.json")
+    if stereo is not None:
+        out += [f"The stereo pairs of `photo3d eval` (command: `{stereo['command']}`), the "
+                "right view against the real one, `structured` fill:", "",
+                "| pair | edges | LPIPS, disoccluded | PSNR, disoccluded | LPIPS, whole view | "
+                "PSNR, whole view |", "| --- | --- | --- | --- | --- | --- |"]
+        for r in stereo["rows"]:
+            out.append(f"| {r['pair']} | {r['edges']} | {r['lpips_disoccluded']:.4f} | "
+                       f"{r['psnr_disoccluded']:.2f} | {r['lpips_all']:.4f} | "
+                       f"{r['psnr_all']:.2f} |")
+        out.append("")
+    demo = load("alpha_demo.json")
+    if demo is not None:
+        t = demo["make_s"]
+        out += [f"`make` of the sample (command: `{demo['command']}`), alternating: "
+                f"exact {', '.join(f'{x:.1f}' for x in t['exact'])} s, soft "
+                f"{', '.join(f'{x:.1f}' for x in t['align'])} s (a shared machine: single runs "
+                "are noisy; the stage and frame costs above are the reliable figures).", ""]
+    return "\n".join(out)
+
+
 def section_batch() -> str:
     """``batch.json``'s section: batch, lone make, one core, a CPU quota (issue 43)."""
     return section_json("batch.json", "Many photos: `photo3d batch` on the thread budget "
@@ -859,6 +918,7 @@ def main() -> None:
         section_make(), section_render(), section_speed(), section_quality(),
         section_fill(), section_contours(), section_learned(), section_learned_shared(),
         section_edge_crops(),
+        section_alpha(),
         section_later_passes(),
         section_compact_quality(),
         section_stereo(), section_edges(load, machine_line, missing), section_viewer(),

@@ -50,6 +50,22 @@ def section_edges(load, machine_line, missing) -> str:
                          f" (gross {s['spread2']['gross_steps']:.1%})")
     out += ["Spread 2 px against exact depth, LPIPS within 4 px of steps (target <= 1.3x, "
             "gross <= 3 %): " + ", ".join(lines) + ".", ""]
+    soft = load("edges_soft.json")
+    if soft is not None:
+        vs = soft["versions"]
+        out += ["### Soft silhouettes on top of the alignment", "",
+                f"Command: `{soft['command']}` (machine: {machine_line(soft)}). `align` is "
+                "the default, `soft` is `--edges soft` (the alignment and soft silhouettes), "
+                "`exact` the depth map's steps; cells as above.", "",
+                "| depth | " + " | ".join(vs) + " |", "| --- |" + " --- |" * len(vs)]
+        for row in ROWS:
+            if all(row in v["summary"] for v in vs.values()):
+                cells = [f"{v['summary'][row]['lpips_steps']:.4f}, "
+                         f"{v['summary'][row]['gross_steps']:.1%}, "
+                         f"{v['summary'][row]['lpips_disoccluded']:.4f}" for v in vs.values()]
+                out.append(f"| {row} | " + " | ".join(cells) + " |")
+        out += ["", "Cells: LPIPS within 4 px of steps, share of those off by > 0.25, "
+                "LPIPS of the disoccluded pixels.", ""]
     t = load("edges_time.json")
     if t is not None:
         m, load0 = t["median"], t["runs"]["new"][0]["load_1min"][0]

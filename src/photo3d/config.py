@@ -20,7 +20,7 @@ from typing import Any
 from photo3d.errors import ConfigError
 
 REFERENCE_SIZE = 1024
-EDGES = ("align", "exact")
+EDGES = ("align", "soft", "exact")
 """The values of :attr:`Config.edges`."""
 
 
@@ -106,6 +106,22 @@ class RegionConfig:
 
 
 @dataclass(frozen=True)
+class SilhouetteConfig:
+    """Soft silhouettes: coverage of the mixed pixels along occluding contours
+    (:mod:`photo3d.stages.silhouettes`; with :attr:`Config.edges` ``soft`` only)."""
+
+    band: int = 3
+    """Near-side pixels this close to a depth edge (px at 1024) get an alpha and a
+    foreground colour (``benchmarks/bench_alpha.py``)."""
+    radius: int = 4
+    """Half side of the window their foreground and background colours are sampled
+    from (px at 1024)."""
+    method: str = "pairs"
+    """``pairs``: the foreground / background sample pair that explains the pixel's
+    colour best; ``means``: the window's mean colours."""
+
+
+@dataclass(frozen=True)
 class Config:
     """Everything that changes what :func:`photo3d.make` computes."""
 
@@ -120,8 +136,11 @@ class Config:
     edges: str = "align"
     """Where the depth edges go: ``align`` moves every depth step onto the photo's
     colour edge within a few pixels before the LDI is cut (depth from networks and
-    stereo is fat or smooth at silhouettes; ``docs/edges.md``), ``exact`` keeps them
-    where the depth map puts them (depth known to be exact, or the old behaviour)."""
+    stereo is fat or smooth at silhouettes; ``docs/edges.md``), ``soft`` does that and
+    gives the mixed pixels along each occluding contour a coverage (alpha) and their
+    foreground colour (soft silhouettes, :attr:`silhouettes`; not the default: measured
+    worse on novel views, ``docs/edges.md``), ``exact`` keeps the steps where the depth
+    map puts them (depth known to be exact, or the old behaviour)."""
     metric: bool = False
     """Keep the depth input's units (needs ``depth_kind="depth"``): z of every LDI pixel
     is the input depth instead of the authors' normalised [1/3, 20] range."""
@@ -129,6 +148,7 @@ class Config:
     """Factor applied to spatial sizes (None: working size / 1024, as the paper)."""
     preprocess: PreprocessConfig = field(default_factory=PreprocessConfig)
     regions: RegionConfig = field(default_factory=RegionConfig)
+    silhouettes: SilhouetteConfig = field(default_factory=SilhouetteConfig)
 
     def __post_init__(self) -> None:
         if self.size is not None and not 16 <= self.size <= 16384:
@@ -137,6 +157,9 @@ class Config:
             raise ConfigError(f"depth_kind must be 'disparity' or 'depth', got {self.depth_kind!r}")
         if self.edges not in EDGES:
             raise ConfigError(f"edges must be one of {', '.join(EDGES)}, got {self.edges!r}")
+        if self.silhouettes.method not in ("pairs", "means"):
+            raise ConfigError("silhouettes.method must be 'pairs' or 'means', got "
+                              f"{self.silhouettes.method!r}")
         if self.metric and self.depth_kind != "depth":
             raise ConfigError("metric=True needs depth_kind='depth' (metric depth input)")
 
@@ -172,7 +195,9 @@ class Config:
             if "filter_windows" in pre:
                 pre = {**pre, "filter_windows": tuple(pre["filter_windows"])}
             reg = data.pop("regions", {})
-            return cls(preprocess=PreprocessConfig(**pre), regions=RegionConfig(**reg), **data)
+            sil = data.pop("silhouettes", {})
+            return cls(preprocess=PreprocessConfig(**pre), regions=RegionConfig(**reg),
+                       silhouettes=SilhouetteConfig(**sil), **data)
         except TypeError as err:
             raise ConfigError(f"bad configuration: {err}") from None
 

@@ -49,10 +49,12 @@ def kernels() -> list[tuple[object, tuple[str, ...]]]:
     from photo3d.stages.filters import KERNELS as FILTERS
     from photo3d.stages.merge import KERNELS as MERGE
     from photo3d.stages.regions import KERNELS as REGIONS
+    from photo3d.stages.silhouettes import KERNELS as SILHOUETTES
 
     pairs: dict[object, list[str]] = {}
-    for kernel, signature in (*FILTERS, *ALIGN, *EDGES, *REGIONS, *DIFFUSION, *CONTINUATION,
-                              *EXEMPLAR, *MERGE, *FACES, *PLANAR, *CHARTS, *COLLAPSE):
+    for kernel, signature in (*FILTERS, *ALIGN, *EDGES, *SILHOUETTES, *REGIONS, *DIFFUSION,
+                              *CONTINUATION, *EXEMPLAR, *MERGE, *FACES, *PLANAR, *CHARTS,
+                              *COLLAPSE):
         pairs.setdefault(kernel, []).append(signature)
     return [(kernel, tuple(sigs)) for kernel, sigs in pairs.items()]
 

@@ -40,6 +40,7 @@ from photo3d.stages.passes import (
 )
 from photo3d.stages.patches import PatchJob
 from photo3d.stages.preprocess import Preprocessed, preprocess
+from photo3d.stages.silhouettes import paint_behind
 from photo3d.structures.ldi import LDI
 from photo3d.structures.patch import Patch
 
@@ -108,6 +109,7 @@ def make(
 
     state = _first_pass_input(pre, img.shape[:2], config, intrinsics)
     h, w = pre.image.shape[:2]
+    behind = state.behind  # the soft silhouettes' background, painted after the passes
     scale = max(w / img.shape[1], h / img.shape[0])
     reg = config.regions
     with overlap(name="frame") as side:
@@ -142,6 +144,9 @@ def make(
             edges_per_pass.append(state.edges)
             added_per_pass.append(merged.added)
             state = PassInput(merged.ldi, merged.edge_ptr, merged.edge_pixels, merged.index)
+    if behind is not None:
+        state = replace(state, ldi=paint_behind(state.ldi, *behind, index=state.index,
+                                                threshold=config.preprocess.discontinuity))
     done("inpaint")
 
     return Photo3D(

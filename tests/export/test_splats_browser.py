@@ -93,7 +93,8 @@ def test_spark_renders_the_splats_as_photo3d_renders_the_photo(box_photo, tmp_pa
 
     bare = photo3d.Photo3D(replace(ldi, y=ldi.y[front], x=ldi.x[front],
                                    color=ldi.color[front], disparity=ldi.disparity[front],
-                                   links=links.astype(np.int32), label=ldi.label[front]),
+                                   links=links.astype(np.int32), label=ldi.label[front],
+                                   alpha=ldi.alpha[front]),
                            box_photo.config)
     write_ply(bare.ldi, tmp_path / "bare.ply", density=density)
     k = ldi.intrinsics

@@ -55,3 +55,25 @@ def test_light_and_full_glb_have_no_errors_or_warnings(tmp_path):
     data[-4:] = b"\xff\xff\xff\xff"
     (tmp_path / "bad.glb").write_bytes(bytes(data))
     assert validate(tmp_path / "bad.glb")["numErrors"] > 0
+
+
+def test_soft_silhouettes_are_a_valid_blended_primitive(tmp_path):
+    from photo3d.config import Config
+    from photo3d.io.glb import read_chunks
+
+    image = texture(48, 64, seed=3)
+    image[:, 30:34] = (0.9, 0.1, 0.1)  # a red pole, its depth 2 px too wide
+    depth = np.full((48, 64), 6.0, np.float32)
+    depth[:, 28:36] = 2.0
+    config = Config(size=None, depth_kind="depth", spatial_scale=1.0, edges="soft")
+    photo = photo3d.make(image, depth=depth, config=config)
+    light = photo.light_mesh()
+    assert light.overlay is not None and photo.ldi.soft
+    write_textured_glb(tmp_path / "light.glb", light)
+    write_glb(tmp_path / "full.glb", photo.mesh())
+    for name in ("light.glb", "full.glb"):
+        document = read_chunks(tmp_path / name)[0]
+        assert [m.get("alphaMode", "OPAQUE") for m in document["materials"]] == [
+            "OPAQUE", "BLEND"]
+        issues = validate(tmp_path / name)
+        assert issues["numErrors"] == 0 and issues["numWarnings"] == 0, issues["messages"]

@@ -285,3 +285,43 @@ def test_textured_page_matches_photo3d_renderer(browser, tmp_path):
     assert psnr(got[covered], view.color[covered]) > 25
     other, _ = reference((-0.05, 0.0, 0.0))
     assert psnr(got[covered], other[covered]) < psnr(got[covered], view.color[covered]) - 3
+
+
+def test_soft_silhouettes_are_blended_in_the_page(browser, tmp_path):
+    """A photo with soft silhouettes: the page blends the fringe as photo3d's renderer
+    does, and differs from the same page without the fringe's alpha."""
+    from dataclasses import replace
+
+    import photo3d
+    from photo3d.config import Config
+    from photo3d.mesh.light import build_light_mesh
+
+    image = np.zeros((HEIGHT, WIDTH, 3), np.float32)
+    image[:] = np.linspace(0.2, 0.6, WIDTH)[None, :, None] * np.array([0.6, 1.0, 0.8])
+    image[:, 44:50] = (0.9, 0.1, 0.1)  # a red pole, its depth 2 px too wide
+    depth = np.full((HEIGHT, WIDTH), 6.0, np.float32)
+    depth[:, 42:52] = 2.0
+    photo = photo3d.make(image, depth=depth, config=Config(size=None, depth_kind="depth",
+                                                           spatial_scale=1.0, edges="soft"))
+    light = build_light_mesh(photo.ldi)
+    assert light.overlay is not None
+    hard = replace(light, overlay=replace(light.overlay,
+                                          alpha=np.ones_like(light.overlay.alpha)))
+    camera = Camera.translated(Intrinsics.default(WIDTH, HEIGHT), (0.1, 0.0, 0.0))
+    settings = RenderSettings(ssaa=1, fill_holes=False, backend="numba")
+    got = {}
+    for name, mesh in (("soft", light), ("hard", hard)):
+        path = write_viewer(mesh, tmp_path / f"{name}.html")
+        page, errors = open_page(browser, path.as_uri() + "#static=1&camera=0.1,0,0")
+        try:
+            assert page.evaluate("photo3dViewer.error") is None and not errors
+            got[name] = pixels(page)
+        finally:
+            page.close()
+    with Renderer(light, settings) as renderer:
+        view = renderer.render(camera)
+    covered = view.mask
+    assert covered.mean() > 0.9
+    assert psnr(got["soft"][covered], view.color[covered]) > 25
+    fringe = np.abs(got["soft"] - got["hard"]).max(axis=2) > 0.1
+    assert fringe.sum() > HEIGHT  # the fringe is drawn translucent, along the pole

@@ -129,3 +129,26 @@ def test_textured_mesh_round_trip(tmp_path):
     np.testing.assert_array_equal(back.labels, light.labels)
     np.testing.assert_array_equal(canonical_faces(back.faces), canonical_faces(light.faces))
     assert np.abs(back.vertices - light.vertices).max() < 1e-3
+
+
+def test_soft_silhouettes_round_trip(tmp_path):
+    """The fringe (faces with a vertex of alpha < 1) is stored apart and read back."""
+    import photo3d
+    from photo3d.config import Config
+    from photo3d.mesh.light import build_light_mesh
+
+    image = np.full((40, 48, 3), 0.4, np.float32)
+    image[:, 20:24] = (0.9, 0.1, 0.1)
+    depth = np.full((40, 48), 6.0, np.float32)
+    depth[:, 18:26] = 2.0
+    photo = photo3d.make(image, depth=depth, config=Config(size=None, depth_kind="depth",
+                                                           spatial_scale=1.0, edges="soft"))
+    full = photo.mesh()
+    back = read_viewer(write_viewer(full, tmp_path / "full.html"))
+    assert len(back.faces) == len(full.faces)
+    soft = np.sort(full.alpha[full.alpha < 1])
+    assert np.allclose(np.sort(back.alpha[back.alpha < 1]), soft, atol=1 / 255)
+    light = build_light_mesh(photo.ldi)
+    again = read_viewer(write_viewer(light, tmp_path / "light.html"))
+    assert again.overlay is not None and len(again.overlay.faces) == len(light.overlay.faces)
+    assert np.allclose(again.overlay.alpha, light.overlay.alpha, atol=1 / 255)

@@ -128,8 +128,9 @@ def add_make_options(p: argparse.ArgumentParser, *, out_required: bool,
     p.add_argument("--edges", choices=EDGES, default="align",
                    help="where the depth edges go: align (default) moves each depth step "
                         "onto the photo's colour edge within a few pixels (depth from "
-                        "networks and stereo is fat or smooth at silhouettes); exact keeps "
-                        "them where the depth map puts them")
+                        "networks and stereo is fat or smooth at silhouettes); soft also "
+                        "gives the mixed pixels along each silhouette a coverage (alpha); "
+                        "exact keeps them where the depth map puts them")
     p.add_argument("--weights", type=weights_arg, metavar="DIR|authors|compact",
                    help="weights of the learned inpainter: a folder with the authors' "
                         "edge-model.pth, depth-model.pth, color-model.pth or photo3d "

@@ -20,10 +20,9 @@ the inpainted layers' alike, with the border. Two layouts (``density=``):
   plane: anisotropic and tilted as the surface is.
 
 The opacity of every splat comes from :func:`splat_opacity`, which takes a per-pixel
-coverage: the soft silhouettes of depth edges, once the LDI carries them, are passed
-as ``build_splats(ldi, alpha=...)`` (a joined block takes its pixels' mean; such
-pixels lie on edges, where blocks are not joined). Without it every splat is
-:data:`OPACITY`.
+coverage: the soft silhouettes of depth edges (``LDI.alpha``; a joined block takes its
+pixels' mean, and such pixels lie on edges, where blocks are hardly ever joined).
+A fully covered pixel's splat is :data:`OPACITY`.
 
 How Spark shows them, and what was tried to make it sharper: docs/outputs.md.
 """
@@ -79,8 +78,8 @@ def build_splats(ldi: LDI, *, density: str = "adaptive",
         ldi: the 3D photo's layered depth image.
         density: ``"adaptive"`` (fewer, larger splats where the colour is flat and
             the surface planar) or ``"dense"`` (one splat per LDI pixel).
-        alpha: ``(N,) float`` in [0, 1], each LDI pixel's coverage (soft
-            silhouettes); None: every pixel is fully covered.
+        alpha: ``(N,) float`` in [0, 1], each LDI pixel's coverage; None: the LDI's
+            own (``ldi.alpha``: its soft silhouettes).
         fit: fit the colours to photo3d's render of the input view through Spark's
             blend of all splats (:mod:`photo3d.export.splat_fit`: sharper in splat
             viewers, about 3 s more on the bundled sample).
@@ -108,7 +107,7 @@ def build_splats(ldi: LDI, *, density: str = "adaptive",
     z = ldi.depth()
     positions = unproject(ldi.x, ldi.y, z, k)
     colors = np.asarray(ldi.color, np.float32)
-    opacity = splat_opacity(ldi.size, alpha)
+    opacity = splat_opacity(ldi.size, ldi.alpha if alpha is None else alpha)
     if density == "dense":
         scales = _facing(z, k, np.ones(len(z), np.float32))
         rotations = np.tile(np.array([1, 0, 0, 0], np.float32), (len(z), 1))

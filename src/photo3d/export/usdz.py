@@ -97,8 +97,56 @@ def write_usdz(ldi: LDI, path: str | Path, *, mesh: TexturedMesh | None = None,
         with open_write(Path(work) / "texture.jpg") as file:
             file.write(encode_jpeg(np.asarray(mesh.texture), quality=quality))
         _write_stage(pxr, layer, points, st, faces)
+        if mesh.overlay is not None:  # the soft silhouettes, blended (displayOpacity)
+            _write_fringe(pxr, layer, mesh.overlay, usd_points(
+                ldi, mesh.overlay.checked()[0], frame_width=frame_width))
         if not pxr.UsdUtils.CreateNewARKitUsdzPackage(str(layer), str(tmp)):
             raise OutputError(f"cannot write {path}: usd-core could not make the package")
+
+def _write_fringe(pxr, layer: Path, fringe, points: np.ndarray) -> None:
+    """Add the soft silhouettes (a :class:`~photo3d.structures.mesh.Mesh` with
+    ``alpha``) to the saved stage: /photo3d/fringe with vertex ``displayColor``
+    (linear) and ``displayOpacity``, an unlit-looking preview surface reading them."""
+    Sdf, Usd, UsdGeom, UsdShade, Vt = pxr.Sdf, pxr.Usd, pxr.UsdGeom, pxr.UsdShade, pxr.Vt
+    from photo3d.io.glb import srgb_to_linear
+
+    _, colors, _, faces = fringe.checked()
+    stage = Usd.Stage.Open(str(layer))
+    geom = UsdGeom.Mesh.Define(stage, "/photo3d/fringe")
+    geom.CreatePointsAttr(Vt.Vec3fArray.FromNumpy(points))
+    geom.CreateFaceVertexCountsAttr(Vt.IntArray.FromNumpy(np.full(len(faces), 3, np.int32)))
+    geom.CreateFaceVertexIndicesAttr(Vt.IntArray.FromNumpy(faces.reshape(-1)))
+    geom.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)
+    geom.CreateDoubleSidedAttr(False)
+    lo, hi = points.min(axis=0), points.max(axis=0)
+    geom.CreateExtentAttr(Vt.Vec3fArray([pxr.Gf.Vec3f(*map(float, lo)),
+                                         pxr.Gf.Vec3f(*map(float, hi))]))
+    primvars = UsdGeom.PrimvarsAPI(geom)
+    primvars.CreatePrimvar("displayColor", Sdf.ValueTypeNames.Color3fArray,
+                           UsdGeom.Tokens.vertex).Set(
+        Vt.Vec3fArray.FromNumpy(srgb_to_linear(colors)))
+    primvars.CreatePrimvar("displayOpacity", Sdf.ValueTypeNames.FloatArray,
+                           UsdGeom.Tokens.vertex).Set(
+        Vt.FloatArray.FromNumpy(np.clip(fringe.alpha, 0.0, 1.0).astype(np.float32)))
+    material = UsdShade.Material.Define(stage, "/photo3d/fringe_material")
+    surface = UsdShade.Shader.Define(stage, "/photo3d/fringe_material/surface")
+    surface.CreateIdAttr("UsdPreviewSurface")
+    for name, kind, reader_id in (("displayColor", Sdf.ValueTypeNames.Color3f,
+                                   "UsdPrimvarReader_float3"),
+                                  ("displayOpacity", Sdf.ValueTypeNames.Float,
+                                   "UsdPrimvarReader_float")):
+        reader = UsdShade.Shader.Define(stage, f"/photo3d/fringe_material/{name}")
+        reader.CreateIdAttr(reader_id)
+        reader.CreateInput("varname", Sdf.ValueTypeNames.String).Set(name)
+        output = reader.CreateOutput("result", kind)
+        target = "emissiveColor" if name == "displayColor" else "opacity"
+        surface.CreateInput(target, kind).ConnectToSource(output)
+    surface.CreateInput("diffuseColor", Sdf.ValueTypeNames.Color3f).Set(pxr.Gf.Vec3f(0, 0, 0))
+    surface.CreateInput("roughness", Sdf.ValueTypeNames.Float).Set(1.0)
+    material.CreateSurfaceOutput().ConnectToSource(surface.ConnectableAPI(), "surface")
+    UsdShade.MaterialBindingAPI.Apply(geom.GetPrim()).Bind(material)
+    stage.GetRootLayer().Save()
+
 
 def usd_points(ldi: LDI, vertices: np.ndarray, *, frame_width: float = FRAME_WIDTH
                ) -> np.ndarray:

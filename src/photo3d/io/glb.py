@@ -33,11 +33,30 @@ UNLIT = "KHR_materials_unlit"
 WHITE = [1.0, 1.0, 1.0, 1.0]
 
 
+FRINGE_MATERIAL = {
+    "name": "soft silhouettes (vertex colours and alpha, blended)",
+    "pbrMetallicRoughness": {"baseColorFactor": WHITE, "metallicFactor": 0.0,
+                             "roughnessFactor": 1.0},
+    "extensions": {UNLIT: {}},
+    "alphaMode": "BLEND",
+    "doubleSided": False,
+}
+"""Material of the soft silhouettes' primitive: unlit, ``COLOR_0`` RGBA, blended."""
+
+
 def write_glb_file(path: PathLike, mesh, vertices: np.ndarray, labels: np.ndarray,
                    faces: np.ndarray, attributes: list, primitive: dict, material: dict, *,
-                   image: bytes | None = None) -> None:
+                   image: bytes | None = None, fringe=None) -> None:
     """Assemble and write a GLB: POSITION, ``attributes`` (accessor 1), _LABEL,
-    indices, one material, optionally one embedded JPEG texture, the camera node."""
+    indices, one material, optionally one embedded JPEG texture, the camera node.
+
+    ``fringe``: the soft silhouettes (a :class:`~photo3d.structures.mesh.Mesh` with
+    ``alpha``, :meth:`~photo3d.structures.mesh.Mesh.split_fringe`), written as a
+    second primitive of the same mesh: ``POSITION``, ``COLOR_0`` (linear RGB and the
+    alpha, float32 VEC4) and ``_LABEL``, with :data:`FRINGE_MATERIAL` (``alphaMode``
+    ``BLEND``); a glTF viewer draws it over the first. When its ``vertices`` are
+    ``mesh.vertices`` themselves (the full mesh), it shares the first primitive's
+    ``POSITION`` and ``_LABEL``."""
     positions = vertices * TO_GLTF
     strided_labels = np.zeros((len(labels), 4), np.uint8)  # attributes are 4-byte aligned
     strided_labels[:, 0] = labels
@@ -48,17 +67,47 @@ def write_glb_file(path: PathLike, mesh, vertices: np.ndarray, labels: np.ndarra
         (strided_labels, "SCALAR", ARRAY_BUFFER, 4),
         (indices, "SCALAR", ELEMENT_ARRAY_BUFFER, None),
     ]
+    primitives, materials = [primitive], [material]
+    shared = fringe is not None and fringe.vertices is mesh.vertices
+    if fringe is not None:
+        first = len(arrays)
+        f_vertices, f_colors, f_labels, f_faces = fringe.checked()
+        f_positions = f_vertices * TO_GLTF
+        rgba = np.empty((len(f_vertices), 4), np.float32)
+        rgba[:, :3] = srgb_to_linear(f_colors)
+        rgba[:, 3] = np.clip(np.asarray(fringe.alpha, np.float32), 0.0, 1.0)
+        f_strided = np.zeros((len(f_labels), 4), np.uint8)
+        f_strided[:, 0] = f_labels
+        f_indices = f_faces.ravel().astype(np.uint16 if len(f_vertices) <= 0xFFFF else np.uint32)
+        if shared:  # the same vertices: POSITION and _LABEL are the first primitive's
+            arrays += [(rgba, "VEC4", ARRAY_BUFFER, None),
+                       (f_indices, "SCALAR", ELEMENT_ARRAY_BUFFER, None)]
+            attributes = {"POSITION": 0, "COLOR_0": first, "_LABEL": len(attributes) + 1}
+            indices = first + 1
+        else:
+            arrays += [(f_positions, "VEC3", ARRAY_BUFFER, None),
+                       (rgba, "VEC4", ARRAY_BUFFER, None),
+                       (f_strided, "SCALAR", ARRAY_BUFFER, 4),
+                       (f_indices, "SCALAR", ELEMENT_ARRAY_BUFFER, None)]
+            attributes = {"POSITION": first, "COLOR_0": first + 1, "_LABEL": first + 2}
+            indices = first + 3
+        primitives.append({"attributes": attributes, "indices": indices, "material": 1,
+                           "mode": TRIANGLES})
+        materials.append(FRINGE_MATERIAL)
     views, accessors, chunks = pack_arrays(arrays)
     offset = sum(len(chunk) for chunk in chunks)
     accessors[0].update(min=positions.min(axis=0).tolist(), max=positions.max(axis=0).tolist())
+    if fringe is not None and not shared:
+        accessors[first].update(min=f_positions.min(axis=0).tolist(),
+                                max=f_positions.max(axis=0).tolist())
     document = {
         "asset": {"version": "2.0", "generator": "photo3d"},
         "extensionsUsed": [UNLIT],
         "scene": 0,
         "scenes": [{"nodes": [0]}],
         "nodes": [{"name": "photo3d", "mesh": 0}],
-        "meshes": [{"name": "photo3d", "extras": view_extras(mesh), "primitives": [primitive]}],
-        "materials": [material],
+        "meshes": [{"name": "photo3d", "extras": view_extras(mesh), "primitives": primitives}],
+        "materials": materials,
         "accessors": accessors,
         "bufferViews": views,
     }
@@ -74,6 +123,48 @@ def write_glb_file(path: PathLike, mesh, vertices: np.ndarray, labels: np.ndarra
     if mesh.vfov > 0 and mesh.width > 0 and mesh.height > 0:
         add_camera(document, float(mesh.vfov), mesh.width / mesh.height)
     write_container(path, document, chunks)
+
+
+def srgb_to_linear(colors: np.ndarray) -> np.ndarray:
+    """``(N, 3) uint8`` sRGB -> ``(N, 3) float32`` linear (IEC 61966-2-1; glTF vertex
+    colours are linear).
+
+    Example:
+        >>> [round(float(v), 3) for v in srgb_to_linear(np.array([[0, 255, 188]], np.uint8))[0]]
+        [0.0, 1.0, 0.503]
+    """
+    srgb = np.asarray(colors, np.float64) / 255.0
+    linear = np.where(srgb <= 0.04045, srgb / 12.92, ((srgb + 0.055) / 1.055) ** 2.4)
+    return linear.astype(np.float32)
+
+
+def read_fringe(document: dict, binary: bytes, path: PathLike, extras: dict):
+    """The soft silhouettes' primitive (the first mesh's second, if there is one) as a
+    :class:`~photo3d.structures.mesh.Mesh` with ``alpha``, or None."""
+    from photo3d.structures.mesh import Mesh
+
+    primitives = document["meshes"][0]["primitives"]
+    if len(primitives) < 2:
+        return None
+    primitive = primitives[1]
+    attributes = primitive["attributes"]
+    positions = accessor(document, binary, attributes["POSITION"], path)
+    rgba = accessor(document, binary, attributes["COLOR_0"], path)
+    labels = accessor(document, binary, attributes["_LABEL"], path, kinds=(5121,))[:, 0]
+    count = len(positions)
+    faces = triangles(document, binary, primitive["indices"], path, count)
+    if positions.shape[1] != 3 or rgba.shape != (count, 4) or len(labels) != count:
+        raise InputError(f"glTF {path} has soft silhouette attributes of different lengths")
+    if not (np.isfinite(positions).all() and np.isfinite(rgba).all()):
+        raise InputError(f"glTF {path} has NaN or infinite soft silhouette attributes")
+    value = np.clip(rgba[:, :3].astype(np.float64), 0.0, 1.0)
+    srgb = np.where(value <= 0.0031308, value * 12.92, 1.055 * value ** (1 / 2.4) - 0.055)
+    return Mesh(vertices=(positions * TO_GLTF).astype(np.float32),
+                colors=np.rint(srgb * 255.0).astype(np.uint8), labels=labels.astype(np.uint8),
+                faces=faces.astype(np.int32), width=int(extras.get("width", 0)),
+                height=int(extras.get("height", 0)), hfov=float(extras.get("hfov", 0.0)),
+                vfov=float(extras.get("vfov", 0.0)),
+                alpha=np.clip(rgba[:, 3], 0.0, 1.0).astype(np.float32))
 
 
 def pack_arrays(arrays: list) -> tuple[list[dict], list[dict], list[bytes]]:

@@ -24,6 +24,7 @@ container in :mod:`photo3d.io.glb`.
 from __future__ import annotations
 
 import os
+from dataclasses import replace
 
 import numpy as np
 
@@ -36,6 +37,7 @@ from photo3d.io.glb import (
     WHITE,
     accessor,
     read_chunks,
+    read_fringe,
     triangles,
     write_glb_file,
 )
@@ -69,7 +71,9 @@ def write_glb(path: PathLike, mesh: Mesh) -> None:
         path: file to create (overwritten if it exists).
         mesh: vertices ``(N, 3) float32`` finite OpenCV camera coordinates, colors
             ``(N, 3) uint8`` sRGB, labels ``(N,) uint8``, faces ``(M, 3) int32``;
-            ``N >= 1`` and ``M >= 1`` (glTF has no empty accessors).
+            ``N >= 1`` and ``M >= 1`` (glTF has no empty accessors). Faces touching a
+            vertex of ``alpha < 1`` (soft silhouettes) go into a second, blended
+            primitive (:func:`photo3d.io.glb.write_glb_file`).
 
     Raises:
         InputError: the mesh is empty, has wrong shapes, non-finite vertices or
@@ -88,9 +92,19 @@ def write_glb(path: PathLike, mesh: Mesh) -> None:
         >>> path.read_bytes()[:4]
         b'glTF'
     """
+    fringe = None
+    if mesh.alpha is not None:  # soft silhouettes: their faces in a second primitive
+        faces = np.asarray(mesh.faces, np.int32)
+        touch = (np.asarray(mesh.alpha) < 1.0)[faces].any(axis=1)
+        if touch.any():
+            fringe = replace(mesh, faces=faces[touch])
+        mesh = replace(mesh, faces=faces[~touch], alpha=None)
+        if fringe is not None:
+            fringe = replace(fringe, vertices=mesh.vertices)  # shared: the same array
     vertices, colors, labels, faces = _checked_arrays(mesh)
     arrays = [(_SRGB_TO_LINEAR[colors], "VEC3", ARRAY_BUFFER, None)]
-    write_glb_file(path, mesh, vertices, labels, faces, arrays, _PRIMITIVE, _MATERIAL)
+    write_glb_file(path, mesh, vertices, labels, faces, arrays, _PRIMITIVE, _MATERIAL,
+                   fringe=fringe)
 
 
 def read_glb(path: PathLike) -> Mesh:
@@ -98,7 +112,9 @@ def read_glb(path: PathLike) -> Mesh:
 
     Reads the first primitive of the first mesh (triangles; ``POSITION``, ``COLOR_0``
     linear RGB(A) as float or normalised integers, optional ``_LABEL``); undoes the
-    axis and colour conversions. Node transforms are not applied.
+    axis and colour conversions. Node transforms are not applied. A second primitive
+    (photo3d's soft silhouettes) is appended with its ``alpha`` (sharing the first's
+    vertices, as :func:`write_glb` writes it, or after them).
 
     Args:
         path: a binary glTF 2.0 file.
@@ -160,7 +176,7 @@ def read_glb(path: PathLike) -> Mesh:
         raise InputError(f"glTF {path} has an unexpected structure ({err!r})"[:300]) from None
     if positions.shape[1] != 3:
         raise InputError(f"glTF {path} has positions of another shape")
-    return Mesh(
+    mesh = Mesh(
         vertices=(positions * TO_GLTF).astype(np.float32),
         colors=colors,
         labels=labels.astype(np.uint8),
@@ -170,6 +186,24 @@ def read_glb(path: PathLike) -> Mesh:
         hfov=view[2],
         vfov=view[3],
     )
+    try:
+        fringe = read_fringe(document, binary, path, extras)
+    except InputError:
+        raise
+    except (KeyError, IndexError, TypeError, ValueError, AttributeError, OverflowError) as err:
+        raise InputError(f"glTF {path} has an unexpected structure ({err!r})"[:300]) from None
+    if fringe is None:
+        return mesh
+    if document["meshes"][0]["primitives"][1]["attributes"]["POSITION"] == attributes[
+            "POSITION"]:  # photo3d's full mesh: the same vertices, with their alpha
+        return replace(mesh, faces=np.concatenate([mesh.faces, fringe.faces]),
+                       alpha=fringe.alpha)
+    return replace(  # the soft silhouettes' vertices after the others, with their alpha
+        mesh, vertices=np.concatenate([mesh.vertices, fringe.vertices]),
+        colors=np.concatenate([mesh.colors, fringe.colors]),
+        labels=np.concatenate([mesh.labels, fringe.labels]),
+        faces=np.concatenate([mesh.faces, fringe.faces + count]),
+        alpha=np.concatenate([np.ones(count, np.float32), fringe.alpha]))
 
 
 def _srgb_to_linear_table() -> np.ndarray:

@@ -25,6 +25,7 @@ from photo3d.io.glb import (
     WHITE,
     accessor,
     read_chunks,
+    read_fringe,
     triangles,
     view_bytes,
     write_glb_file,
@@ -43,7 +44,8 @@ def write_textured_glb(path: PathLike, mesh: TexturedMesh, *, quality: int = 90)
     The file holds ``POSITION``, ``TEXCOORD_0`` and ``_LABEL`` as :func:`write_glb`
     does, one sRGB base-colour texture (linear filtering, clamped; no mipmaps, so
     atlas charts do not bleed into each other) on an unlit material, and the input
-    camera as a camera node.
+    camera as a camera node. The mesh's ``overlay`` (soft silhouettes), if any, is a
+    second primitive drawn blended (:func:`photo3d.io.glb.write_glb_file`).
 
     Args:
         path: file to create (overwritten if it exists).
@@ -82,7 +84,8 @@ def write_textured_glb(path: PathLike, mesh: TexturedMesh, *, quality: int = 90)
         "extensions": {UNLIT: {}},
         "doubleSided": False,
     }
-    write_glb_file(path, mesh, vertices, labels, faces, arrays, primitive, material, image=image)
+    write_glb_file(path, mesh, vertices, labels, faces, arrays, primitive, material, image=image,
+                   fringe=mesh.overlay)
 
 
 def read_textured_glb(path: PathLike, *, max_pixels: int | None = None) -> TexturedMesh:
@@ -116,6 +119,7 @@ def read_textured_glb(path: PathLike, *, max_pixels: int | None = None) -> Textu
         jpeg = view_bytes(document, binary, image["bufferView"], path)
         extras = mesh.get("extras", {})
         view = {k: float(extras.get(k, 0)) for k in ("width", "height", "hfov", "vfov")}
+        overlay = read_fringe(document, binary, path, extras)
     except InputError:
         raise
     except (KeyError, IndexError, TypeError, ValueError, AttributeError, OverflowError) as err:
@@ -135,7 +139,7 @@ def read_textured_glb(path: PathLike, *, max_pixels: int | None = None) -> Textu
         vertices=(positions * TO_GLTF).astype(np.float32), uv=uv.astype(np.float32),
         texture=texture, labels=labels.astype(np.uint8), faces=faces.astype(np.int32),
         n_input=0, width=int(view["width"]), height=int(view["height"]),
-        hfov=view["hfov"], vfov=view["vfov"],
+        hfov=view["hfov"], vfov=view["vfov"], overlay=overlay,
     )
 
 

@@ -22,10 +22,12 @@ from photo3d.io.limits import check_available
 from photo3d.io.npy import read_npy, read_npy_header
 from photo3d.structures.ldi import LDI
 
-FORMAT_VERSION = 2
-"""Version 2 stores ``links`` relative to the pixel (``links[i] - i``, 0 = none):
-mostly the same few offsets, so deflate packs them 7 times smaller and 3.5 times
-faster than absolute indices (version 1, still read)."""
+FORMAT_VERSION = 3
+"""Version 3 adds ``alpha`` (``(N,) float32``, the soft silhouettes' coverage,
+:attr:`~photo3d.structures.ldi.LDI.alpha`; versions 1 and 2 are still read, with
+alpha 1 everywhere). Version 2 stores ``links`` relative to the pixel (``links[i] -
+i``, 0 = none): mostly the same few offsets, so deflate packs them 7 times smaller
+and 3.5 times faster than absolute indices (version 1)."""
 
 
 def save_npz(ldi: LDI, path: str | Path, *, meta: dict | None = None) -> None:
@@ -45,6 +47,7 @@ def save_npz(ldi: LDI, path: str | Path, *, meta: dict | None = None) -> None:
     arrays = {
         "y": ldi.y, "x": ldi.x, "color": ldi.color, "disparity": ldi.disparity,
         "links": _relative_links(ldi.links), "label": ldi.label,
+        "alpha": np.asarray(ldi.alpha, np.float32),
         "header": np.frombuffer(json.dumps(header).encode(), np.uint8),
     }
     # A regular .npz (np.load reads it) with fast deflate: np.savez_compressed's
@@ -63,9 +66,10 @@ def load_npz(path: str | Path) -> tuple[LDI, dict]:
     """Inverse of :func:`save_npz`: returns ``(ldi, meta)``.
 
     Everything read is checked before use (the file may come from anywhere): a zip
-    holding the six arrays and the header, sizes within limits before allocating (the
-    pixel count within :data:`MAX_LAYERS` of the image size, and what reading it
-    needs, :data:`LOAD_BYTES` per pixel, within the available memory:
+    holding the six arrays (seven from version 3: ``alpha``, in [0, 1]) and the header,
+    sizes within limits before allocating (the pixel count within :data:`MAX_LAYERS`
+    of the image size, and what reading it needs, :data:`LOAD_BYTES` per pixel, within
+    the available memory:
     :func:`photo3d.io.limits.check_available`), dtypes and shapes, link indices in
     range and symmetric, lattice positions inside the image plus border, finite and
     plausible intrinsics.
@@ -102,7 +106,8 @@ def load_npz(path: str | Path) -> tuple[LDI, dict]:
 
 
 _ARRAYS = ("y", "x", "color", "disparity", "links", "label")
-_COLUMNS = {"y": (), "x": (), "color": (3,), "disparity": (), "links": (4,), "label": ()}
+_COLUMNS = {"y": (), "x": (), "color": (3,), "disparity": (), "links": (4,), "label": (),
+            "alpha": ()}
 MAX_LAYERS = 16
 """Most LDI pixels a file may declare per position of the image plus its border:
 ``n <= MAX_LAYERS * (H + 2 * border) * (W + 2 * border)``. photo3d writes about two
@@ -111,8 +116,8 @@ bound is checked on the declared ``.npy`` shapes before any data is decompressed
 _HEADER_BYTES = 1 << 24  # the JSON header and its metadata
 LOAD_BYTES = 400
 """Peak bytes per LDI pixel of :func:`load_npz`, rounded up: the arrays are 41 bytes a
-pixel, the link checks need the rest (peak resident memory measured 295 bytes a pixel
-above the interpreter's on a 1.47M pixel LDI)."""
+pixel (45 with version 3's alpha), the link checks need the rest (peak resident memory
+measured 295 bytes a pixel above the interpreter's on a 1.47M pixel LDI, version 2)."""
 
 
 def _relative_links(links: np.ndarray) -> np.ndarray:
@@ -187,10 +192,15 @@ def _read_arrays(path: Path) -> tuple[dict[str, np.ndarray], dict]:
                             what="its header")
         if not isinstance(header, dict) or header.get("format") != "photo3d-ldi":
             raise InputError("not a photo3d file (its header is not a photo3d LDI header)")
+        version = header.get("version", 1)
+        if version not in range(1, FORMAT_VERSION + 1) or isinstance(version, bool):
+            raise InputError(f"format version {version!r} is not one this photo3d reads "
+                             f"(1 to {FORMAT_VERSION}); a newer photo3d wrote it")
         w, h, border = _checked_frame(header)
         limit = MAX_LAYERS * (h + 2 * border) * (w + 2 * border)
         declared = {}
-        for name in _ARRAYS:
+        names = _ARRAYS + (("alpha",) if version >= 3 else ())
+        for name in names:
             with zf.open(f"{name}.npy") as f:
                 try:
                     shape, _, dtype = read_npy_header(f)
@@ -200,7 +210,7 @@ def _read_arrays(path: Path) -> tuple[dict[str, np.ndarray], dict]:
         n = declared["y"][0][0] if len(declared["y"][0]) == 1 else -1
         for name, (shape, dtype) in declared.items():
             expected = (n, *_COLUMNS[name])
-            kind = "f" if name in ("color", "disparity") else "iu"
+            kind = "f" if name in ("color", "disparity", "alpha") else "iu"
             if shape != expected or dtype.kind not in kind:
                 raise InputError(f"{name} has shape {shape} and dtype {dtype}; expected "
                                  f"{expected} {'float' if kind == 'f' else 'integer'}")
@@ -252,10 +262,7 @@ def _checked_ldi(arrays: dict[str, np.ndarray], header: dict) -> LDI:
     mapping = [float(v) for v in header["mapping"]]
     n = len(arrays["y"])
     y, x, links = arrays["y"], arrays["x"], arrays["links"]
-    version = header.get("version", 1)
-    if version not in (1, FORMAT_VERSION):
-        raise InputError(f"format version {version!r} is not one this photo3d reads "
-                         f"(1 to {FORMAT_VERSION}); a newer photo3d wrote it")
+    version = header.get("version", 1)  # checked by _read_arrays
     if version >= 2:
         links = _absolute_links(links)
     if n and (y.min() < -border or y.max() >= h + border or x.min() < -border
@@ -265,13 +272,18 @@ def _checked_ldi(arrays: dict[str, np.ndarray], header: dict) -> LDI:
         raise InputError(f"links point outside the {n} pixels")
     if not (np.isfinite(arrays["color"]).all() and np.isfinite(arrays["disparity"]).all()):
         raise InputError("colours or disparities are not finite")
+    alpha = arrays.get("alpha")
+    if alpha is not None:
+        alpha = alpha.astype(np.float32, copy=False)
+        if n and not (alpha.min() >= 0.0 and alpha.max() <= 1.0):  # NaN fails too
+            raise InputError("alpha is not in [0, 1]")
     ldi = LDI(y=y.astype(np.int32, copy=False), x=x.astype(np.int32, copy=False),
               color=arrays["color"].astype(np.float32, copy=False),
               disparity=arrays["disparity"].astype(np.float32, copy=False),
               links=links.astype(np.int32, copy=False),
               label=arrays["label"].astype(np.uint8, copy=False),
               intrinsics=Intrinsics(fx, fy, cx, cy, w, h), mapping=DepthMapping(*mapping),
-              border=border)
+              border=border, alpha=alpha)
     try:
         ldi.check()
     except ValueError as err:

@@ -31,7 +31,8 @@ def build_mesh(ldi: LDI) -> Mesh:
         ldi: the layered depth image.
 
     Returns:
-        :class:`Mesh` with one vertex per LDI pixel (same order).
+        :class:`Mesh` with one vertex per LDI pixel (same order); its ``alpha`` is the
+        LDI's when a silhouette is soft (:attr:`LDI.soft`), else None.
 
     Example:
         >>> from photo3d.stages.ldi import from_image
@@ -53,4 +54,5 @@ def build_mesh(ldi: LDI) -> Mesh:
         height=ldi.height,
         hfov=hfov,
         vfov=vfov,
+        alpha=ldi.alpha.copy() if ldi.soft else None,
     )

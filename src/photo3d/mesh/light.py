@@ -45,6 +45,8 @@ The result's faces list the input layer first, as the full mesh does.
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from photo3d.errors import InputError
@@ -82,7 +84,9 @@ def build_light_mesh(ldi: LDI, *, max_error: float = LIGHT_ERROR, parallax: floa
 
     Returns:
         :class:`TexturedMesh` whose vertices are LDI pixels (labels and positions
-        those of :func:`build_mesh`).
+        those of :func:`build_mesh`). The faces of soft silhouettes (a vertex with
+        ``alpha < 1``) are left out of it and kept, vertex-coloured and unsimplified,
+        as its ``overlay`` (:meth:`~photo3d.structures.mesh.Mesh.split_fringe`).
 
     Example:
         >>> from photo3d.stages.ldi import from_image
@@ -97,6 +101,7 @@ def build_light_mesh(ldi: LDI, *, max_error: float = LIGHT_ERROR, parallax: floa
     if block < 2:
         raise InputError(f"block must be >= 2, got {block}")
     full = build_mesh(ldi) if full is None else full
+    full, overlay = full.split_fringe()  # the soft silhouettes stay full, drawn blended
     rows, cols = ldi.lattice_shape
     pos = ldi.positions()
     rank = _ranks(pos, rows * cols)
@@ -120,8 +125,9 @@ def build_light_mesh(ldi: LDI, *, max_error: float = LIGHT_ERROR, parallax: floa
         value = max(k.fx, k.fy) * parallax / full.vertices[:, 2]
         faces, face_layer = _merge_planar(faces, face_layer, pos, (rows, cols), images[:n_layers],
                                           value, PLANAR_SHARE * max_error)
-    return _textured(ldi, full, faces, face_layer, images[:n_layers], block,
-                     max_error=float(max_error), parallax=float(parallax))
+    light = _textured(ldi, full, faces, face_layer, images[:n_layers], block,
+                      max_error=float(max_error), parallax=float(parallax))
+    return light if overlay is None else replace(light, overlay=overlay)
 
 
 def _merge_planar(faces: np.ndarray, face_layer: np.ndarray, pos: np.ndarray,

@@ -26,7 +26,13 @@ from photo3d.errors import ConfigError, require
 from photo3d.files.stop import check
 from photo3d.holes import fill_holes
 from photo3d.parallel import thread_safe_kernels, threads
-from photo3d.render._resolve import grow_fill, grow_fill_far, holes_to_rgb8, to_rgb8
+from photo3d.render._resolve import (
+    blend_fringe,
+    grow_fill,
+    grow_fill_far,
+    holes_to_rgb8,
+    to_rgb8,
+)
 from photo3d.structures.mesh import Mesh, TexturedMesh
 
 AUTHORS_CROP = (0.03, 0.03, 0.05, 0.03)
@@ -161,6 +167,10 @@ class Renderer:
         self.mesh = mesh
         texture = None
         if isinstance(mesh, TexturedMesh):
+            overlay = mesh.overlay
+        else:
+            mesh, overlay = mesh.split_fringe()
+        if isinstance(mesh, TexturedMesh):
             self._vertices, uv, _, self._faces = mesh.checked()
             self._colors = np.zeros((len(uv), 3), np.float32)
             self._colors[:, :2] = uv
@@ -188,10 +198,28 @@ class Renderer:
         if antialias == "auto":
             antialias = "edges" if texture is not None else "full"
         self._edges = self.backend == "numba" and antialias == "edges" and self.settings.ssaa > 1
+        self._overlay = None if overlay is None else (self._rasterizer(overlay, alpha=False),
+                                                      self._rasterizer(overlay, alpha=True))
+
+    def _rasterizer(self, fringe: Mesh, *, alpha: bool):
+        """A rasterizer of this renderer's backend for the fringe mesh ``fringe``: its
+        vertex colours, or (``alpha``) its coverage as a grey colour."""
+        vertices, colors, _, faces = fringe.checked()
+        if alpha:
+            colors = np.repeat(np.asarray(fringe.alpha, np.float32)[:, None], 3, axis=1)
+        if self.backend == "gl":
+            from photo3d.render.gl import GLRasterizer
+
+            return GLRasterizer(vertices, colors, faces)
+        from photo3d.render.raster import CPURasterizer
+
+        return CPURasterizer(vertices, colors, faces, reuse=True)
 
     def close(self) -> None:
         """Release GPU resources (if any)."""
         self._raster.release()
+        for raster in self._overlay or ():
+            raster.release()
 
     def __enter__(self) -> Renderer:
         return self
@@ -202,21 +230,39 @@ class Renderer:
     def render(self, camera: Camera) -> View:
         """Render ``camera`` (its intrinsics give the output size). In a worker thread,
         raises the interruption first once a signal asked the process to stop
-        (:func:`photo3d.files.signals.check`: each view is a chunk of the work)."""
+        (:func:`photo3d.files.stop.check`: each view is a chunk of the work)."""
         check()
-        s = self.settings
         k = self._intrinsics(camera)
-        f = s.ssaa
-        if self._edges:
-            color, coverage, depth = self._raster.render_edges(
-                k, pose=camera.pose, near=s.near, tolerance=EDGE_TOLERANCE)
-        else:
-            big = Intrinsics(k.fx * f, k.fy * f, k.cx * f, k.cy * f, k.width * f, k.height * f)
-            color, coverage, depth = self._raster.render_resolved(big, f, pose=camera.pose,
-                                                                  near=s.near)
+        color, coverage, depth = self._draw(self._raster, k, camera.pose)
         color = self._holes(color, coverage, depth)
+        if self._overlay is not None:
+            color, depth = self._blend(color, depth, k, camera.pose)
         return View(color=np.clip(color, 0.0, 1.0, out=color), depth=depth,
                     mask=coverage >= 1.0)
+
+    def _draw(self, raster, k: Intrinsics, pose) -> tuple[np.ndarray, ...]:
+        """``(color, coverage, depth)`` of ``raster`` at ``k``'s size (the settings'
+        antialiasing)."""
+        s = self.settings
+        f = s.ssaa
+        if self._edges:
+            return raster.render_edges(k, pose=pose, near=s.near, tolerance=EDGE_TOLERANCE)
+        big = Intrinsics(k.fx * f, k.fy * f, k.cx * f, k.cy * f, k.width * f, k.height * f)
+        return raster.render_resolved(big, f, pose=pose, near=s.near)
+
+    def _blend(self, color: np.ndarray, depth: np.ndarray, k: Intrinsics,
+               pose) -> tuple[np.ndarray, np.ndarray]:
+        """``color`` with the soft silhouettes' fringe blended over it where the fringe
+        is in front: ``a * fringe + (1 - a) * color``, ``a`` the fringe's interpolated
+        alpha times twice its coverage of the pixel, at most 1
+        (:func:`~photo3d.render._resolve.blend_fringe`); and the nearer depth."""
+        colors, alphas = self._overlay
+        f_color, f_coverage, f_depth = self._draw(colors, k, pose)
+        f_alpha = self._draw(alphas, k, pose)[0]
+        color = np.ascontiguousarray(color, np.float32)
+        depth = np.array(depth, np.float32)  # a new array: the rasterizer may reuse its own
+        blend_fringe(color, depth, f_color, f_coverage, f_alpha, f_depth)
+        return color, depth
 
     def render_rgb8(self, camera: Camera) -> np.ndarray:
         """``render(camera).color`` in 8 bits (``to_rgb8``): a new ``(H, W, 3) uint8``
@@ -234,7 +280,7 @@ class Renderer:
             >>> rgb.shape, rgb.dtype, int(rgb[4, 4, 0])
             ((8, 8, 3), dtype('uint8'), 128)
         """
-        if not self._edges:
+        if not self._edges or self._overlay is not None:
             return to_rgb8(self.render(camera).color)
         color, coverage, depth, rgb = self._raster.render_edges(
             self._intrinsics(camera), pose=camera.pose, near=self.settings.near,

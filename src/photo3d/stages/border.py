@@ -76,6 +76,7 @@ def extend_border(ldi: LDI, border: int) -> LDI:
         disparity=np.concatenate([ldi.disparity, ldi.disparity[new_src]]),
         links=links,
         label=np.concatenate([ldi.label, np.full(n_new, LABEL_BORDER, np.uint8)]),
+        alpha=np.concatenate([ldi.alpha, np.ones(n_new, np.float32)]),
         border=b,
     )
 

@@ -353,6 +353,7 @@ def merge_fills(
         disparity=np.concatenate([ldi.disparity, cd[keep]]),
         links=links,
         label=np.concatenate([ldi.label, np.full(added, label, np.uint8)]),
+        alpha=np.concatenate([ldi.alpha, np.ones(added, np.float32)]),
     )
     pos = ldi.positions()
     starts, order = _appended(starts, order, pos[first:])

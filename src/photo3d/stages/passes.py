@@ -49,6 +49,7 @@ from photo3d.stages.merge import Fill, Merged, merge_fills
 from photo3d.stages.patches import PatchJob, extract_patches, iter_patches
 from photo3d.stages.preprocess import Preprocessed
 from photo3d.stages.regions import RegionLimit, Regions, RegionSizes, find_regions
+from photo3d.stages.silhouettes import silhouettes_of
 from photo3d.structures.ldi import LABEL_BORDER, LDI
 
 CONTEXT_LIMIT = 6.0
@@ -78,12 +79,17 @@ class PassInput:
         edge_ptr: ``(E + 1,) int64`` CSR offsets into ``edge_pixels``.
         edge_pixels: ``(K,) int64`` background silhouette pixels of each edge.
         index: ``ldi.position_index()`` if known (a merge's), else None.
+        behind: the soft silhouettes' background estimates (``(pixels, colors)``,
+            :meth:`~photo3d.stages.silhouettes.Silhouettes.behind`) for
+            :func:`~photo3d.stages.silhouettes.paint_behind` once the passes are
+            done; None if there is no fringe.
     """
 
     ldi: LDI
     edge_ptr: np.ndarray
     edge_pixels: np.ndarray
     index: tuple[np.ndarray, np.ndarray] | None = None
+    behind: tuple[np.ndarray, np.ndarray] | None = None
 
     @property
     def edges(self) -> int:
@@ -94,8 +100,10 @@ class PassInput:
 def start(pre: Preprocessed, *, config: Config, border: bool = True,
           intrinsics: Intrinsics | None = None,
           mapping: DepthMapping | None = None) -> PassInput:
-    """The first pass's input: ``pre``'s one-layer LDI cut along its depth edges, with
-    the extrapolated frame (``config.regions.border`` px at 1024) unless ``border`` is off.
+    """The first pass's input: ``pre``'s one-layer LDI cut along its depth edges (its
+    silhouettes soft if ``config.edges`` is ``soft``:
+    :func:`~photo3d.stages.silhouettes.silhouettes_of`), with the extrapolated frame
+    (``config.regions.border`` px at 1024) unless ``border`` is off.
 
     Args:
         pre: the preprocessed photo (working size, disparity, linked depth edges).
@@ -114,12 +122,16 @@ def start(pre: Preprocessed, *, config: Config, border: bool = True,
         >>> first.edges, first.ldi.border
         (1, 4)
     """
-    ldi = cut(from_image(pre.image, pre.disparity, intrinsics=intrinsics, mapping=mapping),
+    sil = silhouettes_of(pre.image, pre.disparity, pre.edges.cuts, config=config,
+                         working_size=pre.working_size)
+    ldi = cut(from_image(sil.color, pre.disparity, intrinsics=intrinsics, mapping=mapping),
               pre.edges.cuts)
+    if sil.fringe:
+        ldi = replace(ldi, alpha=sil.alpha.reshape(-1))
     if border:
         ldi = extend_border(ldi, config.spatial(config.regions.border, pre.working_size))
     edge_ptr, edge_pixels = edges_csr(pre.edges.labels, pre.edges.count)
-    return PassInput(ldi, edge_ptr, edge_pixels)
+    return PassInput(ldi, edge_ptr, edge_pixels, behind=sil.behind() if sil.fringe else None)
 
 
 def region_sizes(config: Config, working_size: int, *, pass_index: int = 0,

@@ -94,7 +94,7 @@ def grow_foreground(disparity: np.ndarray, steps: int, threshold: float) -> np.n
 
 def preprocess(image: np.ndarray, disparity: np.ndarray, *, config: Config) -> Preprocessed:
     """Resize, normalise, sharpen, align the depth steps with the photo's colour edges
-    (``config.edges == "align"``: :func:`~photo3d.stages.align.align_edges`) and find
+    (``config.edges`` ``align`` or ``soft``: :func:`~photo3d.stages.align.align_edges`) and find
     linked depth edges.
 
     Args:
@@ -125,7 +125,7 @@ def preprocess(image: np.ndarray, disparity: np.ndarray, *, config: Config) -> P
         sigma_intensity=pre.sigma_intensity,
         threshold=pre.discontinuity,
     )
-    if config.edges == "align":
+    if config.edges in ("align", "soft"):
         filtered = align_edges(img, filtered, radius=pre.align_radius,
                                iterations=pre.align_iterations,
                                sigma_color=pre.align_sigma_color, threshold=pre.discontinuity)

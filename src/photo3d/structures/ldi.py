@@ -36,6 +36,17 @@ class LDI:
         intrinsics: camera of the input view (image size ``W x H``).
         mapping: normalised disparity -> depth z.
         border: width of the extrapolated frame in pixels.
+        alpha: ``(N,) float32`` coverage in [0, 1]: 1 for every pixel except the
+            mixed pixels along a foreground's silhouette (the soft fringe of
+            :mod:`photo3d.stages.silhouettes`), which are drawn blended over what lies
+            behind them; their ``color`` is the foreground's estimated colour, not the
+            photo's mixed one. None (the default) means all 1.
+
+    Example:
+        >>> from photo3d.stages.ldi import from_image
+        >>> ldi = from_image(np.zeros((1, 2, 3), np.float32), np.ones((1, 2), np.float32))
+        >>> ldi.alpha.tolist(), ldi.soft
+        ([1.0, 1.0], False)
     """
 
     y: np.ndarray
@@ -47,6 +58,19 @@ class LDI:
     intrinsics: Intrinsics
     mapping: DepthMapping
     border: int = 0
+    alpha: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        n = self.y.shape[0]
+        if self.alpha is None:
+            object.__setattr__(self, "alpha", np.ones(n, np.float32))
+        elif self.alpha.shape != (n,):
+            raise ValueError(f"alpha has shape {self.alpha.shape}, expected ({n},)")
+
+    @property
+    def soft(self) -> bool:
+        """Whether any pixel has ``alpha < 1`` (a soft silhouette)."""
+        return bool(self.alpha.size) and float(self.alpha.min()) < 1.0
 
     @property
     def size(self) -> int:

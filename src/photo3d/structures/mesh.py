@@ -7,6 +7,7 @@ Both are in the input camera's frame (OpenCV axes, see :mod:`photo3d.camera`).
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -27,6 +28,10 @@ class Mesh:
         faces: ``(M, 3) int32`` vertex indices, counter-clockwise seen from the camera.
         width, height: size in pixels of the input view.
         hfov, vfov: field of view of the input view, radians.
+        alpha: ``(N,) float32`` vertex coverage in [0, 1] (the LDI's soft
+            silhouettes, :attr:`~photo3d.structures.ldi.LDI.alpha`), or None: all 1.
+            A face with a vertex below 1 is drawn blended over what lies behind it
+            (:meth:`split_fringe`).
     """
 
     vertices: np.ndarray
@@ -37,6 +42,36 @@ class Mesh:
     height: int
     hfov: float
     vfov: float
+    alpha: np.ndarray | None = None
+
+    def split_fringe(self) -> tuple[Mesh, Mesh | None]:
+        """``(opaque, fringe)``: this mesh without the faces that touch a vertex of
+        ``alpha < 1`` (same vertices, ``alpha`` None), and those faces as a mesh of
+        their own vertices only (with their ``alpha``), or None if there are none.
+
+        Example:
+            >>> v = np.zeros((4, 3), np.float32)
+            >>> m = Mesh(v, np.zeros((4, 3), np.uint8), np.ones(4, np.uint8),
+            ...          np.array([[0, 1, 2], [1, 3, 2]], np.int32), 2, 2, 1.0, 1.0,
+            ...          alpha=np.array([1, 1, 1, 0.5], np.float32))
+            >>> opaque, fringe = m.split_fringe()
+            >>> opaque.faces.tolist(), fringe.faces.tolist(), fringe.alpha.tolist()
+            ([[0, 1, 2]], [[0, 2, 1]], [1.0, 1.0, 0.5])
+        """
+        if self.alpha is None:
+            return self, None
+        faces = np.asarray(self.faces, np.int32)
+        soft = np.asarray(self.alpha, np.float32) < 1.0
+        touch = soft[faces].any(axis=1)
+        opaque = dataclasses.replace(self, faces=faces[~touch], alpha=None)
+        if not touch.any():
+            return opaque, None
+        used, inverse = np.unique(faces[touch], return_inverse=True)
+        return opaque, dataclasses.replace(
+            self, vertices=np.asarray(self.vertices)[used], colors=np.asarray(self.colors)[used],
+            labels=np.asarray(self.labels)[used],
+            faces=inverse.reshape(-1, 3).astype(np.int32),
+            alpha=np.asarray(self.alpha, np.float32)[used])
 
     def checked(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """``(vertices, colors, labels, faces)`` in the documented dtypes, validated.
@@ -85,6 +120,8 @@ class TexturedMesh:
         n_input: number of input-layer faces at the start of ``faces``.
         width, height: size in pixels of the input view.
         hfov, vfov: field of view of the input view, radians.
+        overlay: the soft silhouettes' fringe (:meth:`Mesh.split_fringe`), drawn
+            blended over this mesh, or None.
     """
 
     vertices: np.ndarray
@@ -97,6 +134,7 @@ class TexturedMesh:
     height: int
     hfov: float
     vfov: float
+    overlay: Mesh | None = None
 
     def checked(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """``(vertices, uv, labels, faces)`` in the documented dtypes, validated.

@@ -81,7 +81,7 @@ class JobOptions:
             order first given (at most :data:`MAX_PATHS` entries).
         ply: also write ``mesh.ply`` (the full mesh, large; True or False).
         edges: where the depth edges go (:attr:`~photo3d.config.Config.edges`):
-            ``align`` (on the photo's colour edges) or ``exact``.
+            ``align`` (on the photo's colour edges), ``soft`` (also soft silhouettes) or ``exact``.
 
     Example:
         >>> options = JobOptions(size=512, paths=["swing"])

@@ -142,8 +142,9 @@ def build_app(runner: Runner, warmup: Warmup, *, workers: int = 1,
                                              label="Camera paths")
                     ply = gr.Checkbox(DEFAULT.ply, label="Also the full mesh as PLY (large)")
                     edges = gr.Radio(list(EDGES), value=DEFAULT.edges, label="Depth edges "
-                                     "(align: moved onto the photo's colour edges; exact: "
-                                     "where the depth map puts them)",
+                                     "(align: moved onto the photo's colour edges; soft: "
+                                     "also soft silhouettes; exact: where the depth map "
+                                     "puts them)",
                                      elem_id="photo3d-edges")
             with gr.Column(scale=2, min_width=480):
                 viewer = gr.HTML(elem_id="photo3d-viewer", min_height=120)

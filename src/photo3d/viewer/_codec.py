@@ -28,6 +28,13 @@ four sections, each starting at a multiple of 4 bytes (offsets in the header):
   faces in order of their largest vertex and join lattice neighbours, so the
   numbers are mostly 0 or 2, 1 and the row length: the high planes are zero and
   deflate brings the 12 bytes of a face down to about 0.3.
+
+Version 3 adds the soft silhouettes (the faces that touch a vertex of ``alpha < 1``,
+:meth:`~photo3d.structures.mesh.Mesh.split_fringe`, or a textured mesh's
+``overlay``), drawn blended over the rest: the header's ``overlay`` gives their
+``vertices`` and ``faces``, and three more sections hold them: ``overlay_position``
+(as ``position``, same bounds), ``overlay_color`` (``(K, 4)`` uint8 sRGB and alpha)
+and ``overlay_faces`` (as ``faces``). Version 2 payloads (no overlay) still decode.
 """
 
 from __future__ import annotations
@@ -40,7 +47,8 @@ from photo3d.errors import InputError
 from photo3d.io.gltf_textured import decode_jpeg, encode_jpeg
 from photo3d.structures.mesh import Mesh, TexturedMesh
 
-VERSION = 2
+VERSION = 3
+OVERLAY_SECTIONS = ("overlay_position", "overlay_color", "overlay_faces")
 SECTIONS = ("position", "color", "label", "faces")
 TEXTURED_SECTIONS = ("position", "uv", "label", "faces", "texture")
 TEXTURE_QUALITY = 85
@@ -74,6 +82,10 @@ def encode_mesh(mesh: Mesh | TexturedMesh, *, level: int = 6) -> tuple[dict, byt
         (3, 1, 1.0)
     """
     textured = isinstance(mesh, TexturedMesh)
+    if textured:
+        overlay = mesh.overlay
+    else:
+        mesh, overlay = mesh.split_fringe()
     vertices, colors, labels, faces = mesh.checked()
     if len(vertices) == 0 or len(faces) == 0:
         raise InputError("mesh has no vertices or no faces; the viewer needs both")
@@ -83,15 +95,22 @@ def encode_mesh(mesh: Mesh | TexturedMesh, *, level: int = 6) -> tuple[dict, byt
     if z.min() <= 0:
         raise InputError(f"mesh.vertices need z > 0 (in front of the input camera), "
                          f"min z is {z.min():g}")
-    planes = (vertices[:, 0] / z, vertices[:, 1] / z, 1.0 / z)
+    extra = np.zeros((0, 3), np.float32)
+    if overlay is not None:
+        extra = overlay.checked()[0]
+        if not np.isfinite(extra).all() or (len(extra) and extra[:, 2].min() <= 0):
+            raise InputError("the soft silhouettes' vertices need finite values and z > 0")
+    every = np.concatenate([vertices, extra]).astype(np.float64)
+    planes = (every[:, 0] / every[:, 2], every[:, 1] / every[:, 2], 1.0 / every[:, 2])
     lo = [float(p.min()) for p in planes]
     hi = [float(p.max()) for p in planes]
     quantised = [
         np.rint((p - a) * (_LEVELS / (b - a) if b > a else 0.0)).astype("<u2")
         for p, a, b in zip(planes, lo, hi, strict=True)
     ]
+    n = len(vertices)
     blobs = {
-        "position": np.concatenate(quantised).tobytes(),
+        "position": np.concatenate([q[:n] for q in quantised]).tobytes(),
         "label": labels.tobytes(),
         "faces": _encode_faces(faces),
     }
@@ -101,8 +120,18 @@ def encode_mesh(mesh: Mesh | TexturedMesh, *, level: int = 6) -> tuple[dict, byt
         blobs["texture"] = encode_jpeg(np.asarray(mesh.texture), quality=TEXTURE_QUALITY)
     else:
         blobs["color"] = colors.tobytes()
+    names = TEXTURED_SECTIONS if textured else SECTIONS
+    if overlay is not None:
+        _, o_colors, _, o_faces = overlay.checked()
+        rgba = np.empty((len(o_colors), 4), np.uint8)
+        rgba[:, :3] = o_colors
+        rgba[:, 3] = np.rint(np.clip(overlay.alpha, 0.0, 1.0) * 255.0)
+        blobs["overlay_position"] = np.concatenate([q[n:] for q in quantised]).tobytes()
+        blobs["overlay_color"] = rgba.tobytes()
+        blobs["overlay_faces"] = _encode_faces(o_faces)
+        names = names + OVERLAY_SECTIONS
     raw, sections, offset = [], {}, 0
-    for name in TEXTURED_SECTIONS if textured else SECTIONS:
+    for name in names:
         data = blobs[name]
         sections[name] = [offset, len(data)]
         raw.append(data + bytes(-len(data) % 4))
@@ -115,6 +144,8 @@ def encode_mesh(mesh: Mesh | TexturedMesh, *, level: int = 6) -> tuple[dict, byt
         "position": {"lo": lo, "hi": hi}, "sections": sections,
         "compression": "deflate", "size": offset,
     }
+    if overlay is not None:
+        header["overlay"] = {"vertices": len(overlay.vertices), "faces": len(overlay.faces)}
     if textured:
         t = np.asarray(mesh.texture)
         header["texture"] = {"width": int(t.shape[1]), "height": int(t.shape[0]),
@@ -135,8 +166,8 @@ def decode_mesh(header: dict, payload: bytes) -> Mesh | TexturedMesh:
         >>> back.faces.tolist(), bool(np.abs(back.vertices - m.vertices).max() < 1e-4)
         ([[1, 0, 2]], True)
     """
-    if header.get("format") != "photo3d-viewer" or header.get("version") != VERSION:
-        raise InputError(f"not a photo3d viewer payload of version {VERSION}")
+    if header.get("format") != "photo3d-viewer" or header.get("version") not in (2, VERSION):
+        raise InputError(f"not a photo3d viewer payload of version 2 to {VERSION}")
     raw = zlib.decompress(payload)
     n, count = int(header["vertices"]), int(header["faces"])
 
@@ -144,11 +175,25 @@ def decode_mesh(header: dict, payload: bytes) -> Mesh | TexturedMesh:
         offset, length = header["sections"][name]
         return raw[offset:offset + length]
 
-    q = np.frombuffer(section("position"), "<u2").reshape(3, n).astype(np.float64)
     lo = np.asarray(header["position"]["lo"], np.float64)[:, None]
     hi = np.asarray(header["position"]["hi"], np.float64)[:, None]
-    a, b, d = lo + q / _LEVELS * (hi - lo)
-    vertices = np.stack([a / d, b / d, 1.0 / d], axis=1).astype(np.float32)
+
+    def positions(name: str, count: int) -> np.ndarray:
+        q = np.frombuffer(section(name), "<u2").reshape(3, count).astype(np.float64)
+        a, b, d = lo + q / _LEVELS * (hi - lo)
+        return np.stack([a / d, b / d, 1.0 / d], axis=1).astype(np.float32)
+
+    vertices = positions("position", n)
+    overlay = None
+    if "overlay" in header:
+        k, m = int(header["overlay"]["vertices"]), int(header["overlay"]["faces"])
+        rgba = np.frombuffer(section("overlay_color"), np.uint8).reshape(k, 4)
+        overlay = Mesh(vertices=positions("overlay_position", k), colors=rgba[:, :3].copy(),
+                       labels=np.ones(k, np.uint8),
+                       faces=_decode_faces(section("overlay_faces"), m),
+                       width=int(header["width"]), height=int(header["height"]),
+                       hfov=float(header["hfov"]), vfov=float(header["vfov"]),
+                       alpha=(rgba[:, 3] / 255.0).astype(np.float32))
     if "texture" in header:
         from photo3d.structures.mesh import TexturedMesh
 
@@ -158,9 +203,9 @@ def decode_mesh(header: dict, payload: bytes) -> Mesh | TexturedMesh:
             labels=np.frombuffer(section("label"), np.uint8).copy(),
             faces=_decode_faces(section("faces"), count), n_input=0,
             width=int(header["width"]), height=int(header["height"]),
-            hfov=float(header["hfov"]), vfov=float(header["vfov"]),
+            hfov=float(header["hfov"]), vfov=float(header["vfov"]), overlay=overlay,
         )
-    return Mesh(
+    mesh = Mesh(
         vertices=vertices,
         colors=np.frombuffer(section("color"), np.uint8).reshape(n, 3).copy(),
         labels=np.frombuffer(section("label"), np.uint8).copy(),
@@ -168,6 +213,15 @@ def decode_mesh(header: dict, payload: bytes) -> Mesh | TexturedMesh:
         width=int(header["width"]), height=int(header["height"]),
         hfov=float(header["hfov"]), vfov=float(header["vfov"]),
     )
+    if overlay is None:
+        return mesh
+    return Mesh(  # the soft silhouettes' vertices after the others, with their alpha
+        vertices=np.concatenate([mesh.vertices, overlay.vertices]),
+        colors=np.concatenate([mesh.colors, overlay.colors]),
+        labels=np.concatenate([mesh.labels, overlay.labels]),
+        faces=np.concatenate([mesh.faces, overlay.faces + n]), width=mesh.width,
+        height=mesh.height, hfov=mesh.hfov, vfov=mesh.vfov,
+        alpha=np.concatenate([np.ones(n, np.float32), overlay.alpha]))
 
 
 def _encode_faces(faces: np.ndarray) -> bytes:

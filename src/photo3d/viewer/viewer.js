@@ -7,7 +7,9 @@
  *   #photo3d-data (application/octet-stream): base64 of one zlib stream: positions
  *       (3 planes of uint16), colours (RGB uint8) or texture coordinates (2 planes
  *       of uint16) plus a JPEG texture (header.texture), labels (uint8), faces
- *       (byte planes of uint32 deltas)
+ *       (byte planes of uint32 deltas); with header.overlay, the soft silhouettes:
+ *       their positions (as above), RGBA uint8 colours and faces, drawn blended
+ *       over the rest (depth tested, not written)
  *
  * Conventions (photo3d.camera): OpenCV axes (x right, y down, z forward); world = the
  * input camera's frame; a pose is a 4x4 camera-from-world matrix. Camera motion here
@@ -124,6 +126,14 @@
     } else {
       result.color = new Uint8Array(raw, s.color[0], 3 * n);
     }
+    if (header.overlay) {
+      const k = header.overlay.vertices;
+      result.overlay = {
+        position: new Uint16Array(raw, s.overlay_position[0], 3 * k),
+        color: new Uint8Array(raw, s.overlay_color[0], 4 * k),
+        faces: decodeFaces(raw, s.overlay_faces[0], header.overlay.faces),
+      };
+    }
     Object.assign(viewer.timings, {
       base64Ms: t1 - t0, inflateMs: t2 - t1, facesMs: t3 - t2,
       textureMs: performance.now() - t3,
@@ -172,6 +182,16 @@
     out vec4 o_color;
     void main() { o_color = vec4(texture(u_texture, v_uv).rgb, 1.0); }`;
 
+  // Soft silhouettes: vertex colours with their alpha (sRGB as above), blended.
+  const OVERLAY_VERTEX_SHADER = VERTEX_SHADER
+    .replace('in vec3 a_color;', 'in vec4 a_color;')
+    .replace('out vec3 v_color;', 'out vec4 v_color;');
+  const OVERLAY_FRAGMENT_SHADER = `#version 300 es
+    precision highp float;
+    in vec4 v_color;
+    out vec4 o_color;
+    void main() { o_color = v_color; }`;
+
   function compile(type, source) {
     const shader = gl.createShader(type);
     gl.shaderSource(shader, source);
@@ -182,17 +202,61 @@
     return shader;
   }
 
-  function upload() {
+  function link(vertexSource, fragmentSource) {
     const program = gl.createProgram();
-    const textured = Boolean(mesh.texture);
-    gl.attachShader(program, compile(gl.VERTEX_SHADER,
-      textured ? TEXTURED_VERTEX_SHADER : VERTEX_SHADER));
-    gl.attachShader(program, compile(gl.FRAGMENT_SHADER,
-      textured ? TEXTURED_FRAGMENT_SHADER : FRAGMENT_SHADER));
+    gl.attachShader(program, compile(gl.VERTEX_SHADER, vertexSource));
+    gl.attachShader(program, compile(gl.FRAGMENT_SHADER, fragmentSource));
     gl.linkProgram(program);
     if (!gl.getProgramParameter(program, gl.LINK_STATUS)) {
       throw new Error(gl.getProgramInfoLog(program));
     }
+    return program;
+  }
+
+  // Uniform locations of a program, its quantisation bounds set.
+  function uniforms(program) {
+    const uniform = {};
+    for (const name of ['u_lo', 'u_span', 'u_view', 'u_k', 'u_z']) {
+      uniform[name] = gl.getUniformLocation(program, name);
+    }
+    gl.useProgram(program);
+    const lo = header.position.lo, hi = header.position.hi;
+    gl.uniform3fv(uniform.u_lo, lo);
+    gl.uniform3fv(uniform.u_span, hi.map((h, i) => h - lo[i]));
+    return uniform;
+  }
+
+  // The soft silhouettes' program and vertex array (null without them).
+  function uploadOverlay() {
+    const o = mesh.overlay;
+    if (!o) return null;
+    const program = link(OVERLAY_VERTEX_SHADER, OVERLAY_FRAGMENT_SHADER);
+    const vao = gl.createVertexArray();
+    gl.bindVertexArray(vao);
+    const k = header.overlay.vertices;
+    const attribute = (name, size, type, offset) => {
+      const loc = gl.getAttribLocation(program, name);
+      gl.enableVertexAttribArray(loc);
+      gl.vertexAttribPointer(loc, size, type, true, 0, offset);
+    };
+    gl.bindBuffer(gl.ARRAY_BUFFER, gl.createBuffer());
+    gl.bufferData(gl.ARRAY_BUFFER, o.position, gl.STATIC_DRAW);
+    attribute('a_u', 1, gl.UNSIGNED_SHORT, 0);
+    attribute('a_v', 1, gl.UNSIGNED_SHORT, 2 * k);
+    attribute('a_d', 1, gl.UNSIGNED_SHORT, 4 * k);
+    gl.bindBuffer(gl.ARRAY_BUFFER, gl.createBuffer());
+    gl.bufferData(gl.ARRAY_BUFFER, o.color, gl.STATIC_DRAW);
+    attribute('a_color', 4, gl.UNSIGNED_BYTE, 0);
+    gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, gl.createBuffer());
+    gl.bufferData(gl.ELEMENT_ARRAY_BUFFER, o.faces, gl.STATIC_DRAW);
+    gl.bindVertexArray(null);
+    return { program, vao, uniform: uniforms(program), count: 3 * header.overlay.faces };
+  }
+
+  function upload() {
+    const textured = Boolean(mesh.texture);
+    const program = link(textured ? TEXTURED_VERTEX_SHADER : VERTEX_SHADER,
+      textured ? TEXTURED_FRAGMENT_SHADER : FRAGMENT_SHADER);
     const vao = gl.createVertexArray();
     gl.bindVertexArray(vao);
     const n = header.vertices;
@@ -232,19 +296,14 @@
     gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, indices);
     gl.bufferData(gl.ELEMENT_ARRAY_BUFFER, mesh.faces, gl.STATIC_DRAW);
     gl.bindVertexArray(null);
-    const uniform = {};
-    for (const name of ['u_lo', 'u_span', 'u_view', 'u_k', 'u_z']) {
-      uniform[name] = gl.getUniformLocation(program, name);
-    }
-    gl.useProgram(program);
+    const uniform = uniforms(program);
     if (textured) gl.uniform1i(gl.getUniformLocation(program, 'u_texture'), 0);
-    const lo = header.position.lo, hi = header.position.hi;
-    gl.uniform3fv(uniform.u_lo, lo);
-    gl.uniform3fv(uniform.u_span, hi.map((h, i) => h - lo[i]));
+    const overlay = uploadOverlay();
     gl.enable(gl.DEPTH_TEST);
     gl.depthFunc(gl.LESS);
+    gl.blendFunc(gl.SRC_ALPHA, gl.ONE_MINUS_SRC_ALPHA);
     gl.clearColor(0.067, 0.067, 0.067, 1);
-    gpu = { program, vao, uniform };
+    gpu = { program, vao, uniform, overlay };
   }
 
   // The drawing buffer fills the page while keeping the photo's aspect ratio
@@ -293,12 +352,24 @@
     const p = projection(w, h);
     gl.viewport(0, 0, w, h);
     gl.clear(gl.COLOR_BUFFER_BIT | gl.DEPTH_BUFFER_BIT);
-    gl.useProgram(gpu.program);
-    gl.uniformMatrix4fv(gpu.uniform.u_view, false, viewMatrix());
-    gl.uniform4fv(gpu.uniform.u_k, p.k);
-    gl.uniform2fv(gpu.uniform.u_z, p.z);
-    gl.bindVertexArray(gpu.vao);
+    const view = viewMatrix();
+    const use = (part) => {
+      gl.useProgram(part.program);
+      gl.uniformMatrix4fv(part.uniform.u_view, false, view);
+      gl.uniform4fv(part.uniform.u_k, p.k);
+      gl.uniform2fv(part.uniform.u_z, p.z);
+      gl.bindVertexArray(part.vao);
+    };
+    use(gpu);
     gl.drawElements(gl.TRIANGLES, 3 * header.faces, gl.UNSIGNED_INT, 0);
+    if (gpu.overlay) { // the soft silhouettes over what is already drawn behind them
+      use(gpu.overlay);
+      gl.enable(gl.BLEND);
+      gl.depthMask(false);
+      gl.drawElements(gl.TRIANGLES, gpu.overlay.count, gl.UNSIGNED_INT, 0);
+      gl.depthMask(true);
+      gl.disable(gl.BLEND);
+    }
     gl.bindVertexArray(null);
     viewer.frames++;
   }
