@@ -3,8 +3,9 @@ its depth source and the 16-bit map and colour preview written at that size.
 
 A 13000x13000 PNG of 0.5 MB has 169M pixels: decoding it alone needs about 8.1 GB
 (:data:`photo3d.io.images` counts 48 bytes per pixel), and the depth at its size,
-the checks, the normalised map, its 16-bit PNG and the preview as much again. The
-whole is checked from the header, before a pixel is decoded (:func:`check_depth_memory`).
+its checks, the normalised map, its 16-bit PNG and the preview more (measured 9.7 GB
+in all). The whole is checked from the header, before a pixel is decoded
+(:func:`check_depth_memory`).
 Measured with ``benchmarks/bench_memory.py --depth`` (RESULTS.md, "depth").
 
 Example:
@@ -18,10 +19,11 @@ from photo3d.resources.model import BASE_BYTES, Estimate, check
 
 DECODE_BYTES_PER_PIXEL = 48
 """Decoding the photo to ``float32`` (:data:`photo3d.io.images._FLOAT_BYTES`)."""
-DEPTH_BYTES_PER_PIXEL = 72
-"""The depth at the photo's size once the photo is decoded: the map read or the
-model's output resized (float32, with copies), its checks and preparation, the
-normalised map, the 16-bit PNG and the colour preview (``float64`` indices)."""
+DEPTH_BYTES_PER_PIXEL = 16
+"""What the depth at the photo's size adds once the photo is decoded: the map read or
+the model's output resized, its checks and preparation, the normalised map, the
+16-bit PNG and the colour preview (measured 55 bytes per pixel in all, decoding
+included, at 2000-4000 px: 311, 583 and 971 MB)."""
 MODEL_BYTES = 1.5e9
 """A monocular depth model's weights, torch and its activations at the model's own
 input size (Depth Anything V2 Small at 518 px: about 1.1 GB measured)."""

@@ -12,7 +12,9 @@ LDI pixels per lattice position), but the light mesh of such a fragmented LDI ta
 up to about 550 bytes per LDI pixel while it is built. The worst measured, 3x3 blocks
 of uniform noise for a 741x500 photo (``benchmarks/bench_hard_depth.py --hostile``),
 peaked at 609 MB at 512 px and 1.60 GB at 1024 px (the LDI at its limit): about 280 MB
-plus 1430 bytes per working pixel. :data:`BYTES_PER_PIXEL` rounds that up.
+plus 1430 bytes per working pixel. With the edges aligned to the photo's colour
+edges (the default since), the same 1024 px run peaked at 1.80 GB (1.86M LDI pixels,
+the limit): about 1620 bytes per working pixel. :data:`BYTES_PER_PIXEL` rounds that up.
 
 ``--export`` adds what the export writers hold beside the saved folder
 (:func:`photo3d.resources.export.export_terms` of the largest LDI the working size
@@ -33,8 +35,8 @@ from photo3d.resources.model import BASE_BYTES, Estimate, check
 
 MAKE_BASE_BYTES = 100e6
 """What ``make``'s kernels and libraries add to :data:`BASE_BYTES` before any pixel."""
-BYTES_PER_PIXEL = 1600
-"""Peak bytes of ``make`` per working pixel (measured 850-1050 for photos, 1430 for the
+BYTES_PER_PIXEL = 1800
+"""Peak bytes of ``make`` per working pixel (measured 850-1050 for photos, 1620 for the
 worst depth maps; rounded up)."""
 
 
@@ -104,17 +106,28 @@ def check_memory(shape: tuple[int, int], config: Config, *, at_least: bool = Fal
           advice=f"use a smaller --size (1024 needs about {smaller / 1e9:.1f} GB)")
 
 
+def batch_estimate(config: Config, *, workers: int, exports: Sequence[str] = ()) -> Estimate:
+    """``photo3d batch``'s peak with ``workers`` local processes each making a 16:9
+    photo at once (at least: a squarer photo has more working pixels).
+
+    Example:
+        >>> [name for name, _ in batch_estimate(Config(size=256), workers=2).terms]
+        ['base', '2 workers']
+    """
+    one = make_estimate((9, 16), config, exports)
+    return Estimate("batch", (("base", int(BASE_BYTES)), (f"{workers} workers",
+                                                          workers * one.bytes)))
+
+
 def check_batch_memory(config: Config, *, workers: int, exports: Sequence[str] = ()) -> None:
-    """Raise :class:`~photo3d.errors.ConfigError` if ``workers`` processes making a 16:9
-    photo each at once (``photo3d batch``'s local pool) would need more memory than is
-    available: ``workers`` times :func:`make_estimate`, at least.
+    """Raise :class:`~photo3d.errors.ConfigError` if ``photo3d batch``'s ``workers``
+    would need more memory than is available (:func:`batch_estimate`).
 
     Example:
         >>> check_batch_memory(Config(size=256), workers=2)  # within any machine
     """
-    one = make_estimate((9, 16), config, exports)
-    estimate = Estimate("batch", (("base", int(BASE_BYTES)),
-                                  (f"{workers} workers", workers * one.bytes)))
-    check(estimate, what=f"{workers} workers at --size {config.size or 0}", at_least=True,
-          advice="use fewer --workers or a smaller --size "
-                 f"(each worker needs at least {one.bytes / 1e9:.1f} GB)")
+    one = make_estimate((9, 16), config, exports).bytes
+    check(batch_estimate(config, workers=workers, exports=exports),
+          what=f"{workers} workers at --size {config.size or 0}", at_least=True,
+          advice=f"use fewer --workers or a smaller --size (each worker needs at least "
+                 f"{one / 1e9:.1f} GB)")

@@ -2,9 +2,12 @@
 a loaded 3D photo and its mesh per LDI pixel, plus per output pixel and view the
 frame, its supersamples and, for a video, the encoder.
 
-Measured with ``benchmarks/bench_memory.py --render`` (RESULTS.md, "render"):
-a still at 2000x2000 to 4000x4000, ``--ssaa`` 1 and 2, the noisiest 3D photo
-(3x3 blocks of noise at 1024 px, 2.1M LDI pixels), and videos of a few frames.
+Measured (``benchmarks/bench_memory.py``, RESULTS.md "Peak memory of every command"):
+``render --still`` of a small 3D photo (82k LDI pixels) at 2000-6000 px took about
+45 bytes per output pixel at ``--ssaa 1`` and 16 more per supersample; at 9000x9000
+it took 8.2 GB, 98 bytes per pixel, since a view magnified that much leaves holes
+wider than the near fill reaches and the pyramid fill (:func:`photo3d.holes.fill_holes`,
+63 bytes per pixel) runs at full size. The estimate counts that fill for every frame.
 """
 
 from __future__ import annotations
@@ -14,15 +17,15 @@ import math
 from photo3d.io import limits
 from photo3d.resources.model import BASE_BYTES, Estimate, check
 
+RENDER_BASE_BYTES = 100e6
+"""What the renderer's kernels add to :data:`BASE_BYTES` (measured about 50 MB)."""
 RENDER_BYTES_PER_LDI_PIXEL = 400
 """Bytes per LDI pixel of a loaded 3D photo and the mesh the renderer draws (measured
 315 with ``render --still``: 628 MB for a 1.47M pixel LDI, 273 MB for 335k)."""
-RENDER_BYTES_PER_PIXEL = 48
-"""Bytes per output pixel and view of a video frame besides the supersamples
-(measured 32)."""
-STILL_BYTES_PER_PIXEL = 120
-"""The same for a still: its frame, hole filling at full size, the ``uint8`` image and
-the PNG encoder's copy (measured 94 at 4000x4000, ``--ssaa`` 1)."""
+FRAME_BYTES_PER_PIXEL = 120
+"""Bytes per output pixel and view of a frame besides its supersamples: colour,
+coverage and depth, the pyramid hole fill (63) and the ``uint8`` image (measured 98
+for a still at 9000x9000, PNG encoding included)."""
 RENDER_BYTES_PER_SAMPLE = 20
 """Bytes per supersample (``ssaa * ssaa`` per output pixel and view; measured 16:
 ``render --still`` at 4096x2768 took 810 MB, 1.34 GB and 2.23 GB at ssaa 1, 2, 3)."""
@@ -34,12 +37,11 @@ def render_terms(ldi_pixels: int, size: tuple[int, int], *, ssaa: int, views: in
                  video: bool = False) -> Estimate:
     """The :class:`~photo3d.resources.model.Estimate` of :func:`render_memory_estimate`."""
     width, height = size
-    per_view = ((RENDER_BYTES_PER_PIXEL if video else STILL_BYTES_PER_PIXEL)
-                + RENDER_BYTES_PER_SAMPLE * ssaa * ssaa)
+    per_view = FRAME_BYTES_PER_PIXEL + RENDER_BYTES_PER_SAMPLE * ssaa * ssaa
     frames = 2 if video else 1  # frames rendered at once
     per_pixel = frames * views * per_view + (VIDEO_BYTES_PER_PIXEL if video else 0)
     return Estimate("render" if video else "render --still",
-                    (("base", int(BASE_BYTES)),
+                    (("base", int(BASE_BYTES + RENDER_BASE_BYTES)),
                      ("the 3D photo", int(RENDER_BYTES_PER_LDI_PIXEL * ldi_pixels)),
                      ("frames", int(per_pixel * width * height))))
 
