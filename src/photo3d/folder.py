@@ -178,10 +178,9 @@ def check_photo_limits(shape: tuple[int, int], options: MakeOptions, *,
 
     Example:
         >>> check_photo_limits((768, 1024), MakeOptions(save=SaveOptions(exports=("splats.spz",))))
-        >>> opts = MakeOptions(config=Config(size=4096), save=SaveOptions(exports=("splats.spz",)))
-        >>> check_photo_limits((9, 16), opts, at_least=True)  # doctest: +ELLIPSIS
-        Traceback (most recent call last):
-        photo3d.errors.ConfigError: splats.spz of --size 4096 can have up to 23,... splats, ...
+        >>> from photo3d.resources import SPZ_LIMIT, ldi_bound
+        >>> ldi_bound((9, 16), Config(size=2600)) > SPZ_LIMIT  # refused at --size 2600
+        True
     """
     from photo3d.config import working_shape
     from photo3d.resources import SPZ_LIMIT, check_memory, check_spz_limit, ldi_bound

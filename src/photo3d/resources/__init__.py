@@ -22,7 +22,7 @@ scaled down and requires its measured peak to stay within its estimate.
 Example:
     >>> from photo3d.config import Config
     >>> round(memory_estimate((768, 1024), Config()) / 1e9, 1)  # with its 60 px border
-    2.0
+    2.1
 """
 
 from __future__ import annotations

@@ -10,7 +10,7 @@ Measured with ``benchmarks/bench_memory.py --depth`` (RESULTS.md, "depth").
 
 Example:
     >>> round(depth_memory_estimate((3000, 3000)) / 1e9, 2)
-    1.28
+    0.78
 """
 
 from __future__ import annotations

@@ -11,9 +11,9 @@ the bundled sample (RESULTS.md, "export").
 
 Example:
     >>> round(export_memory_estimate(1_453_295, ["splats.spz", "quilt"]) / 1e9, 2)
-    1.93
+    1.72
     >>> round(export_memory_estimate(1_453_295, ["splats.spz"]) / 1e9, 2)
-    1.14
+    0.48
 """
 
 from __future__ import annotations

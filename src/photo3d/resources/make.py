@@ -23,7 +23,7 @@ allows, :func:`ldi_bound`).
 Example:
     >>> from photo3d.config import Config
     >>> round(memory_estimate((768, 1024), Config()) / 1e9, 1)  # with its 60 px border
-    1.9
+    2.1
 """
 
 from __future__ import annotations
@@ -46,7 +46,7 @@ def lattice_pixels(shape: tuple[int, int], config: Config) -> int:
 
     Example:
         >>> lattice_pixels((768, 1024), Config())  # 60 px of border on each side
-        1058784
+        1015872
     """
     h, w = working_shape(shape, config.size)
     border = 2 * config.spatial(config.regions.border, max(h, w))
@@ -59,7 +59,7 @@ def ldi_bound(shape: tuple[int, int], config: Config) -> int:
 
     Example:
         >>> ldi_bound((768, 1024), Config())
-        2117568
+        2031744
     """
     from photo3d.stages.passes import LDI_LIMIT
 

@@ -56,7 +56,7 @@ def render_memory_estimate(ldi_pixels: int, size: tuple[int, int], *, ssaa: int,
 
     Example:
         >>> round(render_memory_estimate(1_500_000, (1024, 768), ssaa=2, video=True) / 1e9, 2)
-        0.9
+        1.26
     """
     return render_terms(ldi_pixels, size, ssaa=ssaa, views=views, video=video).bytes
 

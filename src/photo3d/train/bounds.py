@@ -248,7 +248,7 @@ def train_estimate(config: TrainConfig, shapes: Sequence[tuple[int, int]], *,
         >>> est = train_estimate(TrainConfig("depth", levels=3, width=0.125, size=32),
         ...                      [(48, 64)], sources=1)
         >>> est.command, [name for name, _ in est.terms]
-        ('train', ['base', 'region pairs', 'a training step'])
+        ('train', ['base', 'region pairs', 'preparing a photo'])
     """
     parts = memory_parts(config, shapes, sources)
     larger = max(("preparing a photo", "a training step"), key=parts.get)
