@@ -27,9 +27,8 @@ import pytest
 from PIL import Image
 from test_robustness import run
 
+import photo3d
 from photo3d.config import Config
-
-import photo3d  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 SRC = Path(photo3d.__file__).resolve().parents[1]
@@ -96,8 +95,7 @@ def peak(argv: list[str], *, cwd: Path, python: str | None = None) -> int:
 
 
 def within(measured: int, estimate: int) -> None:
-    """``measured <= estimate`` (both printed: ``pytest -s`` shows the table)."""
-    print(f"\npeak {measured / 1e6:.0f} MB, estimate {estimate / 1e6:.0f} MB")
+    """``measured <= estimate`` (the message gives both)."""
     assert measured <= estimate, (f"peak {measured / 1e6:.0f} MB > estimate "
                                   f"{estimate / 1e6:.0f} MB")
 

@@ -152,7 +152,8 @@ def export_folder(folder: str | Path, formats: Sequence[str], *,
         InputError: no 3D photo in ``folder`` (or a damaged one).
         MissingExtra: a package a format needs is missing (:func:`require_extras`).
         OutputError: less free disk space than the files need (a low estimate,
-            :func:`photo3d.resources.outputs.export_bytes`); a file to write is a symbolic link (dangling too), not a
+            :func:`photo3d.resources.outputs.export_bytes`); a file to write is a
+            symbolic link (dangling too), not a
             regular file, the 3D photo being read, a file of a 3D photo folder that
             export does not write, or exists and photo3d did not write it
             (``output`` elsewhere: exists, without ``overwrite``); nothing is
@@ -198,7 +199,8 @@ def export_folder(folder: str | Path, formats: Sequence[str], *,
 
 def _check_spz(splats: int, *, dense: bool) -> None:
     """Refuse ``splats.spz`` of more splats than SPZ holds, before any file is written."""
-    check_spz_limit(splats, what=f"splats.spz of this 3D photo ({'dense' if dense else 'adaptive'})",
+    layout = "dense" if dense else "adaptive"
+    check_spz_limit(splats, what=f"splats.spz of this 3D photo ({layout})",
                     advice="export splats.ply or splats.glb instead (no such limit)"
                            + (", or --splats adaptive (fewer splats)" if dense else ""))
 

@@ -39,7 +39,7 @@ import numpy as np
 import torch
 from torch.overrides import TorchFunctionMode
 
-from photo3d.errors import ConfigError, OutputError
+from photo3d.errors import OutputError
 from photo3d.resources import BYTES_PER_PIXEL, Estimate, check
 from photo3d.train.dataset import TrainingFile, target_shape
 from photo3d.train.trainer import REFINE_D_WIDTH, TrainConfig
