@@ -11,9 +11,9 @@ the bundled sample (RESULTS.md, "export").
 
 Example:
     >>> round(export_memory_estimate(1_453_295, ["splats.spz", "quilt"]) / 1e9, 2)
-    1.72
+    1.77
     >>> round(export_memory_estimate(1_453_295, ["splats.spz"]) / 1e9, 2)
-    0.48
+    0.53
 """
 
 from __future__ import annotations
@@ -24,9 +24,10 @@ from photo3d.resources.model import BASE_BYTES, Estimate, check
 
 LOAD_BYTES_PER_LDI_PIXEL = 80
 """The loaded LDI (its arrays and the reader's temporaries), per LDI pixel."""
-SPLAT_BYTES_PER_LDI_PIXEL = 80
+SPLAT_BYTES_PER_LDI_PIXEL = 120
 """The splats built from it (positions, colours, scales, rotations and the adaptive
-quadtree's blocks; a noisy LDI joins no block: one splat per pixel)."""
+quadtree's blocks, or dense: one splat per pixel, 56 bytes and the temporaries making
+them; ``splats.spz`` and ``splats.ply`` of 1.86M dense splats peaked at 595 MB)."""
 SPLAT_FILE_BYTES = {"splats.ply": 40, "splats.spz": 30, "splats.glb": 40}
 """Each splat file's encoding buffers per splat (at most one per LDI pixel)."""
 MESH_BYTES_PER_LDI_PIXEL = 700
