@@ -401,3 +401,14 @@ def test_a_full_disk_during_export_says_so(tmp_path):
         assert sorted(p.name for p in photo.iterdir()) == ["config.json", "photo3d.npz"]
     finally:
         subprocess.run(["umount", str(disk)], check=False)
+
+
+def test_make_refuses_a_video_larger_than_the_memory_before_the_work(square, no_work, capsys,
+                                                                      monkeypatch):
+    """A video of a given size is rendered after the whole make: its frames are checked
+    with the pipeline's memory, before the work."""
+    monkeypatch.setattr("photo3d.resources.available_memory", lambda: 2_000_000_000)
+    photo, depth = square
+    run(capsys, "make", photo, "--depth", depth, "-o", "out", "--size", "64",
+        "--video-size", "9000x9000", "--frames", "2", "-q", status=2,
+        message="rendering 9000x9000 with --ssaa 2 needs about ")

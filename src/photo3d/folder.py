@@ -168,7 +168,9 @@ def check_photo_limits(shape: tuple[int, int], options: MakeOptions, *,
                        at_least: bool = False) -> None:
     """Refuse, before the work, a photo of ``shape`` ``(H, W)`` whose make with
     ``options`` would fail later: more memory than is available
-    (:func:`photo3d.resources.check_memory`, exports included), or ``splats.spz``
+    (:func:`photo3d.resources.check_memory`, exports included; a video of a given
+    size: :func:`photo3d.resources.check_render_memory` of the largest LDI), or
+    ``splats.spz``
     with more splats than SPZ holds (the most LDI pixels the working size allows,
     :func:`photo3d.resources.ldi_bound`, docs/outputs.md). ``at_least``: ``shape`` is
     only an aspect ratio (:func:`prepare`'s 16:9).
@@ -183,10 +185,21 @@ def check_photo_limits(shape: tuple[int, int], options: MakeOptions, *,
         True
     """
     from photo3d.config import working_shape
-    from photo3d.resources import SPZ_LIMIT, check_memory, check_spz_limit, ldi_bound
+    from photo3d.resources import (
+        SPZ_LIMIT,
+        check_memory,
+        check_render_memory,
+        check_spz_limit,
+        ldi_bound,
+    )
 
     config, save = options.config, options.save
     check_memory(shape, config, at_least=at_least, exports=save.exports)
+    ssaa = save.render_settings.ssaa if save.render_settings is not None else 2
+    for spec in save.videos:  # a video larger than the photo: its frames, not the pipeline
+        if spec.size is not None:
+            check_render_memory(ldi_bound(shape, config), spec.size, ssaa=ssaa,
+                                views=2 if spec.stereo else 1, video=True)
     if "splats.spz" not in save.exports:
         return
     h, w = working_shape(shape, config.size)
