@@ -5,15 +5,14 @@ Every command states its peak as a :class:`~photo3d.resources.model.Estimate` (n
 terms, each linear in what the command holds) and checks it with
 :func:`~photo3d.resources.model.check` before any work:
 
-=========================  =============================================  ============
-command                    terms                                          module
-=========================  =============================================  ============
-``make``, ``batch``, UI    working pixels (border included), ``--export``  :mod:`.make`
-``render`` (video, still)  LDI pixels, output pixels x views x samples    :mod:`.render`
-``export``                 LDI pixels (``photo3d.npz``'s header), formats  :mod:`.export`
-``depth``                  the photo's pixels (its header), depth source  :mod:`.depth`
-``train``                  a step's activations, region pairs             train.bounds
-=========================  =============================================  ============
+* ``make``, ``batch``, the UI: the working pixels, border included, and ``--export``'s
+  formats (:mod:`.make`);
+* ``render``, videos and stills: the LDI pixels and the output pixels, views and
+  supersamples (:mod:`.render`);
+* ``export``: the LDI pixels (``photo3d.npz``'s header) and each format (:mod:`.export`);
+* ``depth``: the photo's pixels (its header) and its depth source (:mod:`.depth`);
+* ``train``: a step's activations, the region pairs, a photo's preparation
+  (:mod:`photo3d.train.bounds`, which needs torch).
 
 :mod:`.outputs` checks what would fail after the work otherwise: SPZ's splat limit
 and free disk space. ``tests/test_memory_model.py`` runs each command's worst case
