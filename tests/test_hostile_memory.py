@@ -167,15 +167,16 @@ def no_rendering(monkeypatch):
 
 
 @pytest.mark.parametrize(("extra", "message"), [
-    (["--still"], "rendering 9000x9000 with --ssaa 2 needs about 10.6 GB of memory but "
-                  "2.0 GB are available: use a smaller --size (about 3748x3748 fits) or "
-                  "--ssaa 1"),
-    (["--frames", "2"], "rendering 9000x9000 with --ssaa 2 needs about 26.1 GB of memory "
-                        "but 2.0 GB are available: use a smaller --size (about 2370x2370 "
-                        "fits) or --ssaa 1"),
+    (["--still"], "rendering 9000x9000 with --ssaa 2 needs about 16.5 GB of memory (frames: "
+                  "16.2 GB of render --still's estimate) but 2.0 GB are available: use a "
+                  "smaller --size (about 2914x2914 fits) or --ssaa 1"),
+    (["--frames", "2"], "rendering 9000x9000 with --ssaa 2 needs about 37.9 GB of memory "
+                        "(frames: 37.6 GB of render's estimate) but 2.0 GB are available: "
+                        "use a smaller --size (about 1912x1912 fits) or --ssaa 1"),
     (["--still", "--ssaa", "1", "--stereo", "sbs"],  # two views
-     "rendering 9000x9000 with --ssaa 1 needs about 11.2 GB of memory but 2.0 GB are "
-     "available: use a smaller --size (about 3636x3636 fits)"),
+     "rendering 9000x9000 with --ssaa 1 needs about 23.0 GB of memory (frames: 22.7 GB of "
+     "render --still's estimate) but 2.0 GB are available: use a smaller --size (about "
+     "2462x2462 fits)"),
 ])
 def test_render_refuses_a_size_beyond_the_available_memory(tmp_path, capsys, monkeypatch,
                                                            no_rendering, extra, message):
@@ -190,7 +191,7 @@ def test_render_refuses_an_ldi_too_large_to_render(tmp_path, capsys, monkeypatch
     folder = _saved_ldi(tmp_path / "photo", 200)
     monkeypatch.setattr("photo3d.resources.available_memory", lambda: 210_000_000)
     run(capsys, "render", folder, "--still", "-q", status=2, root=tmp_path,
-        message="the 3D photo's 40,000 LDI pixels alone need 216 MB")
+        message="the 3D photo's 40,000 LDI pixels alone need 316 MB")
 
 
 def test_the_size_render_suggests_fits():

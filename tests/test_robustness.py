@@ -498,12 +498,14 @@ def test_upscaling_a_small_photo_is_announced(photos, capsys):
 def test_a_size_beyond_the_memory_is_refused_up_front(photos, capsys, monkeypatch, no_work):
     monkeypatch.setattr("photo3d.resources.available_memory", lambda: 2_000_000_000)
     run(capsys, *make(photos, "out")[:-len(FAST)], "--size", "16384", status=2,
-        message="--size 16384 needs at least 326.4 GB of memory but 2.0 GB are available")
+        message="--size 16384 needs at least 367.2 GB of memory (working pixels: 366.9 GB "
+                "of make's estimate) but 2.0 GB are available: use a smaller --size (1024 "
+                "needs about 1.7 GB)")
     from photo3d.config import Config
     from photo3d.errors import ConfigError
 
     img, d = two_planes(48, 64, 32)
-    with pytest.raises(ConfigError, match="a 4096x3072 working size needs about 26.3 GB"):
+    with pytest.raises(ConfigError, match="a 4096x3072 working size needs about 29.6 GB"):
         make_photo(img, depth=d, config=Config(size=4096))
 
 

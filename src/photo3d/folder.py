@@ -137,22 +137,22 @@ def prepare(options: MakeOptions) -> Inpainter:
     """Check what can be checked before any photo is read, and build the inpainter
     (build it once and pass it to every :func:`make_folder`).
 
-    Checks that memory suffices for a 16:9 photo at ``config.size``, that the
+    Checks that memory suffices for a 16:9 photo at ``config.size`` and that its
+    ``splats.spz`` cannot pass SPZ's limit (:func:`check_photo_limits`), that the
     packages the exports need are installed and that the OpenGL backend works if
     videos ask for it.
 
     Raises:
-        ConfigError: not enough memory, no OpenGL, bad inpainter or its options.
+        ConfigError: not enough memory, too many splats for SPZ, no OpenGL, bad
+            inpainter or its options.
         ImportError: a missing extra (named in the message).
 
     Example:
         >>> prepare(MakeOptions(config=Config(size=256))).name
         'structured'
     """
-    from photo3d.resources import check_memory
-
-    check_memory((9, 16), options.config, at_least=True)
     save = options.save
+    check_photo_limits((9, 16), options, at_least=True)
     if save.exports:  # a missing package (usd-core) now, not after the photo is made
         from photo3d.export import require_extras
 
@@ -162,6 +162,56 @@ def prepare(options: MakeOptions) -> Inpainter:
 
         select_backend("gl")
     return options.inpainter()
+
+
+def check_photo_limits(shape: tuple[int, int], options: MakeOptions, *,
+                       at_least: bool = False) -> None:
+    """Refuse, before the work, a photo of ``shape`` ``(H, W)`` whose make with
+    ``options`` would fail later: more memory than is available
+    (:func:`photo3d.resources.check_memory`, exports included; a video of a given
+    size: :func:`photo3d.resources.check_render_memory` of the largest LDI), or
+    ``splats.spz``
+    with more splats than SPZ holds (the most LDI pixels the working size allows,
+    :func:`photo3d.resources.ldi_bound`, docs/outputs.md). ``at_least``: ``shape`` is
+    only an aspect ratio (:func:`prepare`'s 16:9).
+
+    Raises:
+        ConfigError: one line naming the estimate and what to change.
+
+    Example:
+        >>> check_photo_limits((768, 1024), MakeOptions(save=SaveOptions(exports=("splats.spz",))))
+        >>> from photo3d.resources import SPZ_LIMIT, ldi_bound
+        >>> ldi_bound((9, 16), Config(size=2600)) > SPZ_LIMIT  # refused at --size 2600
+        True
+    """
+    from photo3d.config import working_shape
+    from photo3d.resources import (
+        SPZ_LIMIT,
+        check_memory,
+        check_render_memory,
+        check_spz_limit,
+        ldi_bound,
+    )
+
+    config, save = options.config, options.save
+    check_memory(shape, config, at_least=at_least, exports=save.exports,
+                 splat_fit=save.splat_fit)
+    ssaa = save.render_settings.ssaa if save.render_settings is not None else 2
+    for spec in save.videos:  # a video larger than the photo: its frames, not the pipeline
+        if spec.size is not None:
+            check_render_memory(ldi_bound(shape, config), spec.size, ssaa=ssaa,
+                                views=2 if spec.stereo else 1, video=True)
+    if "splats.spz" not in save.exports:
+        return
+    h, w = working_shape(shape, config.size)
+    size = (f"--size {config.size}" if at_least else f"a {w}x{h} working size")
+    bound = ldi_bound(shape, config)
+    fits = config.size or max(h, w)
+    while fits > 64 and ldi_bound(shape, config.with_(size=fits)) > SPZ_LIMIT:
+        fits -= 16
+    check_spz_limit(bound, what=f"splats.spz of {size}",
+                    advice=f"use --size {fits} or less, or leave splats.spz out and run "
+                           "photo3d export afterwards (it counts the splats exactly)")
 
 
 def make_folder(image: np.ndarray | PathLike, out: PathLike, *,
@@ -218,11 +268,13 @@ def make_folder(image: np.ndarray | PathLike, out: PathLike, *,
     """
     from photo3d import pipeline
     from photo3d.depth.sources import read_photo, resolve_depth
+    from photo3d.io.images import image_shape
     from photo3d.output import stage_photo
-    from photo3d.pipeline import check_photo_memory
 
     options = options or MakeOptions()
-    check_photo_memory(image, options.config)  # from the header, before any decoding
+    shape = image_shape(image) if isinstance(image, str | os.PathLike) else None
+    if shape is not None:  # from the header, before any decoding
+        check_photo_limits(shape, options)
     report = progress or (lambda stage, fraction: None)
     backend = inpainter or options.inpainter()
     inputs = _inputs(image, depth, right, depth_model, options)
@@ -237,6 +289,7 @@ def make_folder(image: np.ndarray | PathLike, out: PathLike, *,
         photo_image = next((p for p in (est.image, est.photo) if p is not None), None)
         if photo_image is None:
             photo_image = read_photo(image, working_size=options.config.size)
+        check_photo_limits(photo_image.shape[:2], options)  # an array, or no header
         if on_depth is not None:
             on_depth(est, photo_image)
         config = options.config.with_(depth_kind=est.kind)

@@ -72,7 +72,7 @@ def _with(args: list[str], **values: str) -> list[str]:
 ])
 def test_a_request_larger_than_memory_is_one_line_before_any_work(
         folder, tmp_path, capsys, monkeypatch, no_work, values, part):
-    monkeypatch.setattr("photo3d.train.bounds.available_memory", lambda: 16e9)
+    monkeypatch.setattr("photo3d.resources.available_memory", lambda: 16e9)
     argv = _with(train(folder, tmp_path / "run", "--steps", "1"), **values)
     err = refused(capsys, argv, tmp_path, "GB of memory")
     assert f"({part}: " in err and "16.0 GB are available" in err
@@ -81,7 +81,7 @@ def test_a_request_larger_than_memory_is_one_line_before_any_work(
 
 def test_builtin_scenes_beyond_the_disk_or_memory_are_one_line(tmp_path, capsys, monkeypatch,
                                                                 no_work):
-    monkeypatch.setattr("photo3d.train.bounds.available_memory", lambda: 16e9)
+    monkeypatch.setattr("photo3d.resources.available_memory", lambda: 16e9)
     usage = shutil.disk_usage(tmp_path)
     monkeypatch.setattr("photo3d.train.bounds.shutil.disk_usage",
                         lambda path: usage._replace(free=2 * 10**9))

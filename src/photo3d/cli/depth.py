@@ -32,7 +32,21 @@ def run(args: argparse.Namespace) -> int:
         if (out.exists() or out.is_symlink()) and not args.overwrite:
             raise OutputError(f"depth output {out} exists; pass --overwrite to replace it")
         check_writable(out, follow_symlinks=False)
+    _check_memory(args)  # from the photo's header, before a pixel is decoded
     est = depth_from_args(args)
     png, preview = export_depth(est, args.out, inputs=inputs)
     print(f"wrote {png} (16-bit normalised disparity, near = bright) and {preview}")
     return 0
+
+
+def _check_memory(args: argparse.Namespace) -> None:
+    """Refuse, from the photo's header, a photo whose depth map needs more memory than
+    is available (:func:`photo3d.resources.check_depth_memory`: the map is made at the
+    photo's size)."""
+    from photo3d.io.images import image_shape
+    from photo3d.resources import check_depth_memory
+
+    shape = image_shape(args.image)
+    if shape is not None:  # else the reader says what is wrong with the file
+        # no map nor right view: a model may run (not for an embedded map: counted anyway)
+        check_depth_memory(shape, model=args.depth is None and args.right is None)

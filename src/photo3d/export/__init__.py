@@ -41,11 +41,13 @@ from photo3d.io.npz import ldi_pixels, load_npz
 from photo3d.owned import EXPORT_FILES, LDI_FILE, claim_files, recording
 from photo3d.parallel import thread_pool
 from photo3d.progress import StageProgress
-from photo3d.resources import check_export_memory
+from photo3d.resources import SPZ_LIMIT, check_export_memory, check_free_space, check_spz_limit
+from photo3d.resources.outputs import export_bytes
 from photo3d.structures.ldi import LDI
 
 if TYPE_CHECKING:
     from photo3d.structures.mesh import TexturedMesh
+    from photo3d.structures.splats import Splats
 
 
 @dataclass(frozen=True)
@@ -151,10 +153,14 @@ def export_folder(folder: str | Path, formats: Sequence[str], *,
         ConfigError: an unknown format, no format, or several with ``output``; an
             unknown density or SPZ version; not enough memory
             (:func:`photo3d.resources.check_export_memory`, checked before the 3D
-            photo is read).
+            photo is read); ``splats.spz`` of more splats than SPZ holds (dense: the
+            LDI's pixels, before the 3D photo is read; adaptive: counted once built,
+            before any file is written).
         InputError: no 3D photo in ``folder`` (or a damaged one).
         MissingExtra: a package a format needs is missing (:func:`require_extras`).
-        OutputError: a file to write is a symbolic link (dangling too), not a
+        OutputError: less free disk space than the files need (a low estimate,
+            :func:`photo3d.resources.outputs.export_bytes`); a file to write is a
+            symbolic link (dangling too), not a
             regular file, the 3D photo being read, a file of a 3D photo folder that
             export does not write, or exists and photo3d did not write it
             (``output`` elsewhere: exists, without ``overwrite``); nothing is
@@ -186,12 +192,25 @@ def export_folder(folder: str | Path, formats: Sequence[str], *,
         raise InputError(f"no 3D photo in {folder} (it has no {LDI_FILE})")
     with reading(folder / LDI_FILE):  # no write may reach it (the gate refuses)
         record_in = None if output is None else _check_output(Path(output), overwrite)
-        check_export_memory(ldi_pixels(folder / LDI_FILE), [f.name for f in chosen],
-                            splat_fit=splat_fit)
+        pixels = ldi_pixels(folder / LDI_FILE)
+        names = [f.name for f in chosen]
+        check_export_memory(pixels, names, splat_fit=splat_fit)
+        check_free_space(Path(output) if output is not None else folder / LDI_FILE,
+                         export_bytes(pixels, names), what="this export")
+        if "splats.spz" in names and density == "dense":  # one splat per LDI pixel
+            _check_spz(pixels, dense=True)
         ldi, meta = load_npz(folder / LDI_FILE)
         return _export(folder, chosen, ldi, meta, output=output, record_in=record_in,
                        density=density, spz_version=spz_version, splat_fit=splat_fit,
                        progress=progress)
+
+
+def _check_spz(splats: int, *, dense: bool) -> None:
+    """Refuse ``splats.spz`` of more splats than SPZ holds, before any file is written."""
+    layout = "dense" if dense else "adaptive"
+    check_spz_limit(splats, what=f"splats.spz of this 3D photo ({layout})",
+                    advice="export splats.ply or splats.glb instead (no such limit)"
+                           + (", or --splats adaptive (fewer splats)" if dense else ""))
 
 
 def _check_output(output: Path, overwrite: bool) -> Path | None:
@@ -226,6 +245,13 @@ def _export(folder: Path, chosen: list[Format], ldi: LDI, meta: dict, *,
     if output is None:
         claim_files(folder, [t.name for t in targets])  # before writing anything
         record_in = folder
+    splats = None
+    if any(f.name == "splats.spz" for f in chosen) and ldi.size > SPZ_LIMIT:
+        # adaptive: fewer splats than LDI pixels, how many is known once they are built
+        from photo3d.export.splats import build_splats
+
+        splats = build_splats(ldi, density=density, fit=splat_fit)
+        _check_spz(len(splats), dense=density == "dense")  # before any file is written
     preload(chosen)  # before the writer threads start
     written: list[Path] = []
     error = None
@@ -233,7 +259,7 @@ def _export(folder: Path, chosen: list[Format], ldi: LDI, meta: dict, *,
         jobs = submit_writers(pool, ldi, list(zip(chosen, targets, strict=True)),
                               density=density, spz_version=spz_version,
                               splat_fit=splat_fit, light_error=_light_error(meta),
-                              record_in=record_in)
+                              record_in=record_in, splats=splats)
         for job, target in zip(jobs, targets, strict=True):
             while True:  # every job ends (after a signal, at its next check) before
                 try:     # this returns or raises: none moves a file in place later
@@ -256,7 +282,8 @@ def submit_writers(pool: Executor, ldi: LDI, targets: Sequence[tuple[Format, Pat
                    density: str = "adaptive", spz_version: int = 3,
                    splat_fit: bool = False, mesh: TexturedMesh | None = None,
                    light_error: float | None = None,
-                   record_in: Path | None = None) -> list[Future]:
+                   record_in: Path | None = None,
+                   splats: Splats | None = None) -> list[Future]:
     """Have ``pool`` write each ``(format, path)`` of ``targets``; returns the writers'
     futures, in the order of ``targets``.
 
@@ -281,6 +308,8 @@ def submit_writers(pool: Executor, ldi: LDI, targets: Sequence[tuple[Format, Pat
         light_error: its error bound when it is built here (pixels).
         record_in: a 3D photo folder whose ``config.json`` records each file as it
             is moved into place (:func:`photo3d.owned.recording`); None: no record.
+        splats: the splats of ``ldi`` with ``density`` (and ``splat_fit``) if already
+            built.
 
     Example:
         >>> import numpy as np, pathlib, tempfile
@@ -298,7 +327,9 @@ def submit_writers(pool: Executor, ldi: LDI, targets: Sequence[tuple[Format, Pat
     """
     options: dict[str, object] = {"density": density, "spz_version": spz_version,
                                   "fit": splat_fit}
-    if sum(f.module == _SPLATS for f, _ in targets) > 1:  # build the splats once
+    if splats is not None:
+        options["splats"] = splats
+    elif sum(f.module == _SPLATS for f, _ in targets) > 1:  # build the splats once
         from photo3d.export.splats import build_splats
 
         options["splats"] = build_splats(ldi, density=density, fit=splat_fit)

@@ -595,9 +595,19 @@ def _naming_target(err: OSError | OutputError, pending: PendingFile) -> OutputEr
 def _reason(err: OSError, path: Path) -> str:
     """Why writing ``path`` failed: the system's words; a full disk is named as one
     even when the library raised its own message (numpy's ``tofile``: "N requested
-    and 0 written")."""
+    and 0 written", or, when it reserves the space first and the disk has less, "Not
+    enough free space to write N bytes after offset M", with no errno and the disk
+    not yet full).
+
+    Example:
+        >>> _reason(OSError("Not enough free space to write 57759352 bytes after offset 363"),
+        ...         Path("."))
+        'No space left on device'
+    """
     if err.strerror:
         return err.strerror
+    if str(err).startswith("Not enough free space"):  # numpy's npy_fallocate
+        return os.strerror(errno.ENOSPC)
     try:
         vfs = os.statvfs(path.parent)
     except OSError:

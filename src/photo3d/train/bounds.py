@@ -39,8 +39,8 @@ import numpy as np
 import torch
 from torch.overrides import TorchFunctionMode
 
-from photo3d.errors import ConfigError, OutputError
-from photo3d.resources import BYTES_PER_PIXEL, available_memory
+from photo3d.errors import OutputError
+from photo3d.resources import BYTES_PER_PIXEL, Estimate, check
 from photo3d.train.dataset import TrainingFile, target_shape
 from photo3d.train.trainer import REFINE_D_WIDTH, TrainConfig
 
@@ -226,22 +226,34 @@ def check_memory(config: TrainConfig, shapes: Sequence[tuple[int, int]], *, sour
         >>> check_memory(TrainConfig("depth", levels=3, width=0.125, size=32),
         ...              [(48, 64)], sources=1, what="1 photo")
     """
-    parts = memory_parts(config, shapes, sources)
-    need = BASE_BYTES + parts["region pairs"] + max(parts["preparing a photo"],
-                                                    parts["a training step"])
-    have = available_memory()
-    if have is None or need <= have:
-        return
-    worst = max(parts, key=parts.get)
+    estimate = train_estimate(config, shapes, sources=sources)
+    worst = estimate.largest[0]
     hint = {"preparing a photo": "a smaller --region-size (or --size, which sets its "
                                  "default and the least working size)",
             "a training step": "a smaller --batch, --size or --width",
-            "region pairs": "fewer photos or --builtin-scenes, or a smaller --region-size"}
-    raise ConfigError(
-        f"training the {config.kind} net (--size {config.size}, --batch {config.batch}, "
-        f"--width {config.width:g}, region size {config.working_size}) on {what} needs about "
-        f"{need / 1e9:.1f} GB of memory ({worst}: {parts[worst] / 1e9:.1f} GB) but "
-        f"{have / 1e9:.1f} GB are available: use {hint[worst]}")
+            "region pairs": "fewer photos or --builtin-scenes, or a smaller --region-size",
+            "base": "a machine with more memory"}
+    check(estimate, what=f"training the {config.kind} net (--size {config.size}, --batch "
+                         f"{config.batch}, --width {config.width:g}, region size "
+                         f"{config.working_size}) on {what}", advice=f"use {hint[worst]}")
+
+
+def train_estimate(config: TrainConfig, shapes: Sequence[tuple[int, int]], *,
+                   sources: int) -> Estimate:
+    """``photo3d train``'s peak (:class:`photo3d.resources.Estimate`): the base, the
+    region pairs and the larger of preparing a photo and a training step
+    (:func:`memory_parts`).
+
+    Example:
+        >>> est = train_estimate(TrainConfig("depth", levels=3, width=0.125, size=32),
+        ...                      [(48, 64)], sources=1)
+        >>> est.command, [name for name, _ in est.terms]
+        ('train', ['base', 'region pairs', 'preparing a photo'])
+    """
+    parts = memory_parts(config, shapes, sources)
+    larger = max(("preparing a photo", "a training step"), key=parts.get)
+    return Estimate("train", (("base", int(BASE_BYTES)), ("region pairs", parts["region pairs"]),
+                              (larger, parts[larger])))
 
 
 def disk_estimate(config: TrainConfig, shapes: Sequence[tuple[int, int]], *,
