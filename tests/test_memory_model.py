@@ -384,7 +384,7 @@ def test_export_refuses_a_disk_without_room_before_loading(square, no_work, caps
     monkeypatch.setattr("photo3d.export.ldi_pixels", lambda path: 2_000_000)
     monkeypatch.setattr("shutil.disk_usage", lambda path: SimpleNamespace(free=1_000_000))
     run(capsys, "export", "out", "splats.ply", "-q", status=2,
-        message="only 1 MB free in out; this export needs about 30 MB")
+        message="only 1.0 MB free in out; this export needs about 30.0 MB")
 
 
 @pytest.mark.skipif(os.geteuid() != 0 or sys.platform != "linux",

@@ -42,11 +42,15 @@ def run(args: argparse.Namespace) -> int:
 def _check_memory(args: argparse.Namespace) -> None:
     """Refuse, from the photo's header, a photo whose depth map needs more memory than
     is available (:func:`photo3d.resources.check_depth_memory`: the map is made at the
-    photo's size)."""
+    photo's size), or more disk than is free."""
     from photo3d.io.images import image_shape
-    from photo3d.resources import check_depth_memory
+    from photo3d.resources import check_depth_memory, check_free_space
+    from photo3d.resources.outputs import render_bytes
 
     shape = image_shape(args.image)
     if shape is not None:  # else the reader says what is wrong with the file
         # no map nor right view: a model may run (not for an embedded map: counted anyway)
         check_depth_memory(shape, model=args.depth is None and args.right is None)
+        # the 16-bit map and its preview
+        check_free_space(args.out, 2 * render_bytes(shape[0] * shape[1], 1, still=True),
+                         what="this depth map (and its preview)")

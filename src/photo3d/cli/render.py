@@ -62,13 +62,20 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _check_memory(args: argparse.Namespace, photo, videos) -> None:
-    """Refuse, before rendering, a size and ``--ssaa`` the memory cannot hold."""
-    from photo3d.resources import check_render_memory
+    """Refuse, before rendering, a size and ``--ssaa`` the memory cannot hold, and
+    outputs the disk cannot hold (:func:`photo3d.resources.outputs.render_bytes`)."""
+    from photo3d.resources import check_free_space, check_render_memory
+    from photo3d.resources.outputs import render_bytes
 
+    need = 0
     for spec in videos:
         size = spec.size or (photo.ldi.width // 2 * 2, photo.ldi.height // 2 * 2)
         check_render_memory(photo.ldi.size, size, ssaa=args.ssaa,
                             views=2 if spec.stereo else 1, video=not args.still)
+        views = 2 if spec.stereo == "sbs" else 1  # side by side at full width each
+        need += render_bytes(size[0] * size[1] * views, spec.frames, still=args.still)
+    check_free_space(args.photo / ("still.png" if args.still else "video/a.mp4"), need,
+                     what="this render")
 
 
 def _still(args: argparse.Namespace, photo, spec) -> int:
