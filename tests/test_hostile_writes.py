@@ -11,6 +11,7 @@ import os
 import subprocess
 import sys
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -140,6 +141,9 @@ def test_a_full_disk_during_export_says_so(o1, tmp_path, monkeypatch, capsys):
         f_bavail, f_frsize = 0, 4096
 
     monkeypatch.setattr(splat_ply, "header", full)
+    # room before the work (the free-space check passes), none once the file is written
+    monkeypatch.setattr("photo3d.resources.outputs.shutil.disk_usage",
+                        lambda path: SimpleNamespace(total=10**12, used=0, free=10**12))
     monkeypatch.setattr(os, "statvfs", lambda path: Full())
     assert main(["export", str(o1), "splats.ply", "-q"]) == 2
     err = capsys.readouterr().err

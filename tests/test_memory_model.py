@@ -65,16 +65,33 @@ def _tree_rss(root: int) -> int:
     return total
 
 
+_LAUNCH = """
+import resource, subprocess, sys
+status = subprocess.call(sys.argv[2:])
+with open(sys.argv[1], "w") as report:
+    report.write(str(resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss))
+sys.exit(status)
+"""
+"""Runs a command and writes its peak (``ru_maxrss``, kB) to a file. Linux gives a
+child the peak of the process it was forked from (``ru_maxrss`` keeps the old memory's
+high-water mark across ``exec``): forked from pytest late in the suite, every command
+would measure at least pytest's own size; forked from this small launcher it does not."""
+
+
 def peak(argv: list[str], *, cwd: Path, python: str | None = None) -> int:
     """Peak resident bytes of ``python -m photo3d argv`` (or of ``python -c SCRIPT``
-    when ``python`` is given), which must succeed: the larger of ``wait4``'s
-    ``ru_maxrss`` (its largest process) and its process tree's sum sampled every 20 ms
-    (``batch``'s workers)."""
+    when ``python`` is given), which must succeed: the larger of its ``ru_maxrss``
+    (its largest process, measured by :data:`_LAUNCH`) and its process tree's sum
+    sampled every 20 ms (``batch``'s workers)."""
+    import tempfile
+
     cmd = [sys.executable, "-c", python] if python else [sys.executable, "-m", "photo3d",
                                                            *argv]
     env = {**os.environ, "PYTHONPATH": str(SRC)}
-    proc = subprocess.Popen(cmd, cwd=cwd, env=env, stdout=subprocess.DEVNULL,
-                            stderr=subprocess.PIPE)
+    fd, report = tempfile.mkstemp(suffix=".peak")
+    os.close(fd)
+    proc = subprocess.Popen([sys.executable, "-c", _LAUNCH, report, *cmd], cwd=cwd, env=env,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     sampled = [0]
     done = threading.Event()
 
@@ -84,14 +101,14 @@ def peak(argv: list[str], *, cwd: Path, python: str | None = None) -> int:
 
     sampler = threading.Thread(target=sample, daemon=True)
     sampler.start()
-    _, status, usage = os.wait4(proc.pid, 0)
-    proc.returncode = os.waitstatus_to_exitcode(status)  # Popen must not wait again
+    err = proc.communicate()[1].decode()
     done.set()
     sampler.join()
-    err = proc.stderr.read().decode()
-    proc.stderr.close()
     assert proc.returncode == 0, err
-    return max(usage.ru_maxrss * 1024, sampled[0])
+    with open(report) as f:
+        measured = int(f.read()) * 1024
+    os.unlink(report)
+    return max(measured, sampled[0])
 
 
 def within(measured: int, estimate: int) -> None:

@@ -118,23 +118,6 @@ def compile_kernels(progress: Callable[[float], None] | None = None, *,
     return compiled
 
 
-def load_kernels(*modules: str) -> None:
-    """Load (or compile) the kernels of ``modules``' ``KERNELS`` in the calling thread:
-    before a worker thread uses them, so that loading them (about 1 s for the
-    light mesh's, which a signal cannot interrupt in a worker thread) happens where
-    Ctrl-C and SIGTERM stop it at once.
-
-    Example:
-        >>> load_kernels("photo3d.mesh._faces")
-    """
-    import importlib
-
-    for module in modules:
-        for kernel, signature in getattr(importlib.import_module(module), "KERNELS", ()):
-            if hasattr(kernel, "compile"):  # not with NUMBA_DISABLE_JIT
-                _compile(kernel, (signature,))
-
-
 @contextmanager
 def watch_compiles(busy: Callable[[bool], None]) -> Iterator[None]:
     """Within the block, ``busy(True)`` when numba starts compiling a kernel on first

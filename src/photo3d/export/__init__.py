@@ -354,15 +354,10 @@ def submit_writers(pool: Executor, ldi: LDI, targets: Sequence[tuple[Format, Pat
     return [jobs[i] for i in range(len(targets))]
 
 
-_MESH_KERNELS = ("photo3d.mesh._faces", "photo3d.mesh._planar", "photo3d.mesh._charts",
-                 "photo3d.mesh._collapse")
-"""The kernel modules of the light mesh (:func:`preload` loads them)."""
-
-
 def preload(formats: Sequence[Format]) -> None:
     """Import the modules of ``formats`` that must not be imported while other
     threads run; call it before the writer threads start. The light mesh's numba
-    kernels are loaded too (:func:`photo3d.kernels.load_kernels`), here in the
+    kernels are loaded too (:func:`photo3d.mesh.light.load_kernels`), here in the
     calling thread, where a signal stops the loading at once (in a writer thread it
     could not: the process would stop a second later).
 
@@ -378,9 +373,9 @@ def preload(formats: Sequence[Format]) -> None:
         >>> preload([FORMATS["splats.spz"]])  # nothing to import
     """
     if any("mesh" in fmt.options for fmt in formats):
-        from photo3d.kernels import load_kernels
+        from photo3d.mesh.light import load_kernels
 
-        load_kernels(*_MESH_KERNELS)
+        load_kernels()
     for fmt in formats:
         for module in fmt.preload:
             try:

@@ -68,6 +68,31 @@ LIGHT_ERROR = 0.5
 """Default error bound of the light mesh, pixels (benchmarks/RESULTS.md: light mesh)."""
 
 
+KERNEL_MODULES = ("photo3d.mesh._faces", "photo3d.mesh._planar", "photo3d.mesh._charts",
+                  "photo3d.mesh._collapse")
+"""The modules whose numba kernels (their ``KERNELS``) :func:`build_light_mesh` runs."""
+
+
+def load_kernels() -> None:
+    """Load (or compile) :func:`build_light_mesh`'s numba kernels in the calling
+    thread: before a worker thread builds the mesh, so that loading them (about 1 s,
+    which a signal cannot interrupt in a worker thread) happens where Ctrl-C and
+    SIGTERM stop it at once.
+
+    Example:
+        >>> load_kernels()
+    """
+    import importlib
+
+    from numba.core.sigutils import normalize_signature
+
+    for module in KERNEL_MODULES:
+        for kernel, signature in getattr(importlib.import_module(module), "KERNELS", ()):
+            if hasattr(kernel, "compile"):  # not with NUMBA_DISABLE_JIT
+                # the argument types as a tuple, as a call gives them (numba's cache key)
+                kernel.compile(tuple(normalize_signature(signature)[0]))
+
+
 def build_light_mesh(ldi: LDI, *, max_error: float = LIGHT_ERROR, parallax: float = 0.03,
                      block: int = 64, full: Mesh | None = None) -> TexturedMesh:
     """Simplify the LDI's mesh to an error bound, with its colours in a texture.
