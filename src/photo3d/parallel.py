@@ -517,7 +517,8 @@ def ahead(items: Iterator[T], *, name: str = "ahead") -> Iterator[T]:
 def start_thread(target: Callable[[], object], *, name: str, daemon: bool = True,
                  threads: int | None = None) -> threading.Thread:
     """Start a long-lived thread (the UI's requests and sweeper, a watcher) running
-    ``target()``.
+    ``target()``; when a signal asks the process to stop, the interruption its work
+    raises (:func:`photo3d.files.stop.check`) ends the thread without a traceback.
 
     Args:
         target: the thread's work.
@@ -535,7 +536,10 @@ def start_thread(target: Callable[[], object], *, name: str, daemon: bool = True
     def run() -> None:
         if threads is not None:
             _enter(threads)
-        target()
+        try:
+            target()
+        except KeyboardInterrupt:  # a signal asked the process to stop (its work checks
+            pass                   # photo3d.files.stop.check): the thread ends quietly
 
     thread = threading.Thread(target=run, name=f"photo3d-{name}", daemon=daemon)
     thread.start()
