@@ -260,14 +260,16 @@ def submit_writers(pool: Executor, ldi: LDI, targets: Sequence[tuple[Format, Pat
     """Have ``pool`` write each ``(format, path)`` of ``targets``; returns the writers'
     futures, in the order of ``targets``.
 
-    What several formats share is made once: the splats (built here when more than
-    one splat format is asked for; 0.03 s on the bundled sample) and the light
+    What several formats share is made once, each by one job of the pool: the light
     textured mesh that ``mesh.usdz`` and the quilt are made of (``mesh`` if given, as
     :func:`photo3d.output.save_photo` gives the one of ``mesh.glb``; else built by
-    the pool's first job while the splat files are written, with ``light_error``,
-    None: :data:`~photo3d.mesh.light.LIGHT_ERROR`). A writer waiting for the mesh
-    is submitted after the job building it, so a pool of any size reaches it.
-    Call :func:`preload` before the pool's threads (or any other) start.
+    the pool's first job, with ``light_error``, None:
+    :data:`~photo3d.mesh.light.LIGHT_ERROR`), and the splats when more than one
+    splat format is asked for (the second job: with their colours fitted, about
+    as long as the light mesh, so on two threads the two overlap). A writer that
+    needs one of them is submitted only once it is built (:func:`_after`), so no
+    thread waits while another file could be written, and a pool of any size
+    reaches it. Call :func:`preload` before the pool's threads (or any other) start.
 
     Args:
         pool: runs the jobs (:func:`~photo3d.parallel.thread_pool`: the writes, zlib and
@@ -298,29 +300,67 @@ def submit_writers(pool: Executor, ldi: LDI, targets: Sequence[tuple[Format, Pat
     """
     options: dict[str, object] = {"density": density, "spz_version": spz_version,
                                   "fit": splat_fit}
-    if sum(f.module == _SPLATS for f, _ in targets) > 1:  # build the splats once
-        from photo3d.export.splats import build_splats
-
-        options["splats"] = build_splats(ldi, density=density, fit=splat_fit)
     light: Future | None = None
     if mesh is None and any("mesh" in f.options for f, _ in targets):
         from photo3d.mesh.light import LIGHT_ERROR, build_light_mesh
 
-        light = pool.submit(build_light_mesh, ldi, max_error=(
+        light = pool.submit(build_light_mesh, ldi, max_error=(  # first: the longest chain
             LIGHT_ERROR if light_error is None else light_error))
+    built: Future | None = None
+    if sum(f.module == _SPLATS for f, _ in targets) > 1:  # build the splats once
+        from photo3d.export.splats import build_splats
+
+        built = pool.submit(build_splats, ldi, density=density, fit=splat_fit)
 
     def write(fmt: Format, path: Path) -> None:
         given = {k: options[k] for k in fmt.options if k in options}
         if "mesh" in fmt.options:
             given["mesh"] = mesh if light is None else light.result()
+        if fmt.module == _SPLATS and built is not None:
+            given["splats"] = built.result()
         with recording(record_in) if record_in is not None else contextlib.nullcontext():
             fmt.load()(ldi, path, **given)
 
-    jobs = {i: pool.submit(write, fmt, path) for i, (fmt, path) in enumerate(targets)
-            if "mesh" not in fmt.options}  # the splat files first: they need nothing more
-    jobs |= {i: pool.submit(write, fmt, path) for i, (fmt, path) in enumerate(targets)
-             if "mesh" in fmt.options}
-    return [jobs[i] for i in range(len(targets))]
+    def needs(fmt: Format) -> Future | None:
+        return light if "mesh" in fmt.options else built if fmt.module == _SPLATS else None
+
+    return [_after(pool, needs(fmt), write, fmt, path) for fmt, path in targets]
+
+
+def _after(pool: Executor, first: Future | None, fn: Callable[..., None],
+           *args: object) -> Future:
+    """``pool.submit(fn, *args)`` once ``first`` has ended (at once if None), so that
+    no worker thread waits for it while other work is ready; a future that ends when
+    that job has ended, with its result, or with ``first``'s exception if ``first``
+    failed (then ``fn`` never runs). The job is submitted from the thread that
+    ends ``first`` (:meth:`~concurrent.futures.Future.add_done_callback`)."""
+    if first is None:
+        return pool.submit(fn, *args)
+    from concurrent.futures import CancelledError
+
+    done: Future = Future()
+
+    def copy(job: Future) -> None:
+        if job.cancelled():
+            done.set_exception(CancelledError())
+        elif job.exception() is not None:
+            done.set_exception(job.exception())
+        else:
+            done.set_result(job.result())
+
+    def start(_: Future) -> None:
+        if first.cancelled() or first.exception() is not None:
+            copy(first)
+            return
+        try:
+            job = pool.submit(fn, *args)
+        except BaseException as err:  # noqa: BLE001 - handed to the caller by result()
+            done.set_exception(err)   # (a pool shut down: the caller is leaving)
+            return
+        job.add_done_callback(copy)
+
+    first.add_done_callback(start)
+    return done
 
 
 _MESH_KERNELS = ("photo3d.mesh._faces", "photo3d.mesh._planar", "photo3d.mesh._charts",

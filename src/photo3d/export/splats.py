@@ -133,9 +133,9 @@ def _fitted(ldi: LDI, splats: Splats) -> Splats:
     """``splats`` with their colours fitted to photo3d's render of the input view
     (:mod:`photo3d.export.splat_fit`)."""
     from photo3d.camera import Camera
-    from photo3d.export.splat_fit import fit_colors, reference_view
+    from photo3d.export.splat_fit import fit_colors, input_view
 
-    color, covered = reference_view(ldi)
+    color, covered = input_view(ldi)
     return fit_colors(splats, Camera(ldi.intrinsics, np.eye(4)), color, covered)
 
 
