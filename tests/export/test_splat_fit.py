@@ -19,7 +19,7 @@ from photo3d.export.spark_model import (
     spark_weights,
     visible_weights,
 )
-from photo3d.export.splat_fit import fit_colors, reference_view
+from photo3d.export.splat_fit import fit_colors, input_view, reference_view
 from photo3d.export.splats import build_splats
 from photo3d.io.splat_ply import read_splat_ply
 from photo3d.resources import export_memory_estimate
@@ -108,15 +108,45 @@ def test_fit_brings_the_model_closer_to_photo3ds_render(photo):
     np.testing.assert_array_equal(fitted.colors[hidden], np.clip(splats.colors[hidden], 0, 1))
 
 
-def test_export_writes_the_fitted_splats(photo, tmp_path):
+def test_export_writes_fitted_splats_by_default(photo, tmp_path):
     folder = photo.save(tmp_path / "out", viewer=False, glb=False)
-    export_folder(folder, ["splats.ply"], splat_fit=True)
+    export_folder(folder, ["splats.ply", "splats.spz"])  # built once, on the pool
     fitted = read_splat_ply(folder / "splats.ply")
     built = build_splats(photo.ldi)
     np.testing.assert_allclose(fitted.positions, built.positions)
     assert np.abs(fitted.colors - built.colors).max() > 0.05
     expected = build_splats(photo.ldi, fit=True).colors
     np.testing.assert_allclose(fitted.colors, expected, atol=1e-5)
+    export_folder(folder, ["splats.ply"], splat_fit=False)  # the colours as built
+    np.testing.assert_allclose(read_splat_ply(folder / "splats.ply").colors,
+                               np.clip(built.colors, 0, 1), atol=1e-5)
+
+
+def test_cli_fits_unless_told_not_to(photo, tmp_path):
+    from photo3d.cli import main
+
+    folder = photo.save(tmp_path / "out", viewer=False, glb=False)
+    built = np.clip(build_splats(photo.ldi).colors, 0, 1)
+    assert main(["export", str(folder), "splats.ply", "-q"]) == 0
+    assert np.abs(read_splat_ply(folder / "splats.ply").colors - built).max() > 0.05
+    assert main(["export", str(folder), "splats.ply", "--splat-fit", "-q"]) == 0
+    assert np.abs(read_splat_ply(folder / "splats.ply").colors - built).max() > 0.05
+    assert main(["export", str(folder), "splats.ply", "--no-splat-fit", "-q"]) == 0
+    np.testing.assert_allclose(read_splat_ply(folder / "splats.ply").colors, built, atol=1e-5)
+    assert SaveOptions().splat_fit is True
+
+
+def test_input_view_is_photo3ds_render_without_rendering(photo):
+    color, covered = input_view(photo.ldi)
+    want, where = reference_view(photo.ldi)
+    assert covered.mean() > 0.99 and where.mean() > 0.99
+    both = covered & where
+    err = np.mean((color[both] - want[both]) ** 2)
+    assert 10 * np.log10(1 / err) > 30  # apart only in the half pixel beyond depth edges
+    ldi, own = photo.ldi, photo.ldi.label == 1
+    raw = np.zeros_like(color)
+    raw[ldi.y[own], ldi.x[own]] = ldi.color[own]
+    assert err < 0.5 * np.mean((raw[both] - want[both]) ** 2)  # closer than the photo
 
 
 def test_splat_fit_option_is_checked_and_costs_memory():

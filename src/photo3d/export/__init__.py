@@ -116,7 +116,7 @@ FORMATS: dict[str, Format] = {
 def export_folder(folder: str | Path, formats: Sequence[str], *,
                   output: str | Path | None = None, overwrite: bool = False,
                   density: str = "adaptive", spz_version: int = 3,
-                  splat_fit: bool = False,
+                  splat_fit: bool = True,
                   progress: StageProgress | None = None) -> list[Path]:
     """Write ``formats`` of the 3D photo saved in ``folder``.
 
@@ -135,7 +135,7 @@ def export_folder(folder: str | Path, formats: Sequence[str], *,
         spz_version: ``splats.spz``'s version, 3 (gzip) or 4 (zstd streams).
         splat_fit: splat formats: fit the splats' colours to photo3d's render
             through Spark's blend (:mod:`photo3d.export.splat_fit`; sharper in
-            splat viewers, a few seconds more).
+            splat viewers; False: each splat keeps its pixels' colour).
         progress: ``progress("export", fraction)`` after each file.
 
     The files are written two at a time (the machine's cores), each atomically, and
@@ -254,7 +254,7 @@ def _export(folder: Path, chosen: list[Format], ldi: LDI, meta: dict, *,
 
 def submit_writers(pool: Executor, ldi: LDI, targets: Sequence[tuple[Format, Path]], *,
                    density: str = "adaptive", spz_version: int = 3,
-                   splat_fit: bool = False, mesh: TexturedMesh | None = None,
+                   splat_fit: bool = True, mesh: TexturedMesh | None = None,
                    light_error: float | None = None,
                    record_in: Path | None = None) -> list[Future]:
     """Have ``pool`` write each ``(format, path)`` of ``targets``; returns the writers'
