@@ -124,28 +124,27 @@ def fit_colors(splats: Splats, camera: Camera, color: np.ndarray, covered: np.nd
     """
     from dataclasses import replace
 
+    from photo3d.export._fit_kernels import diagonal, gather, normal, render
     from photo3d.export.spark_model import visible_weights
 
-    weights, order = visible_weights(splats, camera, floor=floor)  # (pixels, seen splats) CSC
-    mask = np.asarray(covered, np.float32).reshape(-1, 1)
-    y = np.asarray(color, np.float32).reshape(-1, 3) * mask
+    weights, order = visible_weights(splats, camera, floor=floor)  # (pixels, seen splats)
+    indptr, rows, vals = weights.indptr, weights.indices, weights.data  # CSC
+    mask = np.asarray(covered, np.float32).ravel()
+    y = np.asarray(color, np.float32).reshape(-1, 3) * mask[:, None]
     colors = np.clip(np.asarray(splats.colors, np.float32), 0, 1)
     c0 = colors[order]
     lam = np.float32(regularization)
-    norms = np.asarray(weights.multiply(weights).T @ mask).ravel()  # diag(W^T M W)
-    precondition = (1 / (norms + lam)).astype(np.float32)[:, None]
-    transposed = weights.T.tocsr()
-
-    def normal(x: np.ndarray) -> np.ndarray:  # (W^T M W + lam) x
-        return transposed @ ((weights @ x) * mask) + lam * x
-
+    precondition = 1 / (diagonal(indptr, rows, vals, mask) + lam)[:, None]
+    image = np.empty_like(y)
+    render(indptr, rows, vals, c0, image)
+    r = np.empty_like(c0)
+    gather(indptr, rows, vals, mask, y - image, r)  # the right side minus normal(c0)
     x = c0.copy()
-    r = transposed @ (y - (weights @ x) * mask)  # the right side minus normal(c0)
     z = r * precondition
     p = z.copy()
     rz = (r * z).sum(0)
     for _ in range(iterations):
-        q = normal(p)
+        q = normal(indptr, rows, vals, mask, p, lam, image)
         step = rz / np.maximum((p * q).sum(0), 1e-30)
         x += p * step
         r -= q * step
