@@ -156,3 +156,26 @@ def test_splat_fit_option_is_checked_and_costs_memory():
     assert export_memory_estimate(1_000_000, ["splats.spz"], splat_fit=True) > plain
     assert export_memory_estimate(1_000_000, ["quilt"], splat_fit=True) == \
         export_memory_estimate(1_000_000, ["quilt"])
+
+
+@pytest.mark.parametrize("threads", [1, 2])
+def test_a_failed_splat_build_fails_its_files_only(photo, tmp_path, monkeypatch, threads):
+    import photo3d.export.splats as splats_module
+    from photo3d.export import FORMATS, submit_writers
+    from photo3d.parallel import share, thread_pool
+
+    def broken(*args, **kwargs):
+        raise ConfigError("no splats today")
+
+    monkeypatch.setattr(splats_module, "build_splats", broken)
+    targets = [(FORMATS[name], tmp_path / name) for name in
+               ("splats.ply", "quilt", "splats.spz", "mesh.usdz")]
+    with share(threads), thread_pool(2) as pool:
+        jobs = submit_writers(pool, photo.ldi, targets)
+        for job, (fmt, _) in zip(jobs, targets, strict=True):
+            if fmt.name.startswith("splats"):
+                with pytest.raises(ConfigError, match="no splats today"):
+                    job.result(timeout=120)
+            else:
+                assert job.result(timeout=120) is None
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["mesh.usdz", "quilt"]

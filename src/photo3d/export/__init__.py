@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import contextlib
 import fnmatch
+import functools
 import importlib
 import math
 import os
@@ -266,10 +267,10 @@ def submit_writers(pool: Executor, ldi: LDI, targets: Sequence[tuple[Format, Pat
     the pool's first job, with ``light_error``, None:
     :data:`~photo3d.mesh.light.LIGHT_ERROR`), and the splats when more than one
     splat format is asked for (the second job: with their colours fitted, about
-    as long as the light mesh, so on two threads the two overlap). A writer that
-    needs one of them is submitted only once it is built (:func:`_after`), so no
-    thread waits while another file could be written, and a pool of any size
-    reaches it. Call :func:`preload` before the pool's threads (or any other) start.
+    as long as the light mesh, so on two threads the two overlap). The thread that
+    built one goes on with the slowest file made of it, and submits the others then
+    (:func:`_chain`), so no thread waits for a build while a file could be written.
+    Call :func:`preload` before the pool's threads (or any other) start.
 
     Args:
         pool: runs the jobs (:func:`~photo3d.parallel.thread_pool`: the writes, zlib and
@@ -300,67 +301,99 @@ def submit_writers(pool: Executor, ldi: LDI, targets: Sequence[tuple[Format, Pat
     """
     options: dict[str, object] = {"density": density, "spz_version": spz_version,
                                   "fit": splat_fit}
-    light: Future | None = None
-    if mesh is None and any("mesh" in f.options for f, _ in targets):
-        from photo3d.mesh.light import LIGHT_ERROR, build_light_mesh
 
-        light = pool.submit(build_light_mesh, ldi, max_error=(  # first: the longest chain
-            LIGHT_ERROR if light_error is None else light_error))
-    built: Future | None = None
-    if sum(f.module == _SPLATS for f, _ in targets) > 1:  # build the splats once
-        from photo3d.export.splats import build_splats
-
-        built = pool.submit(build_splats, ldi, density=density, fit=splat_fit)
-
-    def write(fmt: Format, path: Path) -> None:
-        given = {k: options[k] for k in fmt.options if k in options}
-        if "mesh" in fmt.options:
-            given["mesh"] = mesh if light is None else light.result()
-        if fmt.module == _SPLATS and built is not None:
-            given["splats"] = built.result()
+    def write(fmt: Format, path: Path, shared: dict[str, object]) -> None:
+        given = {k: ({**options, **shared})[k] for k in fmt.options
+                 if k in options or k in shared}
         with recording(record_in) if record_in is not None else contextlib.nullcontext():
             fmt.load()(ldi, path, **given)
 
-    def needs(fmt: Format) -> Future | None:
-        return light if "mesh" in fmt.options else built if fmt.module == _SPLATS else None
+    builds: dict[str, Callable[[], object] | None] = {"mesh": None, "splats": None}
+    if mesh is None and any("mesh" in f.options for f, _ in targets):
+        from photo3d.mesh.light import LIGHT_ERROR, build_light_mesh
 
-    return [_after(pool, needs(fmt), write, fmt, path) for fmt, path in targets]
+        builds["mesh"] = functools.partial(build_light_mesh, ldi, max_error=(
+            LIGHT_ERROR if light_error is None else light_error))
+    if sum(f.module == _SPLATS for f, _ in targets) > 1:  # build the splats once
+        from photo3d.export.splats import build_splats
+
+        builds["splats"] = functools.partial(build_splats, ldi, density=density,
+                                             fit=splat_fit)
+    given: dict[str, object] = {"mesh": mesh} if mesh is not None else {}
+    order = sorted(range(len(targets)), key=lambda i: _SLOWEST_FIRST.index(targets[i][0].name))
+    jobs: dict[int, Future] = {}
+    for shared in ("mesh", "splats", None):  # the light mesh first: the longest chain
+        group = [i for i in order if _shares(targets[i][0]) == shared]
+        work = [functools.partial(write, *targets[i]) for i in group]
+        if shared is not None and builds[shared] is not None:
+            futures = _chain(pool, builds[shared], shared, work)
+        else:
+            futures = [pool.submit(job, given) for job in work]
+        jobs |= dict(zip(group, futures, strict=True))
+    return [jobs[i] for i in range(len(targets))]
 
 
-def _after(pool: Executor, first: Future | None, fn: Callable[..., None],
-           *args: object) -> Future:
-    """``pool.submit(fn, *args)`` once ``first`` has ended (at once if None), so that
-    no worker thread waits for it while other work is ready; a future that ends when
-    that job has ended, with its result, or with ``first``'s exception if ``first``
-    failed (then ``fn`` never runs). The job is submitted from the thread that
-    ends ``first`` (:meth:`~concurrent.futures.Future.add_done_callback`)."""
-    if first is None:
-        return pool.submit(fn, *args)
+_SLOWEST_FIRST = ("quilt", "splats.spz", "mesh.usdz", "splats.glb", "splats.ply")
+"""The formats by the time their writer takes on the bundled sample (1.05, 0.30,
+0.08, 0.08 and 0.05 s): a thread free takes the slowest first, so that none is left
+alone with it at the end."""
+
+
+def _shares(fmt: Format) -> str | None:
+    """What ``fmt``'s writer takes that several formats share: ``"mesh"`` (the light
+    textured mesh), ``"splats"`` or None."""
+    return "mesh" if "mesh" in fmt.options else "splats" if fmt.module == _SPLATS else None
+
+
+def _chain(pool: Executor, build: Callable[[], object], name: str,
+           writers: Sequence[Callable[[dict[str, object]], None]]) -> list[Future]:
+    """One job of ``pool`` that runs ``build()`` and then, in the same thread, the
+    first of ``writers`` with ``{name: what it built}``, once it has submitted the
+    others to ``pool``: no thread waits for the build, and the thread that built it
+    goes on with the slowest writer. Returns a future per writer, which ends when
+    that writer has ended (with the build's exception if the build failed: then no
+    writer runs)."""
     from concurrent.futures import CancelledError
 
-    done: Future = Future()
+    futures: list[Future] = [Future() for _ in writers]
 
-    def copy(job: Future) -> None:
+    def end(future: Future, job: Future) -> None:  # a job's end, copied into future
         if job.cancelled():
-            done.set_exception(CancelledError())
+            future.set_exception(CancelledError())
         elif job.exception() is not None:
-            done.set_exception(job.exception())
+            future.set_exception(job.exception())
         else:
-            done.set_result(job.result())
+            future.set_result(job.result())
 
-    def start(_: Future) -> None:
-        if first.cancelled() or first.exception() is not None:
-            copy(first)
-            return
+    def run() -> None:  # never raises: every future ends
         try:
-            job = pool.submit(fn, *args)
-        except BaseException as err:  # noqa: BLE001 - handed to the caller by result()
-            done.set_exception(err)   # (a pool shut down: the caller is leaving)
+            shared = {name: build()}
+        except BaseException as err:  # noqa: BLE001 - handed to the callers by result()
+            for future in futures:
+                future.set_exception(err)
             return
-        job.add_done_callback(copy)
+        for writer, future in zip(writers[1:], futures[1:], strict=True):
+            try:
+                job = pool.submit(writer, shared)
+            except BaseException as err:  # noqa: BLE001 - a pool shut down: the caller
+                future.set_exception(err)  # is leaving
+                continue
+            job.add_done_callback(functools.partial(end, future))
+        try:
+            writers[0](shared)
+        except BaseException as err:  # noqa: BLE001 - handed to the caller by result()
+            futures[0].set_exception(err)
+        else:
+            futures[0].set_result(None)
 
-    first.add_done_callback(start)
-    return done
+    def ended(job: Future) -> None:  # stopped before it ran (a signal, a shutdown)
+        if job.cancelled() or job.exception() is not None:
+            for future in futures:
+                if not future.done():
+                    end(future, job)
+
+    pool.submit(run).add_done_callback(ended)
+    return futures
 
 
 _MESH_KERNELS = ("photo3d.mesh._faces", "photo3d.mesh._planar", "photo3d.mesh._charts",
