@@ -149,6 +149,18 @@ def test_input_view_is_photo3ds_render_without_rendering(photo):
     assert err < 0.5 * np.mean((raw[both] - want[both]) ** 2)  # closer than the photo
 
 
+def test_the_default_export_states_the_fits_memory(photo, tmp_path, monkeypatch):
+    import photo3d.export as export
+
+    checked = []
+    monkeypatch.setattr(export, "check_export_memory",
+                        lambda pixels, formats, **kw: checked.append(kw["splat_fit"]))
+    folder = photo.save(tmp_path / "out", viewer=False, glb=False)
+    export_folder(folder, ["splats.spz"])
+    export_folder(folder, ["splats.spz"], splat_fit=False)
+    assert checked == [True, False]  # bench_export.py: 1084 MB peak, 1864 MB stated
+
+
 def test_splat_fit_option_is_checked_and_costs_memory():
     with pytest.raises(ConfigError, match="splat_fit"):
         SaveOptions(splat_fit="yes")
