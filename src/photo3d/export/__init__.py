@@ -303,8 +303,8 @@ def submit_writers(pool: Executor, ldi: LDI, targets: Sequence[tuple[Format, Pat
                                   "fit": splat_fit}
 
     def write(fmt: Format, path: Path, shared: dict[str, object]) -> None:
-        given = {k: ({**options, **shared})[k] for k in fmt.options
-                 if k in options or k in shared}
+        known = options | shared  # shared: what _chain built, or the mesh given
+        given = {k: known[k] for k in fmt.options if k in known}
         with recording(record_in) if record_in is not None else contextlib.nullcontext():
             fmt.load()(ldi, path, **given)
 
