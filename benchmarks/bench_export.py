@@ -18,6 +18,7 @@ benchmark runs do not mix in), and, with ``--ref DIR``, another ``src/`` folder 
 run of each version first (numba's cache, beside the copied sources); then
 ``--runs`` rounds; medians. The 1-minute load average is recorded before every run:
 the machine is shared, and its load shows in wall times, far less in CPU times.
+``--no-fit-too`` also measures ``now`` with ``--no-splat-fit`` (``now-nofit``).
 Issue 37's target: the call at most 5 s, the command at most 8 s, on 2 cores; issue
 46's: the command within the reference's time (e951c93: 2.65 s on an idle machine) and
 its peak resident memory within what it states before it starts
@@ -49,7 +50,8 @@ CALL = """
 import json, sys, time
 from photo3d.export import export_folder
 wall, cpu = time.perf_counter(), time.process_time()
-written = export_folder(sys.argv[1], sys.argv[2:])
+options = {} if sys.argv[2] == "default" else {"splat_fit": False}
+written = export_folder(sys.argv[1], sys.argv[3:], **options)
 wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
 from photo3d.export.splats import splat_count
 print(json.dumps({"wall": wall, "cpu": cpu,
@@ -79,12 +81,14 @@ def fresh(demo: Path, work: Path, name: str) -> Path:
     return folder
 
 
-def measure(src: Path, demo: Path, work: Path, kind: str) -> dict:
-    """One run of ``kind`` (``call`` or ``command``) with ``src``."""
+def measure(src: Path, demo: Path, work: Path, kind: str, *, fit: bool = True) -> dict:
+    """One run of ``kind`` (``call`` or ``command``) with ``src``; ``fit``: its
+    default splat colours (False: ``--no-splat-fit``)."""
     folder = fresh(demo, work, "out")
     load = os.getloadavg()[0]
-    argv = (["-c", CALL, str(folder), *FORMATS] if kind == "call"
-            else ["-m", "photo3d", "export", str(folder), *FORMATS, "-q"])
+    argv = (["-c", CALL, str(folder), "default" if fit else "nofit", *FORMATS]
+            if kind == "call" else ["-m", "photo3d", "export", str(folder), *FORMATS, "-q"]
+            + ([] if fit else ["--no-splat-fit"]))
     done = run_measured(src, argv)
     if done is None:
         return {"load": load, "hung": True}
@@ -102,7 +106,8 @@ def stated_mb(src: Path, demo: Path) -> float:
     formats of ``demo`` before it starts, MB."""
     code = ("import sys; from photo3d.io.npz import ldi_pixels; "
             "from photo3d.resources import export_memory_estimate; "
-            "print(export_memory_estimate(ldi_pixels(sys.argv[1]), sys.argv[2:]) / 1e6)")
+            "print(export_memory_estimate(ldi_pixels(sys.argv[1]), sys.argv[2:], "
+            "splat_fit=True) / 1e6)")
     run = timed_python(["-c", code, str(demo / "photo3d.npz"), *FORMATS], src=src)
     return float(run["stdout"].strip().splitlines()[-1])
 
@@ -112,6 +117,8 @@ def main() -> None:
     parser.add_argument("--runs", type=int, default=3)
     parser.add_argument("--demo", type=Path, help="the demo's folder (made if missing)")
     parser.add_argument("--ref", type=Path, help="a src/ folder of the reference version")
+    parser.add_argument("--no-fit-too", action="store_true",
+                        help="also measure this version with --no-splat-fit ('now-nofit')")
     parser.add_argument("--out", type=Path, default=ROOT / "benchmarks/results/export.json")
     args = parser.parse_args()
     with tempfile.TemporaryDirectory(prefix="bench-export-") as tmp:
@@ -129,19 +136,22 @@ def main() -> None:
             run_measured(versions["now"], ["-m", "photo3d", "demo", "--no-video", "-q",
                                            "-o", str(demo)])
         stated = stated_mb(versions["now"], demo)  # while the copied sources exist
-        for src in versions.values():  # warm-up: numba's cache, the page cache
-            measure(src, demo, work, "call")
+        fits = dict.fromkeys(versions, True)
+        if args.no_fit_too:
+            versions["now-nofit"], fits["now-nofit"] = versions["now"], False
+        for name, src in versions.items():  # warm-up: numba's cache, the page cache
+            measure(src, demo, work, "call", fit=fits[name])
         runs: dict[str, dict[str, list]] = {v: {"call": [], "command": []} for v in versions}
         for i in range(args.runs):
             for kind in ("call", "command"):
                 for name, src in versions.items():
-                    result = measure(src, demo, work, kind)
+                    result = measure(src, demo, work, kind, fit=fits[name])
                     runs[name][kind].append(result)
                     if result.get("hung"):
                         print(f"run {i + 1} {name:3s} {kind:7s} HUNG (killed after "
                               f"{TIMEOUT} s)  load {result['load']:.2f}", flush=True)
                         continue
-                    print(f"run {i + 1} {name:3s} {kind:7s} wall {result['wall']:6.2f} s  "
+                    print(f"run {i + 1} {name:9s} {kind:7s} wall {result['wall']:6.2f} s  "
                           f"cpu {result['cpu']:6.2f} s  load {result['load']:.2f}", flush=True)
     medians = {name: {kind: {key: statistics.median(r[key] for r in results if "wall" in r)
                              for key in ("wall", "cpu", "load")}
@@ -151,7 +161,7 @@ def main() -> None:
     print(f"\nmedians of {args.runs} (1-minute load average before each run):")
     for name, kinds in medians.items():
         for kind, m in kinds.items():
-            print(f"  {name:3s} {kind:7s} wall {m['wall']:6.2f} s  cpu {m['cpu']:6.2f} s  "
+            print(f"  {name:9s} {kind:7s} wall {m['wall']:6.2f} s  cpu {m['cpu']:6.2f} s  "
                   f"load {m['load']:.2f}" + (f"  ({m['hung']} hung)" if m["hung"] else ""))
     if "ref" in medians:
         for kind in ("call", "command"):

@@ -6,8 +6,8 @@ read from ``--demo`` (made there if missing). For each layout (``dense``: one sp
 per LDI pixel; ``adaptive``: the default) it records the splat count, the sizes of
 ``splats.ply``, ``splats.glb`` and ``splats.spz`` in SPZ versions 3 and 4, and the
 time to build the splats (median of ``--runs``), each layout as built and with its
-colours fitted (``--splat-fit``, :mod:`photo3d.export.splat_fit`; its time is the
-build's with the fit, the reference render included); then renders ``splats.ply`` in Spark
+colours fitted (the default, :mod:`photo3d.export.splat_fit`; its time is the
+build's with the fit); then renders ``splats.ply`` in Spark
 2.2 (headless Chromium, SwiftShader, Spark's defaults: tests/export/spark_renderer.py)
 from the input camera and from the circle path's widest camera and compares each
 view with photo3d's own render of the 3D photo (the full mesh, numba, no hole

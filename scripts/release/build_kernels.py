@@ -57,7 +57,8 @@ def workload(python: str, work: Path) -> list[list[str]]:
     return [["-m", "photo3d", "demo", "-o", str(out), "--overwrite", "-q", "--frames", "8"],
             ["-m", "photo3d", "render", str(out), "--frames", "8", "-q"],
             ["-m", "photo3d", "export", str(out), *formats, "-q"],
-            # the colour fit's kernels (photo3d.export._spark_raster)
+            # the colour fit's kernels (photo3d.export._spark_raster, _fit_kernels), also
+            # in the default export above
             ["-m", "photo3d", "export", str(out), "splats.spz", "--splat-fit", "-q",
              "-o", str(work / "fitted.spz")]]
 

@@ -163,21 +163,27 @@ def section_export(load, machine_line, missing) -> str:
     if isinstance(out, str):
         return out
     med = rec["medians"]
+    nofit = "now-nofit" in med  # --no-fit-too: now with --no-splat-fit as well
     out += ["Formats: " + ", ".join(rec["formats"]) + "; medians of wall (CPU) seconds; "
-            "`call`: `export_folder` in the process, `command`: the whole command.", "",
-            "| | now | reference | 1-min load |", "| --- | --- | --- | --- |"]
+            "`call`: `export_folder` in the process, `command`: the whole command"
+            + ("; now: the default (splat colours fitted), now, `--no-splat-fit`: the "
+               "colours as built, each version run in turn" if nofit else "") + ".", "",
+            "| | now |" + (" now, `--no-splat-fit` |" if nofit else "")
+            + " reference | 1-min load |",
+            "| --- | --- |" + (" --- |" if nofit else "") + " --- | --- |"]
     for kind in ("call", "command"):
-        now, ref = med["now"][kind], med["ref"][kind]
-        out.append(f"| {kind} | {now['wall']:.2f} s ({now['cpu']:.2f}) | {ref['wall']:.2f} s "
-                   f"({ref['cpu']:.2f}) | {now['load']:.1f} |")
+        cells = [med[v][kind] for v in ("now", "now-nofit", "ref") if v in med]
+        out.append(f"| {kind} | " + " | ".join(f"{c['wall']:.2f} s ({c['cpu']:.2f})"
+                                                for c in cells)
+                   + f" | {med['now'][kind]['load']:.1f} |")
     out += ["", "Files: " + ", ".join(f"{k} {v} MB" for k, v in rec["files_mb"].items()) + "."]
     if "peak_rss_mb" in rec:
         peaks = rec["peak_rss_mb"]
         out += ["", "Peak resident memory of the processes: " + ", ".join(
-            f"{'now' if k == 'now' else 'reference'} {v:.0f} MB" for k, v in peaks.items())
+            f"{'reference' if k == 'ref' else k} {v:.0f} MB" for k, v in peaks.items())
             + f"; what `photo3d export` states before it starts (now): "
             f"{rec['stated_mb']:.0f} MB. Splats: " + ", ".join(
-                f"{'now' if k == 'now' else 'reference'} "
+                f"{'reference' if k == 'ref' else k} "
                 + ", ".join(f"{n} {c:,}" for n, c in v.items())
                 for k, v in rec.get("splats", {}).items()) + "."]
     return "\n".join(out + [""])
@@ -197,10 +203,11 @@ def section_splats(load, machine_line, missing) -> str:
             f"leaves empty. Issue 46's targets: at most {t['splats']:,} splats, "
             f"`splats.spz` at most {t['spz_mb']} MB, input camera at least "
             f"{t['input_db']} dB, widest circle camera at least {t['widest_db']} dB with at "
-            f"most {100 * t['widest_empty']} % empty. Each layout as built and with its "
-            "colours fitted (`--splat-fit`: photo3d.export.splat_fit, fitted to photo3d's "
-            "render from the input camera only). build s: median seconds to build the "
-            "splats in that session, the fit's reference render included (the machine's "
+            f"most {100 * t['widest_empty']} % empty. Each layout as built (`--no-splat-fit`) "
+            "and with its colours fitted (the default: photo3d.export.splat_fit, fitted to "
+            "photo3d's render from the input camera only). build s: median seconds to build the "
+            "splats in that session, the fit included (its reference is made from the "
+            "LDI; the machine's "
             "load shows in it: load, the 1-minute load average before the runs; "
             f"{rec.get('load_note', 'see the machine line')}). model dB: the fit's model of "
             "Spark (photo3d.export.spark_model) against Spark's own image, input and widest "

@@ -51,7 +51,8 @@ class SaveOptions:
             where the photo is flat) or ``"dense"`` (one per LDI pixel).
         spz_version: the version of ``splats.spz``: 3 (gzip) or 4 (zstd streams).
         splat_fit: the splat exports' colours are fitted to photo3d's render through
-            a splat renderer's blend (:mod:`photo3d.export.splat_fit`).
+            a splat renderer's blend (:mod:`photo3d.export.splat_fit`; the default:
+            False keeps each splat's colour as its pixels').
 
     Example:
         >>> options = SaveOptions(ply=None, viewer=False)
@@ -83,7 +84,7 @@ class SaveOptions:
     exports: tuple[str, ...] = ()
     splats: str = "adaptive"
     spz_version: int = 3
-    splat_fit: bool = False
+    splat_fit: bool = True
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "videos", tuple(self.videos))

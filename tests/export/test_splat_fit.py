@@ -19,7 +19,7 @@ from photo3d.export.spark_model import (
     spark_weights,
     visible_weights,
 )
-from photo3d.export.splat_fit import fit_colors, reference_view
+from photo3d.export.splat_fit import fit_colors, input_view, reference_view
 from photo3d.export.splats import build_splats
 from photo3d.io.splat_ply import read_splat_ply
 from photo3d.resources import export_memory_estimate
@@ -108,15 +108,57 @@ def test_fit_brings_the_model_closer_to_photo3ds_render(photo):
     np.testing.assert_array_equal(fitted.colors[hidden], np.clip(splats.colors[hidden], 0, 1))
 
 
-def test_export_writes_the_fitted_splats(photo, tmp_path):
+def test_export_writes_fitted_splats_by_default(photo, tmp_path):
     folder = photo.save(tmp_path / "out", viewer=False, glb=False)
-    export_folder(folder, ["splats.ply"], splat_fit=True)
+    export_folder(folder, ["splats.ply", "splats.spz"])  # built once, on the pool
     fitted = read_splat_ply(folder / "splats.ply")
     built = build_splats(photo.ldi)
     np.testing.assert_allclose(fitted.positions, built.positions)
     assert np.abs(fitted.colors - built.colors).max() > 0.05
     expected = build_splats(photo.ldi, fit=True).colors
     np.testing.assert_allclose(fitted.colors, expected, atol=1e-5)
+    export_folder(folder, ["splats.ply"], splat_fit=False)  # the colours as built
+    np.testing.assert_allclose(read_splat_ply(folder / "splats.ply").colors,
+                               np.clip(built.colors, 0, 1), atol=1e-5)
+
+
+def test_cli_fits_unless_told_not_to(photo, tmp_path):
+    from photo3d.cli import main
+
+    folder = photo.save(tmp_path / "out", viewer=False, glb=False)
+    built = np.clip(build_splats(photo.ldi).colors, 0, 1)
+    assert main(["export", str(folder), "splats.ply", "-q"]) == 0
+    assert np.abs(read_splat_ply(folder / "splats.ply").colors - built).max() > 0.05
+    assert main(["export", str(folder), "splats.ply", "--splat-fit", "-q"]) == 0
+    assert np.abs(read_splat_ply(folder / "splats.ply").colors - built).max() > 0.05
+    assert main(["export", str(folder), "splats.ply", "--no-splat-fit", "-q"]) == 0
+    np.testing.assert_allclose(read_splat_ply(folder / "splats.ply").colors, built, atol=1e-5)
+    assert SaveOptions().splat_fit is True
+
+
+def test_input_view_is_photo3ds_render_without_rendering(photo):
+    color, covered = input_view(photo.ldi)
+    want, where = reference_view(photo.ldi)
+    assert covered.mean() > 0.99 and where.mean() > 0.99
+    both = covered & where
+    err = np.mean((color[both] - want[both]) ** 2)
+    assert 10 * np.log10(1 / err) > 30  # apart only in the half pixel beyond depth edges
+    ldi, own = photo.ldi, photo.ldi.label == 1
+    raw = np.zeros_like(color)
+    raw[ldi.y[own], ldi.x[own]] = ldi.color[own]
+    assert err < 0.5 * np.mean((raw[both] - want[both]) ** 2)  # closer than the photo
+
+
+def test_the_default_export_states_the_fits_memory(photo, tmp_path, monkeypatch):
+    import photo3d.export as export
+
+    checked = []
+    monkeypatch.setattr(export, "check_export_memory",
+                        lambda pixels, formats, **kw: checked.append(kw["splat_fit"]))
+    folder = photo.save(tmp_path / "out", viewer=False, glb=False)
+    export_folder(folder, ["splats.spz"])
+    export_folder(folder, ["splats.spz"], splat_fit=False)
+    assert checked == [True, False]  # bench_export.py: 1084 MB peak, 1864 MB stated
 
 
 def test_splat_fit_option_is_checked_and_costs_memory():
@@ -126,3 +168,26 @@ def test_splat_fit_option_is_checked_and_costs_memory():
     assert export_memory_estimate(1_000_000, ["splats.spz"], splat_fit=True) > plain
     assert export_memory_estimate(1_000_000, ["quilt"], splat_fit=True) == \
         export_memory_estimate(1_000_000, ["quilt"])
+
+
+@pytest.mark.parametrize("threads", [1, 2])
+def test_a_failed_splat_build_fails_its_files_only(photo, tmp_path, monkeypatch, threads):
+    import photo3d.export.splats as splats_module
+    from photo3d.export import FORMATS, submit_writers
+    from photo3d.parallel import share, thread_pool
+
+    def broken(*args, **kwargs):
+        raise ConfigError("no splats today")
+
+    monkeypatch.setattr(splats_module, "build_splats", broken)
+    targets = [(FORMATS[name], tmp_path / name) for name in
+               ("splats.ply", "quilt", "splats.spz", "mesh.usdz")]
+    with share(threads), thread_pool(2) as pool:
+        jobs = submit_writers(pool, photo.ldi, targets)
+        for job, (fmt, _) in zip(jobs, targets, strict=True):
+            if fmt.name.startswith("splats"):
+                with pytest.raises(ConfigError, match="no splats today"):
+                    job.result(timeout=120)
+            else:
+                assert job.result(timeout=120) is None
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["mesh.usdz", "quilt"]

@@ -198,7 +198,8 @@ def test_cli_export(folder, photo, capsys, tmp_path):
     out = capsys.readouterr().out
     assert "exported 2 file(s)" in out and "splats.spz" in out and " splats" in out
     # the memory it may take, said before the work
-    assert out.startswith(f"export: {photo.ldi.size:,} LDI pixels, dense splats, at most about ")
+    assert out.startswith(f"export: {photo.ldi.size:,} LDI pixels, dense splats, colours "
+                          "fitted, at most about ")  # fitted by default
     written = json.loads((folder / "config.json").read_text())["written"]
     assert {"splats.spz", "splats.ply"} <= set(written)
     assert (folder / "splats.spz").read_bytes()[:4] == b"NGSP"

@@ -172,10 +172,11 @@ def add_splat_options(p: argparse.ArgumentParser) -> None:
                    help="splats.spz: version 3 (the default: gzip; Spark 2, three.js, "
                         "SuperSplat) or 4 (zstd streams; three.js, SuperSplat, PlayCanvas; "
                         "needs photo3d[spz4])")
-    p.add_argument("--splat-fit", action="store_true",
+    p.add_argument("--splat-fit", action=argparse.BooleanOptionalAction, default=True,
                    help="splat exports: fit the splats' colours to photo3d's render "
                         "through a splat renderer's blend (Spark's), so that splat "
-                        "viewers show the photo sharper (a few seconds more)")
+                        "viewers show the photo sharper (the default; --no-splat-fit: "
+                        "each splat keeps its pixels' colour, about a second less)")
 
 
 def video_size(text: str) -> tuple[int, int]:

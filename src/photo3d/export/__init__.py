@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import contextlib
 import fnmatch
+import functools
 import importlib
 import math
 import os
@@ -118,7 +119,7 @@ FORMATS: dict[str, Format] = {
 def export_folder(folder: str | Path, formats: Sequence[str], *,
                   output: str | Path | None = None, overwrite: bool = False,
                   density: str = "adaptive", spz_version: int = 3,
-                  splat_fit: bool = False,
+                  splat_fit: bool = True,
                   progress: StageProgress | None = None) -> list[Path]:
     """Write ``formats`` of the 3D photo saved in ``folder``.
 
@@ -137,7 +138,7 @@ def export_folder(folder: str | Path, formats: Sequence[str], *,
         spz_version: ``splats.spz``'s version, 3 (gzip) or 4 (zstd streams).
         splat_fit: splat formats: fit the splats' colours to photo3d's render
             through Spark's blend (:mod:`photo3d.export.splat_fit`; sharper in
-            splat viewers, a few seconds more).
+            splat viewers; False: each splat keeps its pixels' colour).
         progress: ``progress("export", fraction)`` after each file.
 
     The files are written two at a time (the machine's cores), each atomically, and
@@ -280,20 +281,22 @@ def _export(folder: Path, chosen: list[Format], ldi: LDI, meta: dict, *,
 
 def submit_writers(pool: Executor, ldi: LDI, targets: Sequence[tuple[Format, Path]], *,
                    density: str = "adaptive", spz_version: int = 3,
-                   splat_fit: bool = False, mesh: TexturedMesh | None = None,
+                   splat_fit: bool = True, mesh: TexturedMesh | None = None,
                    light_error: float | None = None,
                    record_in: Path | None = None,
                    splats: Splats | None = None) -> list[Future]:
     """Have ``pool`` write each ``(format, path)`` of ``targets``; returns the writers'
     futures, in the order of ``targets``.
 
-    What several formats share is made once: the splats (built here when more than
-    one splat format is asked for; 0.03 s on the bundled sample) and the light
+    What several formats share is made once, each by one job of the pool: the light
     textured mesh that ``mesh.usdz`` and the quilt are made of (``mesh`` if given, as
     :func:`photo3d.output.save_photo` gives the one of ``mesh.glb``; else built by
-    the pool's first job while the splat files are written, with ``light_error``,
-    None: :data:`~photo3d.mesh.light.LIGHT_ERROR`). A writer waiting for the mesh
-    is submitted after the job building it, so a pool of any size reaches it.
+    the pool's first job, with ``light_error``, None:
+    :data:`~photo3d.mesh.light.LIGHT_ERROR`), and the splats when more than one
+    splat format is asked for (the second job: with their colours fitted, about
+    as long as the light mesh, so on two threads the two overlap). The thread that
+    built one goes on with the slowest file made of it, and submits the others then
+    (:func:`_chain`), so no thread waits for a build while a file could be written.
     Call :func:`preload` before the pool's threads (or any other) start.
 
     Args:
@@ -327,31 +330,101 @@ def submit_writers(pool: Executor, ldi: LDI, targets: Sequence[tuple[Format, Pat
     """
     options: dict[str, object] = {"density": density, "spz_version": spz_version,
                                   "fit": splat_fit}
-    if splats is not None:
-        options["splats"] = splats
-    elif sum(f.module == _SPLATS for f, _ in targets) > 1:  # build the splats once
-        from photo3d.export.splats import build_splats
 
-        options["splats"] = build_splats(ldi, density=density, fit=splat_fit)
-    light: Future | None = None
-    if mesh is None and any("mesh" in f.options for f, _ in targets):
-        from photo3d.mesh.light import LIGHT_ERROR, build_light_mesh
-
-        light = pool.submit(build_light_mesh, ldi, max_error=(
-            LIGHT_ERROR if light_error is None else light_error))
-
-    def write(fmt: Format, path: Path) -> None:
-        given = {k: options[k] for k in fmt.options if k in options}
-        if "mesh" in fmt.options:
-            given["mesh"] = mesh if light is None else light.result()
+    def write(fmt: Format, path: Path, shared: dict[str, object]) -> None:
+        known = options | shared  # shared: what _chain built, or the mesh given
+        given = {k: known[k] for k in fmt.options if k in known}
         with recording(record_in) if record_in is not None else contextlib.nullcontext():
             fmt.load()(ldi, path, **given)
 
-    jobs = {i: pool.submit(write, fmt, path) for i, (fmt, path) in enumerate(targets)
-            if "mesh" not in fmt.options}  # the splat files first: they need nothing more
-    jobs |= {i: pool.submit(write, fmt, path) for i, (fmt, path) in enumerate(targets)
-             if "mesh" in fmt.options}
+    builds: dict[str, Callable[[], object] | None] = {"mesh": None, "splats": None}
+    if mesh is None and any("mesh" in f.options for f, _ in targets):
+        from photo3d.mesh.light import LIGHT_ERROR, build_light_mesh
+
+        builds["mesh"] = functools.partial(build_light_mesh, ldi, max_error=(
+            LIGHT_ERROR if light_error is None else light_error))
+    if splats is None and sum(f.module == _SPLATS for f, _ in targets) > 1:  # built once
+        from photo3d.export.splats import build_splats
+
+        builds["splats"] = functools.partial(build_splats, ldi, density=density,
+                                             fit=splat_fit)
+    given: dict[str, object] = {"mesh": mesh} if mesh is not None else {}
+    if splats is not None:  # built already (counted against SPZ's limit)
+        given["splats"] = splats
+    order = sorted(range(len(targets)), key=lambda i: _SLOWEST_FIRST.index(targets[i][0].name))
+    jobs: dict[int, Future] = {}
+    for shared in ("mesh", "splats", None):  # the light mesh first: the longest chain
+        group = [i for i in order if _shares(targets[i][0]) == shared]
+        work = [functools.partial(write, *targets[i]) for i in group]
+        if shared is not None and builds[shared] is not None:
+            futures = _chain(pool, builds[shared], shared, work)
+        else:
+            futures = [pool.submit(job, given) for job in work]
+        jobs |= dict(zip(group, futures, strict=True))
     return [jobs[i] for i in range(len(targets))]
+
+
+_SLOWEST_FIRST = ("quilt", "splats.spz", "mesh.usdz", "splats.glb", "splats.ply")
+"""The formats by the time their writer takes on the bundled sample (1.05, 0.30,
+0.08, 0.08 and 0.05 s): a thread free takes the slowest first, so that none is left
+alone with it at the end."""
+
+
+def _shares(fmt: Format) -> str | None:
+    """What ``fmt``'s writer takes that several formats share: ``"mesh"`` (the light
+    textured mesh), ``"splats"`` or None."""
+    return "mesh" if "mesh" in fmt.options else "splats" if fmt.module == _SPLATS else None
+
+
+def _chain(pool: Executor, build: Callable[[], object], name: str,
+           writers: Sequence[Callable[[dict[str, object]], None]]) -> list[Future]:
+    """One job of ``pool`` that runs ``build()`` and then, in the same thread, the
+    first of ``writers`` with ``{name: what it built}``, once it has submitted the
+    others to ``pool``: no thread waits for the build, and the thread that built it
+    goes on with the slowest writer. Returns a future per writer, which ends when
+    that writer has ended (with the build's exception if the build failed: then no
+    writer runs)."""
+    from concurrent.futures import CancelledError
+
+    futures: list[Future] = [Future() for _ in writers]
+
+    def end(future: Future, job: Future) -> None:  # a job's end, copied into future
+        if job.cancelled():
+            future.set_exception(CancelledError())
+        elif job.exception() is not None:
+            future.set_exception(job.exception())
+        else:
+            future.set_result(job.result())
+
+    def run() -> None:  # never raises: every future ends
+        try:
+            shared = {name: build()}
+        except BaseException as err:  # noqa: BLE001 - handed to the callers by result()
+            for future in futures:
+                future.set_exception(err)
+            return
+        for writer, future in zip(writers[1:], futures[1:], strict=True):
+            try:
+                job = pool.submit(writer, shared)
+            except BaseException as err:  # noqa: BLE001 - a pool shut down: the caller
+                future.set_exception(err)  # is leaving
+                continue
+            job.add_done_callback(functools.partial(end, future))
+        try:
+            writers[0](shared)
+        except BaseException as err:  # noqa: BLE001 - handed to the caller by result()
+            futures[0].set_exception(err)
+        else:
+            futures[0].set_result(None)
+
+    def ended(job: Future) -> None:  # stopped before it ran (a signal, a shutdown)
+        if job.cancelled() or job.exception() is not None:
+            for future in futures:
+                if not future.done():
+                    end(future, job)
+
+    pool.submit(run).add_done_callback(ended)
+    return futures
 
 
 def preload(formats: Sequence[Format]) -> None:

@@ -110,8 +110,13 @@ def spark_quantized(splats: Splats, camera: Camera) -> Splats:
     alpha = np.round(np.clip(opacity, 0, 1) * 255) / 255
     alpha = np.round(alpha / 2 * 255) / 255 * 2  # the accumulator keeps alpha / 2
     colors = np.round(np.clip(colors, 0, 1) * 255) / 255
-    q = _quat_octahedral(rotations)
-    q = _quat_mul(_FLIP_Q, _quat_octahedral(_quat_mul(_FLIP_Q, q)))  # in three.js axes
+    # most splats (the one-pixel discs) are not rotated: those are rounded once
+    rotations = np.asarray(rotations, np.float64)
+    turned = (rotations[:, 1:] != 0).any(1) | (rotations[:, 0] != 1)
+    q = np.empty_like(rotations)
+    for rows, given in ((turned, rotations[turned]), (~turned, np.array([[1.0, 0, 0, 0]]))):
+        r = _quat_octahedral(given)
+        q[rows] = _quat_mul(_FLIP_Q, _quat_octahedral(_quat_mul(_FLIP_Q, r)))  # three.js axes
     return Splats(centres, colors, alpha, scales, q)
 
 
@@ -175,11 +180,13 @@ def spark_weights(splats: Splats, camera: Camera, *, quantize: bool = True):
                                    shape=(weights.shape[0], n))
 
 
-def visible_weights(splats: Splats, camera: Camera, *, quantize: bool = True):
+def visible_weights(splats: Splats, camera: Camera, *, quantize: bool = True,
+                    floor: float = WEIGHT_FLOOR):
     """:func:`spark_weights` of the splats Spark draws from ``camera`` only, in the
     order it blends them (front to back): ``(weights (H * W, M) csc_matrix float32,
     order (M,) int64)``, column ``j`` the splat ``order[j]`` (cheaper: no
-    reordering)."""
+    reordering). ``floor``: weights below it are left out (they still hide what
+    lies behind)."""
     import scipy.sparse
 
     from photo3d.export._spark_raster import rasterize
@@ -191,7 +198,7 @@ def visible_weights(splats: Splats, camera: Camera, *, quantize: bool = True):
     order = np.argsort(distance, kind="stable").astype(np.int64)  # front to back
     order = order[alpha[order] > 0]
     rows, vals, counts = rasterize(order, u, v, cov, alpha, k.width, k.height, CUTOFF2,
-                                   MIN_ALPHA, WEIGHT_FLOOR)
+                                   MIN_ALPHA, floor)
     indptr = np.zeros(len(order) + 1, np.int64)
     np.cumsum(counts, out=indptr[1:])
     weights = scipy.sparse.csc_matrix((vals, rows, indptr),
