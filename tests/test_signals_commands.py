@@ -53,15 +53,16 @@ def start(*argv, cwd: Path, env: dict | None = None) -> subprocess.Popen:
                             preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
 
 
-def wait_for(proc: subprocess.Popen, ready, timeout: float = 90) -> None:
-    """Poll ``ready()`` until it is true (the command is working)."""
+def wait_for(proc: subprocess.Popen, ready, timeout: float = 90, every: float = 0.02) -> None:
+    """Poll ``ready()`` every ``every`` seconds until it is true (the command is
+    working)."""
     deadline = time.monotonic() + timeout
     while not ready():
         if proc.poll() is not None or time.monotonic() > deadline:
             proc.kill()
             out, err = proc.communicate()
             pytest.fail(f"the command never got to work (status {proc.returncode}): {err}")
-        time.sleep(0.02)
+        time.sleep(every)
 
 
 def stop(proc: subprocess.Popen, sig: int) -> tuple[int, str, float]:
@@ -168,7 +169,11 @@ def test_export(made, tmp_path, sig, status):
     folder = copy_of(made, tmp_path)
     before = snapshot(folder)
     proc = start("export", folder, *FORMATS, "-q", cwd=tmp_path)
-    wait_for(proc, lambda: any(p.name.startswith(".splats") for p in folder.iterdir()))
+    # writing: a writer's hidden temporary file, or a first file in place (the quilt, the
+    # slowest, is written meanwhile); the splats' files alone may come and go unseen
+    wait_for(proc, lambda: any(is_temp_name(p.name) or any(
+        fnmatch.fnmatchcase(p.name, e) for e in EXPORT_FILES) for p in folder.iterdir()),
+        every=0.005)
     check_stopped(stop(proc, sig), status)
     assert not temporaries(tmp_path)
     after = snapshot(folder)
