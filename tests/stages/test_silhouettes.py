@@ -143,6 +143,19 @@ def test_npz_stores_alpha_and_reads_version_2(tmp_path):
     assert np.array_equal(old.color, ldi.color)
 
 
+def test_npz_without_soft_silhouettes_is_version_2(tmp_path):
+    """A 3D photo cut hard is saved as version 2, which photo3d before format 3 reads."""
+    image, depth = _pole(spread=1)
+    ldi = photo3d.make(image, depth=depth, config=Config(size=None, depth_kind="depth")).ldi
+    assert not ldi.soft
+    save_npz(ldi, tmp_path / "a.npz")
+    with np.load(tmp_path / "a.npz") as f:
+        header = json.loads(f["header"].tobytes().decode())
+        assert header["version"] == 2 and "alpha" not in f.files
+    back, _ = load_npz(tmp_path / "a.npz")
+    assert (back.alpha == 1).all() and np.array_equal(back.color, ldi.color)
+
+
 def test_npz_refuses_alpha_out_of_range(tmp_path):
     ldi = _small_soft_ldi()
     save_npz(ldi, tmp_path / "a.npz")

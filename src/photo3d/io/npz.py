@@ -27,17 +27,21 @@ FORMAT_VERSION = 3
 :attr:`~photo3d.structures.ldi.LDI.alpha`; versions 1 and 2 are still read, with
 alpha 1 everywhere). Version 2 stores ``links`` relative to the pixel (``links[i] -
 i``, 0 = none): mostly the same few offsets, so deflate packs them 7 times smaller
-and 3.5 times faster than absolute indices (version 1)."""
+and 3.5 times faster than absolute indices (version 1). A 3D photo without soft
+silhouettes (every alpha 1) is saved as version 2, which photo3d before version 3
+reads too."""
 
 
 def save_npz(ldi: LDI, path: str | Path, *, meta: dict | None = None) -> None:
-    """Save losslessly as a NumPy ``.npz`` (no pickle inside).
+    """Save losslessly as a NumPy ``.npz`` (no pickle inside): format
+    :data:`FORMAT_VERSION` with the soft silhouettes' ``alpha`` when the LDI has any
+    (``ldi.soft``), else version 2 (what older photo3d reads).
 
     ``meta`` is any JSON-able dictionary stored beside the arrays.
     """
     header = {
         "format": "photo3d-ldi",
-        "version": FORMAT_VERSION,
+        "version": FORMAT_VERSION if ldi.soft else 2,
         "intrinsics": [ldi.intrinsics.fx, ldi.intrinsics.fy, ldi.intrinsics.cx,
                        ldi.intrinsics.cy, ldi.intrinsics.width, ldi.intrinsics.height],
         "mapping": [ldi.mapping.scale, ldi.mapping.offset, ldi.mapping.floor],
@@ -47,7 +51,7 @@ def save_npz(ldi: LDI, path: str | Path, *, meta: dict | None = None) -> None:
     arrays = {
         "y": ldi.y, "x": ldi.x, "color": ldi.color, "disparity": ldi.disparity,
         "links": _relative_links(ldi.links), "label": ldi.label,
-        "alpha": np.asarray(ldi.alpha, np.float32),
+        **({"alpha": np.asarray(ldi.alpha, np.float32)} if ldi.soft else {}),
         "header": np.frombuffer(json.dumps(header).encode(), np.uint8),
     }
     # A regular .npz (np.load reads it) with fast deflate: np.savez_compressed's
