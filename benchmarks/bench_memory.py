@@ -24,64 +24,24 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
-import subprocess
 import sys
 import tempfile
-import threading
 from pathlib import Path
 
 from _machine import machine_info
+from _peak import peak
 
 HERE = Path(__file__).parent
 SIZES = (256, 512, 1024)
 
 
-def _tree_rss(root: int) -> int:
-    """Resident bytes of process ``root`` and its descendants now."""
-    parents: dict[int, int] = {}
-    for entry in os.listdir("/proc"):
-        if entry.isdigit():
-            try:
-                with open(f"/proc/{entry}/stat") as f:
-                    parents[int(entry)] = int(f.read().rsplit(")", 1)[1].split()[1])
-            except (OSError, ValueError, IndexError):
-                continue
-    tree, todo = {root}, [root]
-    while todo:
-        pid = todo.pop()
-        kids = [c for c, p in parents.items() if p == pid and c not in tree]
-        tree.update(kids)
-        todo.extend(kids)
-    total = 0
-    for pid in tree:
-        try:
-            with open(f"/proc/{pid}/status") as f:
-                total += next(int(line.split()[1]) * 1024 for line in f
-                              if line.startswith("VmRSS:"))
-        except (OSError, StopIteration):
-            continue
-    return total
-
-
 def measure(cmd: list[str], cwd: Path) -> int:
-    """Peak resident bytes of ``cmd`` (which must succeed) and its children."""
-    proc = subprocess.Popen(cmd, cwd=cwd, stdout=subprocess.DEVNULL)
-    sampled, done = [0], threading.Event()
-
-    def sample() -> None:
-        while not done.wait(0.02):
-            sampled[0] = max(sampled[0], _tree_rss(proc.pid))
-
-    thread = threading.Thread(target=sample, daemon=True)
-    thread.start()
-    _, status, usage = os.wait4(proc.pid, 0)
-    proc.returncode = os.waitstatus_to_exitcode(status)
-    done.set()
-    thread.join()
-    if proc.returncode:
-        raise SystemExit(f"{' '.join(cmd)} failed")
-    return max(usage.ru_maxrss * 1024, sampled[0])
+    """Peak resident bytes of ``cmd`` (which must succeed) and its children
+    (:func:`_peak.peak`)."""
+    rss, status, err = peak(cmd, cwd=cwd)
+    if status:
+        raise SystemExit(f"{' '.join(cmd)} failed: {err}")
+    return rss
 
 
 def peak_rss(size: int, out: Path) -> tuple[int, int]:

@@ -18,7 +18,6 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
-import threading
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -26,6 +25,9 @@ import numpy as np
 import pytest
 from PIL import Image
 from test_robustness import run
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+import _peak  # noqa: E402 - the measurement bench_memory.py makes too
 
 import photo3d
 from photo3d.config import Config
@@ -38,77 +40,15 @@ SRC = Path(photo3d.__file__).resolve().parents[1]
 # --- measuring a child's peak -------------------------------------------------------------
 
 
-def _tree_rss(root: int) -> int:
-    """Resident bytes of process ``root`` and all its descendants now."""
-    parents: dict[int, int] = {}
-    for entry in os.listdir("/proc"):
-        if entry.isdigit():
-            try:
-                with open(f"/proc/{entry}/stat") as f:
-                    parents[int(entry)] = int(f.read().rsplit(")", 1)[1].split()[1])
-            except (OSError, ValueError, IndexError):
-                continue
-    tree, todo = {root}, [root]
-    while todo:
-        pid = todo.pop()
-        children = [c for c, p in parents.items() if p == pid and c not in tree]
-        tree.update(children)
-        todo.extend(children)
-    total = 0
-    for pid in tree:
-        try:
-            with open(f"/proc/{pid}/status") as f:
-                total += next(int(line.split()[1]) * 1024 for line in f
-                              if line.startswith("VmRSS:"))
-        except (OSError, StopIteration):
-            continue
-    return total
-
-
-_LAUNCH = """
-import resource, subprocess, sys
-status = subprocess.call(sys.argv[2:])
-with open(sys.argv[1], "w") as report:
-    report.write(str(resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss))
-sys.exit(status)
-"""
-"""Runs a command and writes its peak (``ru_maxrss``, kB) to a file. Linux gives a
-child the peak of the process it was forked from (``ru_maxrss`` keeps the old memory's
-high-water mark across ``exec``): forked from pytest late in the suite, every command
-would measure at least pytest's own size; forked from this small launcher it does not."""
-
-
 def peak(argv: list[str], *, cwd: Path, python: str | None = None) -> int:
     """Peak resident bytes of ``python -m photo3d argv`` (or of ``python -c SCRIPT``
-    when ``python`` is given), which must succeed: the larger of its ``ru_maxrss``
-    (its largest process, measured by :data:`_LAUNCH`) and its process tree's sum
-    sampled every 20 ms (``batch``'s workers)."""
-    import tempfile
-
+    when ``python`` is given), which must succeed (``benchmarks/_peak.py``: its own
+    ``ru_maxrss`` through a small launcher, or its process tree's sum, sampled)."""
     cmd = [sys.executable, "-c", python] if python else [sys.executable, "-m", "photo3d",
                                                            *argv]
-    env = {**os.environ, "PYTHONPATH": str(SRC)}
-    fd, report = tempfile.mkstemp(suffix=".peak")
-    os.close(fd)
-    proc = subprocess.Popen([sys.executable, "-c", _LAUNCH, report, *cmd], cwd=cwd, env=env,
-                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
-    sampled = [0]
-    done = threading.Event()
-
-    def sample() -> None:
-        while not done.wait(0.02):
-            sampled[0] = max(sampled[0], _tree_rss(proc.pid))
-
-    sampler = threading.Thread(target=sample, daemon=True)
-    sampler.start()
-    err = proc.communicate()[1].decode()
-    done.set()
-    sampler.join()
-    assert proc.returncode == 0, err
-    with open(report) as f:
-        measured = int(f.read()) * 1024
-    os.unlink(report)
-    return max(measured, sampled[0])
+    measured, status, err = _peak.peak(cmd, cwd=cwd, env={**os.environ, "PYTHONPATH": str(SRC)})
+    assert status == 0, err
+    return measured
 
 
 def within(measured: int, estimate: int) -> None:

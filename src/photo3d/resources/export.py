@@ -11,8 +11,8 @@ the bundled sample (RESULTS.md, "export").
 
 Example:
     >>> round(export_memory_estimate(1_453_295, ["splats.spz", "quilt"]) / 1e9, 2)
-    1.77
-    >>> round(export_memory_estimate(1_453_295, ["splats.spz"]) / 1e9, 2)
+    1.95
+    >>> round(export_memory_estimate(1_453_295, ["splats.spz"], splat_fit=False) / 1e9, 2)
     0.53
 """
 
@@ -45,7 +45,7 @@ QUILT_BYTES = 150e6
 
 
 def export_terms(ldi_pixels: int, formats: Sequence[str], *,
-                 splat_fit: bool = False) -> tuple[tuple[str, int], ...]:
+                 splat_fit: bool = True) -> tuple[tuple[str, int], ...]:
     """The terms (besides the base and the loaded LDI) of writing ``formats`` of an LDI
     of ``ldi_pixels`` pixels (``splat_fit``: the splats' colours fitted): what ``make
     --export`` adds to ``make``."""
@@ -70,7 +70,7 @@ def export_terms(ldi_pixels: int, formats: Sequence[str], *,
 
 
 def export_estimate(ldi_pixels: int, formats: Sequence[str], *,
-                    splat_fit: bool = False) -> Estimate:
+                    splat_fit: bool = True) -> Estimate:
     """``photo3d export``'s peak writing ``formats`` of a 3D photo of ``ldi_pixels``
     (``splat_fit``: the splats' colours fitted)."""
     return Estimate("export", (("base", int(BASE_BYTES)),
@@ -79,7 +79,7 @@ def export_estimate(ldi_pixels: int, formats: Sequence[str], *,
 
 
 def export_memory_estimate(ldi_pixels: int, formats: Sequence[str], *,
-                           splat_fit: bool = False) -> int:
+                           splat_fit: bool = True) -> int:
     """Peak bytes ``photo3d export`` needs to write ``formats`` (names of
     :data:`photo3d.save_options.EXPORT_FORMATS`) of a 3D photo of ``ldi_pixels``
     LDI pixels, whatever the LDI holds (:func:`export_estimate`)."""
@@ -87,7 +87,7 @@ def export_memory_estimate(ldi_pixels: int, formats: Sequence[str], *,
 
 
 def check_export_memory(ldi_pixels: int, formats: Sequence[str], *,
-                        splat_fit: bool = False) -> None:
+                        splat_fit: bool = True) -> None:
     """Raise :class:`~photo3d.errors.ConfigError` if exporting ``formats`` would need
     more memory than is available (:func:`export_memory_estimate`).
 

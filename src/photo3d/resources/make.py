@@ -67,7 +67,7 @@ def ldi_bound(shape: tuple[int, int], config: Config) -> int:
 
 
 def make_estimate(shape: tuple[int, int], config: Config,
-                  exports: Sequence[str] = (), *, splat_fit: bool = False) -> Estimate:
+                  exports: Sequence[str] = (), *, splat_fit: bool = True) -> Estimate:
     """``make``'s peak for an input of ``shape`` ``(H, W)`` with ``config``, writing
     ``exports`` too (names of :data:`photo3d.save_options.EXPORT_FORMATS`; ``splat_fit``:
     the splats' colours fitted)."""
@@ -82,14 +82,14 @@ def make_estimate(shape: tuple[int, int], config: Config,
 
 
 def memory_estimate(shape: tuple[int, int], config: Config,
-                    exports: Sequence[str] = (), *, splat_fit: bool = False) -> int:
+                    exports: Sequence[str] = (), *, splat_fit: bool = True) -> int:
     """Peak bytes ``make`` needs for an input of ``shape`` ``(H, W)`` with ``config``,
     whatever its depth map holds (:func:`make_estimate`)."""
     return make_estimate(shape, config, exports, splat_fit=splat_fit).bytes
 
 
 def check_memory(shape: tuple[int, int], config: Config, *, at_least: bool = False,
-                 exports: Sequence[str] = (), splat_fit: bool = False) -> None:
+                 exports: Sequence[str] = (), splat_fit: bool = True) -> None:
     """Raise :class:`~photo3d.errors.ConfigError` if ``make`` would need more memory
     than is available (:func:`make_estimate`).
 
@@ -108,7 +108,7 @@ def check_memory(shape: tuple[int, int], config: Config, *, at_least: bool = Fal
 
 
 def batch_estimate(config: Config, *, workers: int, exports: Sequence[str] = (),
-                   splat_fit: bool = False) -> Estimate:
+                   splat_fit: bool = True) -> Estimate:
     """``photo3d batch``'s peak with ``workers`` local processes each making a 16:9
     photo at once (at least: a squarer photo has more working pixels).
 
@@ -122,7 +122,7 @@ def batch_estimate(config: Config, *, workers: int, exports: Sequence[str] = (),
 
 
 def check_batch_memory(config: Config, *, workers: int, exports: Sequence[str] = (),
-                       splat_fit: bool = False) -> None:
+                       splat_fit: bool = True) -> None:
     """Raise :class:`~photo3d.errors.ConfigError` if ``photo3d batch``'s ``workers``
     would need more memory than is available (:func:`batch_estimate`).
 
