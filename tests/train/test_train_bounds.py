@@ -83,7 +83,7 @@ def test_builtin_scenes_beyond_the_disk_or_memory_are_one_line(tmp_path, capsys,
                                                                 no_work):
     monkeypatch.setattr("photo3d.resources.available_memory", lambda: 16e9)
     usage = shutil.disk_usage(tmp_path)
-    monkeypatch.setattr("photo3d.train.bounds.shutil.disk_usage",
+    monkeypatch.setattr("photo3d.resources.outputs.shutil.disk_usage",
                         lambda path: usage._replace(free=2 * 10**9))
     argv = ["train", "color", "--images", "builtin", "--out", str(tmp_path / "run"), *TINY,
             "--steps", "1", "-q"]

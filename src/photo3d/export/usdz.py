@@ -112,15 +112,7 @@ def _write_fringe(pxr, layer: Path, fringe, points: np.ndarray) -> None:
 
     _, colors, _, faces = fringe.checked()
     stage = Usd.Stage.Open(str(layer))
-    geom = UsdGeom.Mesh.Define(stage, "/photo3d/fringe")
-    geom.CreatePointsAttr(Vt.Vec3fArray.FromNumpy(points))
-    geom.CreateFaceVertexCountsAttr(Vt.IntArray.FromNumpy(np.full(len(faces), 3, np.int32)))
-    geom.CreateFaceVertexIndicesAttr(Vt.IntArray.FromNumpy(faces.reshape(-1)))
-    geom.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)
-    geom.CreateDoubleSidedAttr(False)
-    lo, hi = points.min(axis=0), points.max(axis=0)
-    geom.CreateExtentAttr(Vt.Vec3fArray([pxr.Gf.Vec3f(*map(float, lo)),
-                                         pxr.Gf.Vec3f(*map(float, hi))]))
+    geom = _triangles(pxr, stage, "/photo3d/fringe", points, faces)
     primvars = UsdGeom.PrimvarsAPI(geom)
     primvars.CreatePrimvar("displayColor", Sdf.ValueTypeNames.Color3fArray,
                            UsdGeom.Tokens.vertex).Set(
@@ -193,6 +185,22 @@ def _import_pxr():
                            UsdShade=UsdShade, UsdUtils=UsdUtils, Vt=Vt)
 
 
+def _triangles(pxr, stage, name: str, points: np.ndarray, faces: np.ndarray):
+    """A ``UsdGeom.Mesh`` at ``name`` of ``stage``: triangles ``faces (M, 3)`` over
+    ``points (N, 3)``, not subdivided, one-sided, with its extent."""
+    UsdGeom, Vt = pxr.UsdGeom, pxr.Vt
+    geom = UsdGeom.Mesh.Define(stage, name)
+    geom.CreatePointsAttr(Vt.Vec3fArray.FromNumpy(points))
+    geom.CreateFaceVertexCountsAttr(Vt.IntArray.FromNumpy(np.full(len(faces), 3, np.int32)))
+    geom.CreateFaceVertexIndicesAttr(Vt.IntArray.FromNumpy(faces.reshape(-1)))
+    geom.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)
+    geom.CreateDoubleSidedAttr(False)
+    lo, hi = points.min(axis=0), points.max(axis=0)
+    geom.CreateExtentAttr(Vt.Vec3fArray([pxr.Gf.Vec3f(*map(float, lo)),
+                                         pxr.Gf.Vec3f(*map(float, hi))]))
+    return geom
+
+
 def _write_stage(pxr, layer: Path, points: np.ndarray, st: np.ndarray,
                  faces: np.ndarray) -> None:
     """The stage: /photo3d (Xform, component) holding the mesh and its material."""
@@ -204,15 +212,7 @@ def _write_stage(pxr, layer: Path, points: np.ndarray, st: np.ndarray,
     stage.SetDefaultPrim(root.GetPrim())
     Usd.ModelAPI(root.GetPrim()).SetKind(pxr.Kind.Tokens.component)
 
-    geom = UsdGeom.Mesh.Define(stage, "/photo3d/photo")
-    geom.CreatePointsAttr(Vt.Vec3fArray.FromNumpy(points))
-    geom.CreateFaceVertexCountsAttr(Vt.IntArray.FromNumpy(np.full(len(faces), 3, np.int32)))
-    geom.CreateFaceVertexIndicesAttr(Vt.IntArray.FromNumpy(faces.reshape(-1)))
-    geom.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)
-    geom.CreateDoubleSidedAttr(False)
-    lo, hi = points.min(axis=0), points.max(axis=0)
-    geom.CreateExtentAttr(Vt.Vec3fArray([pxr.Gf.Vec3f(*map(float, lo)),
-                                         pxr.Gf.Vec3f(*map(float, hi))]))
+    geom = _triangles(pxr, stage, "/photo3d/photo", points, faces)
     primvar = UsdGeom.PrimvarsAPI(geom).CreatePrimvar("st", Sdf.ValueTypeNames.TexCoord2fArray,
                                                       UsdGeom.Tokens.vertex)
     primvar.Set(Vt.Vec2fArray.FromNumpy(st))

@@ -35,6 +35,24 @@ def check_spz_limit(splats: int, *, what: str, advice: str) -> None:
                           f"{SPZ_LIMIT:,} an SPZ file holds: {advice}")
 
 
+def free_space(folder: str | os.PathLike[str]) -> tuple[Path, int] | None:
+    """``(the nearest existing folder of folder, its file system's free bytes)``, or
+    None when they cannot be read.
+
+    Example:
+        >>> import tempfile
+        >>> free_space(tempfile.mkdtemp() + "/new/deeper")[1] > 0
+        True
+    """
+    found = Path(folder)
+    while not found.exists() and found != found.parent:
+        found = found.parent
+    try:
+        return found, shutil.disk_usage(found).free
+    except OSError:
+        return None
+
+
 def check_free_space(path: str | os.PathLike[str], need: int, *, what: str) -> None:
     """Raise :class:`OutputError` if the file system that will hold ``path`` (its
     nearest existing folder) has less than ``need`` bytes free (``what``: what is
@@ -44,13 +62,10 @@ def check_free_space(path: str | os.PathLike[str], need: int, *, what: str) -> N
         >>> import tempfile
         >>> check_free_space(tempfile.mkdtemp() + "/a.png", 1000, what="a.png")
     """
-    folder = Path(path).parent
-    while not folder.exists() and folder != folder.parent:
-        folder = folder.parent
-    try:
-        free = shutil.disk_usage(folder).free
-    except OSError:
+    known = free_space(Path(path).parent)
+    if known is None:
         return
+    folder, free = known
     if need > free:
         raise OutputError(f"only {_size(free)} free in {folder}; {what} needs about "
                           f"{_size(need)}")

@@ -30,7 +30,6 @@ Example:
 
 from __future__ import annotations
 
-import shutil
 import warnings
 from collections.abc import Sequence
 from pathlib import Path
@@ -285,13 +284,12 @@ def check_disk(run_dir: str | Path, need: int, *, what: str) -> None:
         >>> import tempfile
         >>> check_disk(tempfile.mkdtemp(), 1000, what="checkpoints")
     """
-    folder = Path(run_dir)
-    while not folder.exists() and folder != folder.parent:
-        folder = folder.parent
-    try:
-        free = shutil.disk_usage(folder).free
-    except OSError:
+    from photo3d.resources.outputs import free_space
+
+    known = free_space(run_dir)
+    if known is None:
         return
+    folder, free = known
     if need > free:
         raise OutputError(f"this run writes about {_size(need)} ({what}) but only "
                           f"{_size(free)} are free in {folder}: free some space or use "
