@@ -138,8 +138,9 @@ class Config:
     colour edge within a few pixels before the LDI is cut (depth from networks and
     stereo is fat or smooth at silhouettes; ``docs/edges.md``), ``soft`` does that and
     gives the mixed pixels along each occluding contour a coverage (alpha) and their
-    foreground colour (soft silhouettes, :attr:`silhouettes`; not the default: measured
-    worse on novel views, ``docs/edges.md``), ``exact`` keeps the steps where the depth
+    foreground colour (soft silhouettes, :attr:`silhouettes`; not the default: as good as
+    ``align`` on novel views but worse on a real pair's disoccluded pixels, and slower
+    to draw, ``docs/edges.md``), ``exact`` keeps the steps where the depth
     map puts them (depth known to be exact, or the old behaviour)."""
     metric: bool = False
     """Keep the depth input's units (needs ``depth_kind="depth"``): z of every LDI pixel

@@ -198,8 +198,12 @@ class Renderer:
         if antialias == "auto":
             antialias = "edges" if texture is not None else "full"
         self._edges = self.backend == "numba" and antialias == "edges" and self.settings.ssaa > 1
-        self._overlay = None if overlay is None else (self._rasterizer(overlay, alpha=False),
-                                                      self._rasterizer(overlay, alpha=True))
+        if overlay is not None:  # each pixel's footprint one alpha (Mesh.cells)
+            overlay = overlay.cells()
+            self._overlay = (self._rasterizer(overlay, alpha=False),
+                             self._rasterizer(overlay, alpha=True))
+        else:
+            self._overlay = None
 
     def _rasterizer(self, fringe: Mesh, *, alpha: bool):
         """A rasterizer of this renderer's backend for the fringe mesh ``fringe``: its
