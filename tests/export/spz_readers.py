@@ -66,14 +66,7 @@ window.readers = {
   },
   async three(url) {
     const buffer = await (await fetch(url)).arrayBuffer();
-    const geometry = await new SPZLoader().parse(buffer);
-    const out = {};
-    for (const name of ["position", "covariance", "color"]) {
-      const attribute = geometry.getAttribute(name);
-      out[name] = {data: pack(attribute.array), width: attribute.itemSize,
-                   type: attribute.array.constructor.name};
-    }
-    return JSON.stringify(out);
+    return attributes(await new SPZLoader().parse(buffer));
   },
   async playcanvas(url) {
     const bytes = new Uint8Array(await (await fetch(url)).arrayBuffer());

@@ -8,12 +8,11 @@ spark_renderer.py; skipped when Chromium, playwright or the npm packages are mis
 from __future__ import annotations
 
 import gzip
-import json
-import struct
 
 import numpy as np
 import pytest
 from conftest import exact_config, texture
+from glbfile import write_glb as write_raw_glb
 from spark_renderer import chromium, read_splats
 from spark_renderer import missing as spark_missing
 from spz_readers import missing, read_with
@@ -144,11 +143,6 @@ def test_three_js_reads_the_glb_by_the_ratified_extension(photo, tmp_path, brows
     document, binary = read_chunks(tmp_path / "splats.glb")
     del document["meshes"][0]["primitives"][0]["extensions"]["KHR_gaussian_splatting"][
         "colorSpace"]
-    text = json.dumps(document).encode()
-    text += b" " * (-len(text) % 4)
-    (tmp_path / "bad.glb").write_bytes(
-        struct.pack("<III", 0x46546C67, 2, 28 + len(text) + len(binary))
-        + struct.pack("<II", len(text), 0x4E4F534A) + text
-        + struct.pack("<II", len(binary), 0x004E4942) + binary)
+    write_raw_glb(tmp_path / "bad.glb", document, binary)
     with pytest.raises(AssertionError, match="colorSpace is required"):
         read_with("three_glb", tmp_path / "bad.glb", browser)

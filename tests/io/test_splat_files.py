@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from glbfile import write_glb
 
 from photo3d.camera import Intrinsics
 from photo3d.errors import InputError
@@ -297,20 +298,10 @@ def test_glb_passes_the_khronos_validator(tmp_path):
     primitive = document["meshes"][0]["primitives"][0]
     primitive["attributes"] = {k.replace("KHR_gaussian_splatting:", "_"): v
                                for k, v in primitive["attributes"].items()}
-    text = json.dumps(document).encode()
-    text += b" " * (-len(text) % 4)
-    (tmp_path / "renamed.glb").write_bytes(
-        struct.pack("<III", 0x46546C67, 2, 28 + len(text) + len(binary))
-        + struct.pack("<II", len(text), 0x4E4F534A) + text
-        + struct.pack("<II", len(binary), 0x004E4942) + binary)
+    write_glb(tmp_path / "renamed.glb", document, binary)
     issues = validate(tmp_path / "renamed.glb")
     assert issues["numErrors"] == 0 and issues["numWarnings"] == 0, issues["messages"]
     # and the validator does find errors: a broken accessor is refused
     document["accessors"][0]["count"] += 10
-    text = json.dumps(document).encode()
-    text += b" " * (-len(text) % 4)
-    (tmp_path / "bad.glb").write_bytes(
-        struct.pack("<III", 0x46546C67, 2, 28 + len(text) + len(binary))
-        + struct.pack("<II", len(text), 0x4E4F534A) + text
-        + struct.pack("<II", len(binary), 0x004E4942) + binary)
+    write_glb(tmp_path / "bad.glb", document, binary)
     assert validate(tmp_path / "bad.glb")["numErrors"] > 0
