@@ -924,6 +924,8 @@ def main() -> None:
         section_stereo(), section_edges(load, machine_line, missing), section_viewer(),
         section_json("memory.json", "Peak memory of make (what --size can fit)",
                      "python benchmarks/bench_memory.py"),
+        section_json("edges_input.json", "Soft silhouettes at the photo's own camera, and "
+                     "a frame's cost (issue 44)", "python benchmarks/bench_edges_input.py"),
         section_json("memory_commands.json", "Peak memory of every command against its "
                      "estimate (issue 45)", "python benchmarks/bench_memory.py --commands"),
         section_batch(),
