@@ -32,14 +32,14 @@ def run(args: argparse.Namespace) -> int:
         if (out.exists() or out.is_symlink()) and not args.overwrite:
             raise OutputError(f"depth output {out} exists; pass --overwrite to replace it")
         check_writable(out, follow_symlinks=False)
-    _check_memory(args)  # from the photo's header, before a pixel is decoded
+    _check_resources(args)  # from the photo's header, before a pixel is decoded
     est = depth_from_args(args)
     png, preview = export_depth(est, args.out, inputs=inputs)
     print(f"wrote {png} (16-bit normalised disparity, near = bright) and {preview}")
     return 0
 
 
-def _check_memory(args: argparse.Namespace) -> None:
+def _check_resources(args: argparse.Namespace) -> None:
     """Refuse, from the photo's header, a photo whose depth map needs more memory than
     is available (:func:`photo3d.resources.check_depth_memory`: the map is made at the
     photo's size), or more disk than is free."""

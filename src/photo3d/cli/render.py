@@ -36,7 +36,7 @@ def run(args: argparse.Namespace) -> int:
 
     videos = videos_from(args)  # checks the videos with a size against their encoder
     photo = load(args.photo)
-    _check_memory(args, photo, videos[:1] if args.still else videos)
+    _check_resources(args, photo, videos[:1] if args.still else videos)
     if args.still:
         return _still(args, photo, videos[0])
     check_video_sizes(videos, (photo.ldi.width // 2 * 2, photo.ldi.height // 2 * 2))
@@ -61,7 +61,7 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _check_memory(args: argparse.Namespace, photo, videos) -> None:
+def _check_resources(args: argparse.Namespace, photo, videos) -> None:
     """Refuse, before rendering, a size and ``--ssaa`` the memory cannot hold, and
     outputs the disk cannot hold (:func:`photo3d.resources.outputs.render_bytes`)."""
     from photo3d.resources import check_free_space, check_render_memory
