@@ -15,6 +15,7 @@ is ``make`` on the bundled sample), so there is no import cycle.
 from __future__ import annotations
 
 import argparse
+import faulthandler
 import gc
 import os
 import signal
@@ -63,6 +64,8 @@ def main(argv: list[str] | None = None) -> int:
     def show(message, category, filename, lineno, file=None, line=None):
         print(f"photo3d: warning: {message}", file=sys.stderr)
 
+    if argv is None and not faulthandler.is_enabled():  # a crash in native code (numba,
+        faulthandler.enable()  # torch) names the Python line that called it
     with handle_signals() as guard:  # from the start: building the parser imports a lot
         try:
             args = build_parser().parse_args(argv)

@@ -6,10 +6,11 @@ command line around every command, so a temporary output folder
 Ctrl-C and on termination alike. The batch's pool workers use
 :func:`worker_signals` for their whole life, and the batch starts them inside
 :func:`sigint_ignored`. In all three a signal becomes the same exceptions
-(:class:`KeyboardInterrupt` for SIGINT, :class:`Interrupted` otherwise), one that
-lands inside a C callback is raised again once the C code returns
-(:func:`redeliver_swallowed`), and a signal repeated while the first one unwinds
-does not interrupt the cleanup.
+(:class:`KeyboardInterrupt` for SIGINT, :class:`Interrupted` otherwise), but never
+inside numba's compiler: one that lands there is raised once the compiler has
+returned (:func:`after_compiler`), one that lands inside another C callback is raised
+again once the C code returns (:func:`redeliver_swallowed`), and a signal repeated
+while the first one unwinds does not interrupt the cleanup.
 
 A signal also asks the whole process to stop (:func:`stopping`): the threads of
 :mod:`photo3d.parallel`'s pools call :func:`check` before each task, and long work
@@ -81,6 +82,70 @@ def redeliver_swallowed(kinds: tuple[type[BaseException], ...],
 
 _REDELIVER_S = 0.05
 _REDELIVER_TRIES = 3
+_COMPILER = ("numba.", "llvmlite.")
+"""The modules an exception must not cut through: numba's compiler and its cache
+loader drive LLVM through llvmlite, and an exception between two of their calls
+leaves LLVM objects half-owned, which crashes the process (a segmentation fault)
+when they are freed."""
+
+
+def compiling(frame) -> bool:
+    """Whether ``frame`` (a signal handler's) or a frame that called it runs in
+    numba's compiler or llvmlite (:data:`_COMPILER`): then a signal handler must not
+    raise there, and raises once the compiler has returned (:func:`after_compiler`).
+
+    Example:
+        >>> import sys
+        >>> compiling(sys._getframe())
+        False
+    """
+    while frame is not None:
+        if frame.f_globals.get("__name__", "").startswith(_COMPILER):
+            return True
+        frame = frame.f_back
+    return False
+
+
+_waiting = False  # an after_compiler() action is armed
+
+
+def after_compiler(frame, action: Callable[[], None]) -> None:
+    """Call ``action()`` (a signal handler's raise) in the frame that called numba's
+    compiler, at its first step after the compiler has returned to it (``frame``: the
+    signal handler's, which :func:`compiling` found inside the compiler).
+
+    A trace function on that one frame does it, as a debugger stops at a line: the
+    thread's global trace function (another one, a debugger's or coverage's, is kept
+    and called on) traces no other frame, and both are removed at that step. Once
+    armed, further calls do nothing until it has run.
+
+    Example:
+        >>> import sys
+        >>> after_compiler(sys._getframe(), lambda: None)  # no compiler frame: nothing
+    """
+    global _waiting
+    target = None
+    while frame is not None:  # the caller of the outermost compiler frame
+        if frame.f_globals.get("__name__", "").startswith(_COMPILER):
+            target = frame.f_back
+        frame = frame.f_back
+    if target is None or _waiting:
+        return
+    previous = sys.gettrace()
+
+    def step(frame, event, arg):
+        global _waiting
+        _waiting = False
+        sys.settrace(previous)
+        frame.f_trace = None
+        action()
+
+    def calls(frame, event, arg):
+        return previous(frame, event, arg) if previous is not None else None
+
+    _waiting = True
+    target.f_trace = step
+    sys.settrace(calls)
 
 
 class SignalGuard:
@@ -113,9 +178,12 @@ def handle_signals() -> Iterator[SignalGuard]:
     ``with atomic_path(...)``, which remove their temporary folder or file. The
     guard remembers the signal, because an interrupt that lands inside compiled
     code (numba) can surface as another exception (``SystemError``): callers should
-    treat any exception raised after ``guard.signum`` was set as the interruption;
-    one raised inside a C callback (numba's compiler), which Python would print and
-    drop, is raised again once the C code returns (:func:`redeliver_swallowed`).
+    treat any exception raised after ``guard.signum`` was set as the interruption.
+    A signal that lands while numba compiles is not raised there (LLVM's objects
+    would be left half-owned, and the process would crash later): it is raised in
+    the compiler's caller once the compiler returns (:func:`after_compiler`); one
+    raised inside another C callback, which Python would print and drop, is raised
+    again once the C code returns (:func:`redeliver_swallowed`).
     Signals ignored when the process started stay ignored (``nohup``, background
     jobs). Does nothing outside the main thread.
 
@@ -137,8 +205,11 @@ def handle_signals() -> Iterator[SignalGuard]:
             for number, old in previous.items():  # a further signal act as usual
                 signal.signal(number, old)
             return
-        guard.signum = signum
         request_stop(signum)  # worker threads stop at their next check()
+        if compiling(frame):  # not here (a crash later): once numba's compiler returns
+            after_compiler(frame, lambda: handler(signum, None))
+            return
+        guard.signum = signum
         if held(signum):  # inside deferred(): raised when that step ends
             return
         raise_for(signum)
@@ -194,11 +265,14 @@ def worker_signals(busy: Callable[[], bool]) -> SignalGuard:
     guard = SignalGuard()
 
     def handler(signum, frame):
-        signal.signal(signal.SIGTERM, signal.SIG_IGN)  # once is enough (see above)
         guard.signum = signum
         request_stop(signum)  # the worker's own threads stop at their next check()
         if not busy():
             os._exit(0)
+        if compiling(frame):  # not here (a crash later): once numba's compiler returns
+            after_compiler(frame, lambda: handler(signum, None))
+            return
+        signal.signal(signal.SIGTERM, signal.SIG_IGN)  # once is enough (see above)
         raise_for(signum)
 
     def rearm() -> int:  # the exception was swallowed: arm again, have it sent again
