@@ -26,12 +26,11 @@ from photo3d.files.atomic import (
     atomic_path,
     atomic_write,
     check_writable,
-    is_temp_of,
-    remove_temp_files,
     write_bytes,
     write_json,
     write_text,
 )
+from photo3d.files.temps import is_temp_of, remove_temp_files
 
 
 def names(folder: Path) -> list[str]:

@@ -13,7 +13,7 @@ def test_a_killed_writers_folder_is_removed_by_the_next_run(tmp_path, monkeypatc
     import subprocess
     import sys
 
-    from photo3d.files import atomic
+    from photo3d.files import temps
 
     out = tmp_path / "out"
     code = ("import os, signal, sys; from photo3d.files.staging import stage_output; "
@@ -29,7 +29,7 @@ def test_a_killed_writers_folder_is_removed_by_the_next_run(tmp_path, monkeypatc
     try:
         held = Path(live.stdout.readline().strip())
         assert left.is_dir() and held.is_dir()
-        monkeypatch.setattr(atomic, "ORPHAN_AGE_S", 0.0)
+        monkeypatch.setattr(temps, "ORPHAN_AGE_S", 0.0)
         with stage_output(out) as mine:
             assert not left.exists()  # its writer is gone
             assert held.is_dir()  # its writer is alive
@@ -45,7 +45,7 @@ def test_a_killed_writers_temporary_file_is_removed_by_the_next_write(tmp_path, 
     import subprocess
     import sys
 
-    from photo3d.files import atomic
+    from photo3d.files import atomic, temps
 
     target = tmp_path / "splats.spz"
     code = ("import os, signal, sys; from photo3d.files.atomic import PendingFile; "
@@ -55,6 +55,6 @@ def test_a_killed_writers_temporary_file_is_removed_by_the_next_write(tmp_path, 
                             text=True)
     left = Path(killed.stdout.strip())
     assert killed.returncode == -signal.SIGKILL and left.is_file()
-    monkeypatch.setattr(atomic, "ORPHAN_AGE_S", 0.0)
+    monkeypatch.setattr(temps, "ORPHAN_AGE_S", 0.0)
     atomic.write_bytes(target, b"whole")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["splats.spz"]

@@ -229,7 +229,7 @@ def test_exception_inside_with_keeps_the_old_file_and_no_temp(tmp_path, suffix):
 
 def test_the_video_is_written_to_a_hidden_part_file_and_a_failed_rename_keeps_the_old(
         tmp_path, monkeypatch):
-    from photo3d.files.atomic import is_temp_of
+    from photo3d.files.temps import is_temp_of
 
     target = tmp_path / "clip.mp4"
     target.write_bytes(b"previous video")

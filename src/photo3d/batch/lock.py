@@ -26,7 +26,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 from photo3d.errors import OutputError
-from photo3d.files.atomic import remove_temp_files, temp_sibling
+from photo3d.files.temps import remove_temp_files, temp_sibling
 
 LOCK = "batch.lock"
 _TEXT = re.compile(rb"photo3d batch [0-9]{1,12}\n")

@@ -18,8 +18,8 @@ files are written with :mod:`photo3d.files.staging` instead.
 * :class:`PendingFile` is the same for a writer that outlives one ``with`` block
   (:class:`~photo3d.io.video.VideoWriter`): :meth:`~PendingFile.commit` or
   :meth:`~PendingFile.discard` it.
-* :func:`check_writable` checks a target early; :func:`remove_temp_files` removes
-  what a killed writer left.
+* :func:`check_writable` checks a target early. What a killed writer left is
+  recognised and removed by :mod:`photo3d.files.temps`.
 
 Every target first passes the gate (:func:`photo3d.files.gate.check_target`): a
 symbolic link (to anything or to nothing), a FIFO, socket or device, or one of the
@@ -44,15 +44,11 @@ Example:
 
 from __future__ import annotations
 
-import atexit
 import contextlib
 import errno
 import json
 import os
-import re
-import secrets
 import threading
-import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import IO, Any
@@ -60,89 +56,9 @@ from typing import IO, Any
 from photo3d.errors import OutputError
 from photo3d.files.gate import check_target, in_issued_folder
 from photo3d.files.stop import check, deferred
+from photo3d.files.temps import LIVE, hold, release, remove_orphan_files, temp_sibling
 
 PathLike = str | os.PathLike[str]
-
-_LIVE: set[Path] = set()
-"""Temporary files not yet committed or discarded (removed at exit as a last resort)."""
-
-_HEX = frozenset("0123456789abcdef")
-_HELD: dict[Path, int] = {}
-"""The open descriptor holding each live temporary file's or folder's lock."""
-ORPHAN_AGE_S = 5.0
-"""A temporary file or folder unlocked this long after it was made is an orphan (its
-writer locks it a moment after creating it)."""
-
-
-def temp_sibling(path: PathLike) -> Path:
-    """A free hidden name beside ``path``: ``.NAME.XXXXXXXX.tmp`` (eight hex digits).
-
-    ``NAME`` is cut to 64 characters, so the temporary name is never too long for
-    the file system when the target's name is not.
-
-    Example:
-        >>> temp_sibling("out/a.png").name.startswith(".a.png.")
-        True
-    """
-    path = Path(path)
-    return path.with_name(f".{path.name[:64]}.{secrets.token_hex(4)}.tmp")
-
-
-def temp_entries(path: PathLike, *, suffixed: bool = True) -> list[Path]:
-    """What lies beside ``path`` (symbolic links resolved) under one of its temporary
-    names (:func:`is_temp_of`); ``[]`` if its folder cannot be listed.
-
-    Example:
-        >>> import pathlib, tempfile
-        >>> target = pathlib.Path(tempfile.mkdtemp()) / "a.png"
-        >>> temp_entries(target)
-        []
-    """
-    final = Path(os.path.realpath(path))
-    try:
-        entries = list(final.parent.iterdir())
-    except OSError:
-        return []
-    return [e for e in entries if is_temp_of(e.name, final.name, suffixed=suffixed)]
-
-
-def is_temp_name(name: str) -> bool:
-    """True if ``name`` is a temporary name photo3d gives to a writer of any target:
-    ``.TARGET.XXXXXXXX.tmp``, with at most one suffix after it (:func:`is_temp_of`).
-
-    Example:
-        >>> [is_temp_name(n) for n in (".a.png.0123abcd.tmp.png", ".out.0123abcd.tmp", "a.tmp")]
-        [True, True, False]
-    """
-    return _TEMP_NAME.fullmatch(name) is not None
-
-
-_TEMP_NAME = re.compile(r"\..+\.[0-9a-f]{8}\.tmp(?:\.[^.]+)?")
-
-
-def is_temp_of(name: str, target: str, *, suffixed: bool = True) -> bool:
-    """True if ``name`` is a temporary name photo3d gives to a writer of ``target``.
-
-    That is :func:`temp_sibling`'s ``.TARGET.XXXXXXXX.tmp``, followed, when
-    ``suffixed``, by at most one suffix (``.png``, ``.part``: :func:`atomic_path`).
-
-    Example:
-        >>> [is_temp_of(n, "a.png") for n in (".a.png.0123abcd.tmp", ".a.png.0123abcd.tmp.png",
-        ...                                   ".a.png.xyz.tmp", "a.png")]
-        [True, True, False, False]
-        >>> is_temp_of(".out.0123abcd.tmp.png", "out", suffixed=False)
-        False
-    """
-    head = f".{target[:64]}."
-    if not name.startswith(head):
-        return False
-    middle, dot, tail = name[len(head):].partition(".")
-    if len(middle) != 8 or not _HEX.issuperset(middle) or not dot:
-        return False
-    if tail == "tmp":
-        return True
-    return suffixed and tail.startswith("tmp.") and "." not in tail[4:] and len(tail) > 4
-
 
 class Pending:
     """A temporary result that is discarded unless committed: leaving its ``with``
@@ -225,7 +141,7 @@ class PendingFile(Pending):
             self.path = _create_temp(self.final, suffix)
         except OSError as err:
             raise OutputError(f"cannot write {self.target}: {err.strerror or err}") from None
-        _LIVE.add(self.path)
+        LIVE.add(self.path)
         hold(self.path)
 
     def commit(self) -> Path:
@@ -254,7 +170,7 @@ class PendingFile(Pending):
                 raise OutputError(f"cannot write {self.target}: "
                                   f"{err.strerror or err}") from None
             self._done = True
-            _LIVE.discard(self.path)
+            LIVE.discard(self.path)
             release(self.path)
             for hook in list(getattr(_COMMITS, "hooks", ())):
                 hook(self.final)
@@ -273,7 +189,7 @@ class PendingFile(Pending):
         self._done = True
         with contextlib.suppress(FileNotFoundError):
             os.unlink(self.path)
-        _LIVE.discard(self.path)
+        LIVE.discard(self.path)
         release(self.path)
 
 
@@ -468,7 +384,7 @@ def _issued(path: Path) -> bool:
     """True if ``path`` is a temporary file handed out here or lies in a staged folder."""
     if path.is_symlink():
         return False
-    return path in _LIVE or Path(os.path.abspath(path)) in _LIVE or in_issued_folder(path)
+    return path in LIVE or Path(os.path.abspath(path)) in LIVE or in_issued_folder(path)
 
 
 def write_bytes(path: PathLike, data: bytes) -> Path:
@@ -557,30 +473,6 @@ def refuse_symlink(path: PathLike, *, hint: str = "") -> Path:
     return path
 
 
-def remove_temp_files(path: PathLike) -> list[Path]:
-    """Remove the temporary files a killed writer of ``path`` left beside it.
-
-    Only files named as this module names them (:func:`is_temp_of`) are removed;
-    call this only when no other process is writing ``path``. Returns what was
-    removed.
-
-    Example:
-        >>> import pathlib, tempfile
-        >>> target = pathlib.Path(tempfile.mkdtemp()) / "a.png"
-        >>> pending = PendingFile(target, suffix=".png")  # its writer is "killed"
-        >>> [p == pending.path for p in remove_temp_files(target)], pending.path.exists()
-        ([True], False)
-    """
-    removed = []
-    for entry in temp_entries(path):
-        if entry.is_file() and not entry.is_symlink():
-            with contextlib.suppress(FileNotFoundError):
-                entry.unlink()
-            _LIVE.discard(entry)
-            removed.append(entry)
-    return removed
-
-
 def _naming_target(err: OSError | OutputError, pending: PendingFile) -> OutputError | None:
     """``err`` as one line naming the target: ``cannot write TARGET: reason`` for an
     ``OSError``, the message with the temporary name replaced for an
@@ -617,111 +509,6 @@ def _reason(err: OSError, path: Path) -> str:
     return str(err)
 
 
-WRITER_MARK = ".photo3d-writer"
-"""The file inside a temporary folder that its writer holds locked (:func:`hold`);
-removed before the folder is moved into place."""
-
-
-def hold(path: Path) -> None:
-    """Lock the temporary file ``path``, or a :data:`WRITER_MARK` file inside the
-    temporary folder ``path`` (not the folder itself, which the write gate locks to
-    record), with ``flock`` for as long as this process writes it: the kernel drops
-    the lock when the process ends, even killed with SIGKILL, which is how a later
-    run tells an orphan (:func:`orphaned`).
-
-    Example:
-        >>> import pathlib, tempfile
-        >>> folder = pathlib.Path(tempfile.mkdtemp())
-        >>> hold(folder); orphaned(folder, age=0.0)
-        False
-        >>> release(folder, keep=True); orphaned(folder, age=0.0)
-        True
-    """
-    try:
-        import fcntl
-    except ImportError:  # no flock (Windows): orphans are not recognised
-        return
-    path = Path(path)
-    try:
-        if path.is_dir() and not path.is_symlink():
-            fd = os.open(path / WRITER_MARK, os.O_RDWR | os.O_CREAT | os.O_EXCL
-                         | getattr(os, "O_NOFOLLOW", 0), 0o600)
-        else:
-            fd = os.open(path, os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0))
-    except OSError:
-        return
-    try:
-        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-    except OSError:
-        os.close(fd)
-        return
-    _HELD[path] = fd
-
-
-def release(path: Path, *, keep: bool = False) -> None:
-    """Drop :func:`hold`'s lock of ``path`` (committed or discarded); a folder's
-    :data:`WRITER_MARK` is removed first, unless ``keep`` (tests)."""
-    fd = _HELD.pop(Path(path), None)
-    if fd is None:
-        return
-    if not keep:
-        with contextlib.suppress(OSError):
-            os.unlink(Path(path) / WRITER_MARK)  # a file's: no such entry
-    os.close(fd)
-
-
-def orphaned(path: Path, *, age: float | None = None) -> bool:
-    """True if the temporary file or folder ``path`` (not a link) was made more than
-    ``age`` seconds ago (default :data:`ORPHAN_AGE_S`; a file that holds bytes, at
-    any age: its writer locked it before writing) and no process holds it
-    (:func:`hold`; a folder without its :data:`WRITER_MARK` is being moved into
-    place, or is not photo3d's: never an orphan): its writer is gone."""
-    try:
-        import fcntl
-    except ImportError:
-        return False
-    path = Path(path)
-    nofollow = getattr(os, "O_NOFOLLOW", 0)
-    try:
-        if path.is_symlink():
-            return False
-        target = path / WRITER_MARK if path.is_dir() else path
-        fd = os.open(target, os.O_RDONLY | nofollow)
-    except OSError:  # gone, no mark
-        return False
-    try:
-        st = os.fstat(fd)
-        young = time.time() - st.st_ctime < (ORPHAN_AGE_S if age is None else age)
-        if young and (target != path or st.st_size == 0):  # a writer locks a file
-            return False  # before its first byte: one with bytes is not being created
-        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)  # free: its writer is gone
-        return True
-    except OSError:  # held: its writer is alive
-        return False
-    finally:
-        os.close(fd)
-
-
-def remove_orphan_files(path: PathLike) -> list[Path]:
-    """Remove the temporary files of ``path`` (:func:`is_temp_of`) whose writer is
-    gone (:func:`orphaned`); safe while other processes write ``path``. Every
-    atomic write does this first. Returns what was removed.
-
-    Example:
-        >>> import pathlib, tempfile
-        >>> target = pathlib.Path(tempfile.mkdtemp()) / "a.png"
-        >>> remove_orphan_files(target)
-        []
-    """
-    removed = []
-    for entry in temp_entries(path):
-        if entry.is_file() and entry not in _LIVE and orphaned(entry):
-            with contextlib.suppress(FileNotFoundError):
-                entry.unlink()
-            removed.append(entry)
-    return removed
-
-
 def _create_temp(final: Path, suffix: str) -> Path:
     """A new empty file ``.NAME.XXXXXXXX.tmp`` + ``suffix`` beside ``final``, after
     removing the orphans of killed writers of ``final`` (:func:`remove_orphan_files`)."""
@@ -750,9 +537,3 @@ def _check_target(final: Path, target: Path) -> None:
     if len(os.fsencode(final.name)) > name_max:
         raise OSError(errno.ENAMETOOLONG, os.strerror(errno.ENAMETOOLONG))
 
-
-@atexit.register
-def _remove_live() -> None:
-    for tmp in list(_LIVE):
-        with contextlib.suppress(OSError):
-            os.unlink(tmp)

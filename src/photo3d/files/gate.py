@@ -18,7 +18,7 @@ before the work: a 3D photo folder's ``config.json`` record
 (:mod:`photo3d.owned`), a training run's ``checkpoints.json``, a batch's manifest;
 or the user's explicit ``--overwrite`` of a file named on the command line.
 Everything else a command writes is new: a hidden temporary name of its own
-(``.NAME.XXXXXXXX.tmp``, :func:`photo3d.files.atomic.temp_sibling`) or a file
+(``.NAME.XXXXXXXX.tmp``, :func:`photo3d.files.temps.temp_sibling`) or a file
 inside its own temporary folder (:func:`issue_folder`).
 
 :func:`locked` serialises the read-modify-write of such a record between

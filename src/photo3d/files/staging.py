@@ -49,9 +49,11 @@ from collections.abc import Callable, Iterable, Mapping, Sequence
 from pathlib import Path
 
 from photo3d.errors import OutputError
-from photo3d.files.atomic import (
+from photo3d.files.atomic import Pending
+from photo3d.files.gate import issue_folder, release_folder
+from photo3d.files.rename import claim, identity, swap
+from photo3d.files.temps import (
     ORPHAN_AGE_S,
-    Pending,
     hold,
     is_temp_name,
     orphaned,
@@ -59,8 +61,6 @@ from photo3d.files.atomic import (
     temp_entries,
     temp_sibling,
 )
-from photo3d.files.gate import issue_folder, release_folder
-from photo3d.files.rename import claim, identity, swap
 
 PathLike = str | os.PathLike[str]
 
@@ -351,7 +351,7 @@ def _make_temp(parent: Path, name: str) -> Path:
 def remove_orphans(out: PathLike) -> list[Path]:
     """Remove the temporary folders of ``out`` whose writer is gone: named as
     :func:`stage_output` names them, made more than
-    :data:`~photo3d.files.atomic.ORPHAN_AGE_S` ago and
+    :data:`~photo3d.files.temps.ORPHAN_AGE_S` ago and
     locked by no process (a live writer holds its folder's lock; the kernel drops it
     when the writer dies, even of SIGKILL). Safe while other processes write ``out``.
     Returns what was removed.
@@ -375,7 +375,7 @@ def remove_orphans(out: PathLike) -> list[Path]:
 def remove_orphans_in(folder: PathLike) -> list[Path]:
     """Remove the temporary files and folders of any name (:func:`is_temp_name`) in
     ``folder`` and in its subfolders (not links) whose writer is gone
-    (:func:`~photo3d.files.atomic.orphaned`): what a killed command left in a folder
+    (:func:`~photo3d.files.temps.orphaned`): what a killed command left in a folder
     it wrote into. Safe while other processes write there. Returns what was removed.
 
     Example:

@@ -33,8 +33,9 @@ import numpy as np
 from photo3d.config import Config, working_shape
 from photo3d.depth.normalize import prepare_depth
 from photo3d.errors import InputError, OutputError
-from photo3d.files.atomic import is_temp_of, write_json, writing
+from photo3d.files.atomic import write_json, writing
 from photo3d.files.folders import IMAGE_SUFFIXES, depth_by_key, files_in
+from photo3d.files.temps import is_temp_of
 from photo3d.io.bounded import read_json
 from photo3d.io.depth import read_depth
 from photo3d.io.images import read_image
