@@ -46,7 +46,7 @@ def main() -> None:
                               config=config.with_(edges=e)) for e in ("exact", "align")}
     sil = silhouettes_of(pre.image, pre.disparity, pre.edges.cuts, config=config,
                          working_size=pre.working_size)
-    pixels, colors = sil.behind()
+    behind = sil.behind()
     meshes = {e: build_light_mesh(p.ldi) for e, p in photos.items()}
     cams = path_cameras(photos["align"].ldi, VideoSpec(path="circle"))[::240 // args.frames]
     times: dict[str, list[float]] = {"silhouettes": [], "paint_behind": [],
@@ -60,7 +60,7 @@ def main() -> None:
                        working_size=pre.working_size)
         times["silhouettes"].append(time.perf_counter() - t)
         t = time.perf_counter()
-        paint_behind(photos["align"].ldi, pixels, colors,
+        paint_behind(photos["align"].ldi, behind,
                      threshold=config.preprocess.discontinuity)
         times["paint_behind"].append(time.perf_counter() - t)
         for e in ("exact", "align"):

@@ -145,7 +145,7 @@ def make(
             added_per_pass.append(merged.added)
             state = PassInput(merged.ldi, merged.edge_ptr, merged.edge_pixels, merged.index)
     if behind is not None:
-        state = replace(state, ldi=paint_behind(state.ldi, *behind, index=state.index,
+        state = replace(state, ldi=paint_behind(state.ldi, behind, index=state.index,
                                                 threshold=config.preprocess.discontinuity))
     done("inpaint")
 

@@ -290,3 +290,28 @@ def test_soft_silhouettes_give_the_photo_back_at_its_camera():
                             settings=RenderSettings(ssaa=2, backend="numba")).color
         errors[edges] = float(np.abs(view - image)[near].mean())
     assert errors["soft"] <= 1.05 * errors["align"], errors
+
+
+def test_mostly_opaque_fringe_keeps_the_inpainted_colour_behind_it():
+    """Behind a fringe pixel of alpha 0.8 the photo shows the background by 0.2 only:
+    the layer behind moves from its inpainted colour toward the matting's estimate
+    (one background sample of the window) by that share, not all the way (the sample
+    taken whole was a speckle in novel views), and the fringe's colour is solved
+    against it: composited, the photo comes back."""
+    from photo3d.stages.ldi import from_image
+    from photo3d.stages.silhouettes import Behind, paint_behind
+
+    ldi = from_image(np.full((1, 2, 3), 0.5, np.float32), np.ones((1, 2), np.float32))
+    inpainted = np.array([0.2, 0.6, 0.4], np.float32)
+    two = replace(ldi, y=np.r_[ldi.y, 0].astype(np.int32), x=np.r_[ldi.x, 1].astype(np.int32),
+                  color=np.r_[ldi.color, inpainted[None]].astype(np.float32),
+                  disparity=np.r_[ldi.disparity, 0.0].astype(np.float32),
+                  links=np.r_[ldi.links, [[-1] * 4]].astype(np.int32),
+                  label=np.r_[ldi.label, 2].astype(np.uint8),
+                  alpha=np.array([1.0, 0.8, 1.0], np.float32))
+    sample = np.array([[0.9, 0.1, 0.9]], np.float32)
+    photo = np.array([[0.6, 0.5, 0.5]], np.float32)
+    out = paint_behind(two, Behind(np.array([1]), photo, sample, photo), threshold=0.04)
+    assert np.allclose(out.color[2], 0.2 * sample[0] + 0.8 * inpainted, atol=1e-6)
+    assert np.allclose(0.8 * out.color[1] + 0.2 * out.color[2], photo[0], atol=1e-6)
+

@@ -49,7 +49,7 @@ from photo3d.stages.merge import Fill, Merged, merge_fills
 from photo3d.stages.patches import PatchJob, extract_patches, iter_patches
 from photo3d.stages.preprocess import Preprocessed
 from photo3d.stages.regions import RegionLimit, Regions, RegionSizes, find_regions
-from photo3d.stages.silhouettes import silhouettes_of
+from photo3d.stages.silhouettes import Behind, silhouettes_of
 from photo3d.structures.ldi import LABEL_BORDER, LDI
 
 CONTEXT_LIMIT = 6.0
@@ -79,8 +79,8 @@ class PassInput:
         edge_ptr: ``(E + 1,) int64`` CSR offsets into ``edge_pixels``.
         edge_pixels: ``(K,) int64`` background silhouette pixels of each edge.
         index: ``ldi.position_index()`` if known (a merge's), else None.
-        behind: the soft silhouettes' background estimates (``(pixels, colors)``,
-            :meth:`~photo3d.stages.silhouettes.Silhouettes.behind`) for
+        behind: the soft silhouettes' fringe
+            (:meth:`~photo3d.stages.silhouettes.Silhouettes.behind`) for
             :func:`~photo3d.stages.silhouettes.paint_behind` once the passes are
             done; None if there is no fringe.
     """
@@ -89,7 +89,7 @@ class PassInput:
     edge_ptr: np.ndarray
     edge_pixels: np.ndarray
     index: tuple[np.ndarray, np.ndarray] | None = None
-    behind: tuple[np.ndarray, np.ndarray] | None = None
+    behind: Behind | None = None
 
     @property
     def edges(self) -> int:

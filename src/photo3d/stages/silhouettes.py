@@ -52,46 +52,75 @@ class Silhouettes:
         fringe: number of pixels with ``alpha < 1``.
         background: ``(H, W, 3) float32`` the background colour estimated behind each
             fringe pixel (the photo's colour where ``alpha`` is 0), or None (no fringe).
+        photo: ``(H, W, 3) float32`` the photo, or None (no fringe).
     """
 
     alpha: np.ndarray
     color: np.ndarray
     fringe: int
     background: np.ndarray | None = None
+    photo: np.ndarray | None = None
 
-    def behind(self) -> tuple[np.ndarray, np.ndarray]:
-        """``(pixels (K,) int64, colors (K, 3) float32)``: the fringe's raster indices
-        and their background estimates (for :func:`paint_behind`).
+    def behind(self) -> Behind | None:
+        """The fringe's pixels, background estimates and photo colours for
+        :func:`paint_behind`, or None (no fringe).
 
         Example:
             >>> img = np.zeros((8, 12, 3), np.float32); img[:, 6:] = 1.0; img[:, 6] = 0.25
             >>> disp = np.zeros((8, 12), np.float32); disp[:, 6:] = 1.0
             >>> cuts = np.zeros((8, 12), np.uint8); cuts[:, 5] = 2
-            >>> pixels, colors = soft_silhouettes(img, disp, cuts).behind()
-            >>> pixels[:2].tolist(), colors[0].tolist()
+            >>> behind = soft_silhouettes(img, disp, cuts).behind()
+            >>> behind.pixels[:2].tolist(), behind.background[0].tolist()
             ([6, 18], [0.0, 0.0, 0.0])
         """
-        if self.background is None:
-            return np.zeros(0, np.int64), np.zeros((0, 3), np.float32)
+        if self.background is None or self.photo is None:
+            return None
         pixels = np.flatnonzero(self.alpha < 1.0)
-        return pixels, self.background.reshape(-1, 3)[pixels]
+        return Behind(pixels, self.color.reshape(-1, 3)[pixels],
+                      self.background.reshape(-1, 3)[pixels], self.photo.reshape(-1, 3)[pixels])
 
 
-def paint_behind(ldi: LDI, pixels: np.ndarray, colors: np.ndarray, *,
-                 threshold: float, index: tuple[np.ndarray, np.ndarray] | None = None) -> LDI:
+@dataclass(frozen=True)
+class Behind:
+    """What :func:`paint_behind` needs of the fringe once the hidden areas are filled.
+
+    Attributes:
+        pixels: ``(K,) int64`` the fringe's raster indices in the photo.
+        foreground: ``(K, 3) float32`` the matting's foreground colours.
+        background: ``(K, 3) float32`` the background colour the matting estimated
+            behind each (the photo's own colour where ``alpha`` is 0).
+        photo: ``(K, 3) float32`` the photo's (mixed) colour there.
+    """
+
+    pixels: np.ndarray
+    foreground: np.ndarray
+    background: np.ndarray
+    photo: np.ndarray
+
+
+def paint_behind(ldi: LDI, behind: Behind, *, threshold: float,
+                 index: tuple[np.ndarray, np.ndarray] | None = None) -> LDI:
     """Give the nearest LDI pixel behind each fringe pixel (farther by more than
     ``threshold`` at the same lattice position: the inpainted layer) the background
-    colour the matting estimated there (:meth:`Silhouettes.behind`).
+    colour the photo shows there, and each fringe pixel the foreground colour that,
+    composited over it, gives the photo back.
 
     The inpainting fills the hidden area behind a silhouette from context a few pixels
     away (never from the mixed pixels); right behind the fringe the photo itself shows
-    the background through the mixed pixels, and that estimate is closer to it (the
-    photo's own colour where the fringe pixel's alpha is 0).
+    the background through the mixed pixels, by ``1 - alpha``. How much of the
+    matting's estimate the layer takes follows that share:
+
+    * ``alpha < 0.5``: the estimate (it is the photo's colour with the sampled
+      foreground taken out: mostly background), the fringe the sampled foreground;
+    * ``alpha >= 0.5``: ``(1 - alpha) * estimate + alpha * inpainted`` (the estimate
+      is then one background sample of the window, the one that explained the mixed
+      colour best: often not the colour behind; a noisy speckle in novel views when
+      taken whole), and the fringe's colour becomes ``(photo - (1 - alpha) * that)
+      / alpha``.
 
     Args:
         ldi: the LDI after inpainting; its first ``H * W`` pixels are the photo.
-        pixels: ``(K,) int64`` fringe pixels (raster indices of the photo).
-        colors: ``(K, 3) float32`` their background estimates.
+        behind: :meth:`Silhouettes.behind`.
         threshold: disparity difference that makes a pixel lie behind.
         index: ``ldi.position_index()`` if the caller has it (a merge's).
 
@@ -100,18 +129,23 @@ def paint_behind(ldi: LDI, pixels: np.ndarray, colors: np.ndarray, *,
 
     Example:
         >>> from photo3d.stages.ldi import from_image
-        >>> from photo3d.stages.merge import merge_fills
         >>> ldi = from_image(np.ones((1, 2, 3), np.float32), np.ones((1, 2), np.float32))
-        >>> behind = replace(ldi, y=np.r_[ldi.y, 0].astype(np.int32),
+        >>> two = replace(ldi, y=np.r_[ldi.y, 0].astype(np.int32),
         ...     x=np.r_[ldi.x, 1].astype(np.int32), color=np.r_[ldi.color, [[0.5] * 3]],
         ...     disparity=np.r_[ldi.disparity, 0.0].astype(np.float32),
         ...     links=np.r_[ldi.links, [[-1] * 4]].astype(np.int32), label=np.r_[ldi.label, 2],
-        ...     alpha=np.ones(3, np.float32))
-        >>> out = paint_behind(behind, np.array([1]), np.zeros((1, 3), np.float32),
-        ...                    threshold=0.04)
-        >>> out.color[2].tolist()
-        [0.0, 0.0, 0.0]
+        ...     alpha=np.array([1.0, 0.25, 1.0], np.float32))
+        >>> black, white = np.zeros((1, 3), np.float32), np.ones((1, 3), np.float32)
+        >>> out = paint_behind(two, Behind(np.array([1]), white, black, black), threshold=0.04)
+        >>> out.color[2].tolist(), out.color[1].tolist()  # alpha 0.25: the estimates
+        ([0.0, 0.0, 0.0], [1.0, 1.0, 1.0])
+        >>> two = replace(two, alpha=np.array([1.0, 0.75, 1.0], np.float32))
+        >>> out = paint_behind(two, Behind(np.array([1]), white, black, np.full((1, 3), 0.5,
+        ...                    np.float32)), threshold=0.04)
+        >>> out.color[2].tolist(), out.color[1].round(4).tolist()  # 0.25 * 0 + 0.75 * 0.5
+        ([0.375, 0.375, 0.375], [0.5417, 0.5417, 0.5417])
     """
+    pixels = behind.pixels
     if pixels.size == 0:
         return ldi
     starts, order = ldi.position_index() if index is None else index
@@ -120,8 +154,16 @@ def paint_behind(ldi: LDI, pixels: np.ndarray, colors: np.ndarray, *,
     pos = (y + ldi.border) * cols + (x + ldi.border)
     target = _behind(starts, order, pos, pixels, ldi.disparity, np.float32(threshold))
     ok = target >= 0
+    front, target = pixels[ok], target[ok]
+    a = ldi.alpha[front][:, None]
+    solid = a >= 0.5
     color = ldi.color.copy()
-    color[target[ok]] = colors[ok]
+    color[pixels] = behind.foreground
+    back = np.where(solid, (1.0 - a) * behind.background[ok] + a * color[target],
+                    behind.background[ok])
+    color[target] = back
+    fore = (behind.photo[ok] - (1.0 - a) * back) / np.maximum(a, 0.5)
+    color[front] = np.where(solid, np.clip(fore, 0.0, 1.0), color[front])
     return replace(ldi, color=color)
 
 
@@ -184,7 +226,7 @@ def soft_silhouettes(image: np.ndarray, disparity: np.ndarray, cuts: np.ndarray,
     back = image.copy()
     _matte(image, disparity, dist, np.int32(band), np.int32(radius), np.float32(threshold),
            method == "pairs", alpha, color, back)
-    return Silhouettes(alpha, color, int(np.count_nonzero(alpha < 1.0)), back)
+    return Silhouettes(alpha, color, int(np.count_nonzero(alpha < 1.0)), back, image)
 
 
 def silhouettes_of(image: np.ndarray, disparity: np.ndarray, cuts: np.ndarray, *,
