@@ -248,3 +248,32 @@ def test_textured_mesh_matches_cpu():
     # not the untextured image: the lookup happened
     untextured = CPURasterizer(v, uv, faces).render(K, pose=pose)
     assert np.abs(untextured.color[both] - b.color[both]).mean() > 0.05
+
+
+@pytest.mark.parametrize("near", [1e-3, 2.9])
+def test_fringe_alpha_of_the_nearest_corner_matches_the_cells(near):
+    """A mesh with ``alpha``: the geometry shader's nearest-corner alpha (fourth colour
+    channel) equals that of the triangles' cells drawn on the CPU at all but a few
+    samples (cell edges, fill rules), also with the near plane cutting through the
+    grid (GL clips after the shader); the colours and depth are the CPU's."""
+    from test_fringe import cells
+
+    v, colors, faces = jittered_grid()
+    alpha = np.random.default_rng(7).random(len(v), dtype=np.float32)
+    pose = look_pose(0.25, -0.35, (0.6, 0.1, 0.4))
+    k = Intrinsics.default(160, 120)
+    with GLRasterizer(v, colors, faces, alpha=alpha) as gl:
+        gpu = gl.render(k, pose=pose, near=near)
+    cpu = rasterize(v, colors, faces, k, pose=pose, near=near, alpha=alpha)
+    assert gpu.color.shape == (120, 160, 4)
+    rgb = [Fragments(f.color[..., :3].copy(), f.depth, f.mask) for f in (gpu, cpu)]
+    assert_same_image(*rgb, min_covered=3000)
+    cv, _, ca, cf = cells(v, colors.astype(np.float32), alpha, faces)
+    ref = rasterize(cv, np.repeat(ca[:, None], 3, 1), cf, k, pose=pose, near=near)
+    both = gpu.mask & ref.mask
+    differ = np.abs(gpu.color[..., 3] - ref.color[..., 0])[both] > 1e-6
+    assert differ.mean() < 0.005, differ.mean()
+    assert not np.any(gpu.color[..., 3][~gpu.mask])
+    with GLRasterizer(v, colors, faces, alpha=alpha) as gl:
+        color, coverage, _ = gl.render_resolved(Intrinsics.default(160, 120), 2, pose=pose)
+    assert color.shape == (60, 80, 4) and coverage.max() == 1.0

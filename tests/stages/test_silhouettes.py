@@ -270,10 +270,11 @@ def test_usdz_holds_the_fringe_with_its_opacity(tmp_path):
 
 
 def test_soft_silhouettes_give_the_photo_back_at_its_camera():
-    """Drawn with supersampling, the fringe's cells keep each pixel's own alpha
-    (Mesh.cells): at the input camera the soft photo is no farther from the photo
-    near the pole's edges than the hard-cut one (with alpha interpolated between pixel
-    centres the pole's outermost pixels faded: twice the error)."""
+    """Drawn with supersampling, each pixel's footprint keeps its own alpha (the
+    nearest corner's, tests/render/test_fringe.py): at the input camera the soft photo
+    is no farther from the photo near the pole's edges than the hard-cut one (with
+    alpha interpolated between pixel centres the pole's outermost pixels faded: twice
+    the error)."""
     from photo3d.render.renderer import RenderSettings
 
     rng = np.random.default_rng(3)

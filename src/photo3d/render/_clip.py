@@ -81,7 +81,7 @@ def project_vertices(vertices, rot, trans, k, near, sv):
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def clip_near(sv, faces, vertices, colors, scale, rot, trans, k, near):
+def clip_near(sv, faces, vertices, colors, scale, rot, trans, k, near, alpha):
     """Clip the triangles that cross the near plane (Sutherland-Hodgman).
 
     A triangle with one vertex behind becomes a quad (two triangles), one with two
@@ -93,11 +93,17 @@ def clip_near(sv, faces, vertices, colors, scale, rot, trans, k, near):
         sv: ``(N, 3) float32`` screen vertices from :func:`project_vertices`.
         faces: ``(M, 3) int32``; vertices, rot, trans, k, near as there.
         colors: ``(N, 3)`` float32 or uint8 vertex colours, times ``scale`` in [0, 1].
+        alpha: ``(N,) float32`` vertex coverage, or ``(0,)`` for none.
 
     Returns:
-        ``(xsv, xcol, xfaces)``: ``(K, 3) float32`` new screen vertices, their
-        ``(K, 3) float32`` colours in [0, 1] and ``(F, 3) int32`` triangles over them.
+        ``(xsv, xcol, xfaces, xalpha)``: ``(K, 3) float32`` new screen vertices, their
+        ``(K, 3) float32`` colours in [0, 1], ``(F, 3) int32`` triangles over them and
+        the ``(K,) float32`` coverage of the new vertices (interpolated like the
+        colours; ``(0,)`` when ``alpha`` is). The nearest-corner coverage of a clipped
+        triangle is then that of its pieces' corners: an approximation near the
+        camera only.
     """
+    has_alpha = alpha.shape[0] > 0
     m = faces.shape[0]
     n_cross = 0
     for t in range(m):
@@ -107,6 +113,7 @@ def clip_near(sv, faces, vertices, colors, scale, rot, trans, k, near):
     xsv = np.empty((4 * n_cross, 3), np.float32)
     xcol = np.empty((4 * n_cross, 3), np.float32)
     xfaces = np.empty((2 * n_cross, 3), np.int32)
+    xalpha = np.empty(4 * n_cross if has_alpha else 0, np.float32)
     nv = 0
     nf = 0
     for t in range(m):
@@ -122,6 +129,8 @@ def clip_near(sv, faces, vertices, colors, scale, rot, trans, k, near):
                 xsv[nv, :] = sv[a, :]
                 for c in range(3):
                     xcol[nv, c] = colors[a, c] * scale
+                if has_alpha:
+                    xalpha[nv] = alpha[a]
                 nv += 1
             if a_front != (sv[b, 2] > 0):
                 f, h = (a, b) if a_front else (b, a)
@@ -132,10 +141,12 @@ def clip_near(sv, faces, vertices, colors, scale, rot, trans, k, near):
                 for c in range(3):
                     cf = colors[f, c] * scale
                     xcol[nv, c] = cf + s * (colors[h, c] * scale - cf)
+                if has_alpha:
+                    xalpha[nv] = alpha[f] + s * (alpha[h] - alpha[f])
                 nv += 1
         for j in range(nv - start - 2):
             xfaces[nf, 0] = start
             xfaces[nf, 1] = start + j + 1
             xfaces[nf, 2] = start + j + 2
             nf += 1
-    return xsv[:nv], xcol[:nv], xfaces[:nf]
+    return xsv[:nv], xcol[:nv], xfaces[:nf], xalpha[:nv if has_alpha else 0]

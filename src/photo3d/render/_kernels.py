@@ -32,11 +32,24 @@ def _edge(sv, p, q):
     return qx, qy, px - qx, py - qy, -1.0
 
 
+@njit(cache=True, error_model="numpy", inline="always")
+def _nearest(b0, b1, b2, v0, v1, v2):
+    """The value ``v_k`` of the corner with the largest barycentric weight ``b_k`` (any
+    positive multiple of the weights; ties go to the lower ``k``): constant over each
+    corner's cell, the part of the triangle nearer that corner than the others in
+    barycentric terms (bounded by the lines from the edges' midpoints to the
+    centroid)."""
+    if b0 >= b1 and b0 >= b2:
+        return v0
+    return v1 if b1 >= b2 else v2
+
+
 @njit(cache=True, error_model="numpy", nogil=True)  # rare: called, not inlined
-def _draw_float(sv, col, scale, i0, i1, i2, r0, r1, c0, c1, color, depth, count):
+def _draw_float(sv, col, scale, i0, i1, i2, r0, r1, c0, c1, color, depth, count, alpha):
     """:func:`_draw` for huge screen coordinates, in float64 edge functions (exact
     for 1/256-snapped vertices) evaluated with each edge's end points in a canonical
     order; rows ``r0..r1`` and columns ``c0..c1`` are the clamped bounding box."""
+    fringe = alpha.shape[0] > 0
     ay, ax = np.float64(sv[i0, 1]), np.float64(sv[i0, 0])
     iz0, iz1, iz2 = np.float64(sv[i0, 2]), np.float64(sv[i1, 2]), np.float64(sv[i2, 2])
     # Edge k is opposite vertex k; its value is the weight of vertex k.
@@ -80,6 +93,8 @@ def _draw_float(sv, col, scale, i0, i1, i2, r0, r1, c0, c1, color, depth, count)
                 for ch in range(3):
                     v = (a0 * col[i0, ch] + a1 * col[i1, ch] + a2 * col[i2, ch]) / suma * scale
                     color[y, x, ch] = min(max(v, 0.0), 1.0)
+                if fringe:
+                    color[y, x, 3] = _nearest(a0, a1, a2, alpha[i0], alpha[i1], alpha[i2])
 
 
 _SPAN_MIN = 1
@@ -113,13 +128,16 @@ def _span(w, s, inv, c0, lo, hi):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _draw(sv, col, scale, i0, i1, i2, y_lo, y_hi, width, color, depth, count, uv):
+def _draw(sv, col, scale, i0, i1, i2, y_lo, y_hi, width, color, depth, count, uv, alpha):
     """Rasterize triangle ``(i0, i1, i2)`` of ``sv`` into rows ``[y_lo, y_hi)``.
 
     Edge functions are exact integers on the 1/256 px grid the vertices are snapped
     to (24.8 fixed point), stepped incrementally along each row; a row of a wide box
     is scanned only between its edges (:func:`_span`). ``uv``: ``col`` holds texture
-    coordinates (two channels, not clamped)."""
+    coordinates (two channels, not clamped). ``alpha``: ``(N,) float32`` vertex
+    coverage, written to ``color``'s fourth channel as that of the corner with the
+    largest perspective-correct barycentric weight (:func:`_nearest`), or ``(0,)``
+    for none (``color`` may then have three channels)."""
     ay, by, cy = np.float64(sv[i0, 1]), np.float64(sv[i1, 1]), np.float64(sv[i2, 1])
     r0 = max(y_lo, math.ceil(min(ay, by, cy) - 0.5))
     r1 = min(y_hi - 1, math.floor(max(ay, by, cy) - 0.5))
@@ -135,7 +153,7 @@ def _draw(sv, col, scale, i0, i1, i2, y_lo, y_hi, width, color, depth, count, uv
         return
     lim = 4194304.0  # 2^22 px: products stay within int64
     if max(abs(ax), abs(bx), abs(cx), abs(ay), abs(by), abs(cy)) > lim:
-        _draw_float(sv, col, scale, i0, i1, i2, r0, r1, c0, c1, color, depth, count)
+        _draw_float(sv, col, scale, i0, i1, i2, r0, r1, c0, c1, color, depth, count, alpha)
         return
     X0, Y0 = np.int64(ax * 256.0), np.int64(ay * 256.0)
     X1, Y1 = np.int64(bx * 256.0), np.int64(by * 256.0)
@@ -160,6 +178,10 @@ def _draw(sv, col, scale, i0, i1, i2, y_lo, y_hi, width, color, depth, count, uv
     r0c, g0c, b0c = col[i0, 0] * scale, col[i0, 1] * scale, col[i0, 2] * scale
     r1c, g1c, b1c = col[i1, 0] * scale, col[i1, 1] * scale, col[i1, 2] * scale
     r2c, g2c, b2c = col[i2, 0] * scale, col[i2, 1] * scale, col[i2, 2] * scale
+    fringe = alpha.shape[0] > 0
+    al0 = alpha[i0] if fringe else np.float32(0.0)
+    al1 = alpha[i1] if fringe else np.float32(0.0)
+    al2 = alpha[i2] if fringe else np.float32(0.0)
     s0, s1, s2 = dy0 * 256, dy1 * 256, dy2 * 256
     inv0 = 1.0 / abs(s0) if s0 != 0 else 0.0
     inv1 = 1.0 / abs(s1) if s1 != 0 else 0.0
@@ -211,6 +233,9 @@ def _draw(sv, col, scale, i0, i1, i2, y_lo, y_hi, width, color, depth, count, uv
                             color[y, x, 0] = min(max(sr * inv, 0.0), 1.0)
                             color[y, x, 1] = min(max(sg * inv, 0.0), 1.0)
                             color[y, x, 2] = min(max(sb * inv, 0.0), 1.0)
+                        if fringe:  # the nearest corner's: one alpha per cell
+                            color[y, x, 3] = _nearest(w0 * iz0, w1 * iz1, w2 * iz2,
+                                                      al0, al1, al2)
             w0 -= s0
             w1 -= s1
             w2 -= s2
@@ -221,10 +246,10 @@ def _draw(sv, col, scale, i0, i1, i2, y_lo, y_hi, width, color, depth, count, uv
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def _draw_clipped(sv, col, i0, i1, i2, y_lo, y_hi, width, color, depth, count, uv):
+def _draw_clipped(sv, col, i0, i1, i2, y_lo, y_hi, width, color, depth, count, uv, alpha):
     """:func:`_draw` of a triangle clipped at the near plane (few: a call, so
     :func:`raster_frame` inlines :func:`_draw` once, which halves its compile time)."""
-    _draw(sv, col, 1.0, i0, i1, i2, y_lo, y_hi, width, color, depth, count, uv)
+    _draw(sv, col, 1.0, i0, i1, i2, y_lo, y_hi, width, color, depth, count, uv, alpha)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -344,14 +369,17 @@ def _block_skipped(bounds, b, y_lo, y_hi, width, tile_max, tile, use_tiles):
 def _resolve_rows(color, depth, factor, r0, r1, out_color, out_cov, out_depth):
     """Supersampling resolve of output rows ``r0..r1-1``: the mean colour of the covered
     samples (``depth < inf``) of each ``factor x factor`` block, the covered fraction
-    and the nearest depth (0, 0 and inf where nothing is covered)."""
+    and the nearest depth (0, 0 and inf where nothing is covered). A fourth channel
+    (alpha) is averaged like the colours."""
     inv = 1.0 / (factor * factor)
+    four = color.shape[2] == 4
     for oy in range(r0, r1):
         for ox in range(out_cov.shape[1]):
             n = 0
             r = 0.0
             g = 0.0
             b = 0.0
+            a = 0.0
             d = np.inf
             for y in range(oy * factor, oy * factor + factor):
                 for x in range(ox * factor, ox * factor + factor):
@@ -361,15 +389,21 @@ def _resolve_rows(color, depth, factor, r0, r1, out_color, out_cov, out_depth):
                         r += color[y, x, 0]
                         g += color[y, x, 1]
                         b += color[y, x, 2]
+                        if four:
+                            a += color[y, x, 3]
                         d = min(d, z)
             if n > 0:
                 out_color[oy, ox, 0] = r / n
                 out_color[oy, ox, 1] = g / n
                 out_color[oy, ox, 2] = b / n
+                if four:
+                    out_color[oy, ox, 3] = a / n
             else:
                 out_color[oy, ox, 0] = 0.0
                 out_color[oy, ox, 1] = 0.0
                 out_color[oy, ox, 2] = 0.0
+                if four:
+                    out_color[oy, ox, 3] = 0.0
             out_cov[oy, ox] = n * inv
             out_depth[oy, ox] = d
 
@@ -377,10 +411,11 @@ def _resolve_rows(color, depth, factor, r0, r1, out_color, out_cov, out_depth):
 @njit(parallel=True, cache=True, error_model="numpy", nogil=True)
 def resolve(color, depth, factor):
     """Supersampling resolve of a whole ``(H, W)`` frame (H, W multiples of
-    ``factor``): ``(color (H/f, W/f, 3), coverage (H/f, W/f), depth (H/f, W/f))``,
-    see :func:`_resolve_rows`. :func:`raster_frame` does the same per band, fused."""
+    ``factor``): ``(color (H/f, W/f, C), coverage (H/f, W/f), depth (H/f, W/f))``
+    (``C``: ``color``'s channels, 3 or 4), see :func:`_resolve_rows`.
+    :func:`raster_frame` does the same per band, fused."""
     h, w = depth.shape[0] // factor, depth.shape[1] // factor
-    out_color = np.empty((h, w, 3), np.float32)
+    out_color = np.empty((h, w, color.shape[2]), np.float32)
     out_cov = np.empty((h, w), np.float32)
     out_depth = np.empty((h, w), np.float32)
     rows = 8
@@ -468,10 +503,12 @@ def _finish_rows(color, depth, smooth, r0, r1, out_color, out_cov, out_depth, ou
     sample per pixel. Needs the rows next to its own drawn. ``out_rgb``: ``(H, W, 3)
     uint8`` receives the colours in 8 bits as well (as
     :func:`photo3d.render._resolve.to_rgb8`; black where nothing is covered), or
-    ``(0, 0, 3)`` for none."""
+    ``(0, 0, 3)`` for none. A fourth channel (alpha) is copied and blended like the
+    colours (0 where nothing is covered)."""
     h, w = depth.shape
     grow = 1.0 + smooth
     rgb8 = out_rgb.shape[0] > 0
+    four = color.shape[2] == 4
     for y in range(r0, r1):
         for x in range(w):
             z = depth[y, x]
@@ -479,12 +516,16 @@ def _finish_rows(color, depth, smooth, r0, r1, out_color, out_cov, out_depth, ou
             if z == np.inf:
                 out_cov[y, x] = 0.0
                 out_color[y, x, 0], out_color[y, x, 1], out_color[y, x, 2] = 0.0, 0.0, 0.0
+                if four:
+                    out_color[y, x, 3] = 0.0
                 if rgb8:
                     out_rgb[y, x, 0], out_rgb[y, x, 1], out_rgb[y, x, 2] = 0, 0, 0
                 continue
             out_cov[y, x] = 1.0
             r, g, b = color[y, x, 0], color[y, x, 1], color[y, x, 2]
             mr, mg, mb = r, g, b
+            a = color[y, x, 3] if four else np.float32(0.0)
+            ma = a
             # quick test: the 4-neighbours (clamped at the border) within range
             za, zb = depth[max(y - 1, 0), x], depth[min(y + 1, h - 1), x]
             zc, zd = depth[y, max(x - 1, 0)], depth[y, min(x + 1, w - 1)]
@@ -500,7 +541,11 @@ def _finish_rows(color, depth, smooth, r0, r1, out_color, out_cov, out_depth, ou
                         mr += EDGE_BLEND * (color[yy, xx, 0] - r)
                         mg += EDGE_BLEND * (color[yy, xx, 1] - g)
                         mb += EDGE_BLEND * (color[yy, xx, 2] - b)
+                        if four:
+                            ma += EDGE_BLEND * (color[yy, xx, 3] - a)
             out_color[y, x, 0], out_color[y, x, 1], out_color[y, x, 2] = mr, mg, mb
+            if four:
+                out_color[y, x, 3] = ma
             if rgb8:
                 out_rgb[y, x, 0], out_rgb[y, x, 1] = _to_8bit(mr), _to_8bit(mg)
                 out_rgb[y, x, 2] = _to_8bit(mb)
@@ -543,7 +588,7 @@ def _inner_rows(y_lo, y_hi, height):
 @njit(parallel=True, cache=True, error_model="numpy", nogil=True, fastmath=FASTMATH)
 def raster_frame(sv, col, scale, faces, n_first, bounds, block, xsv, xcol, xfaces, height,
                  width, bands, background, count, color, depth, mask, factor, out_color, out_cov,
-                 out_depth, texture, smooth, rgb):
+                 out_depth, texture, smooth, rgb, alpha, xalpha):
     """Z-buffer render of ``faces`` over ``sv`` and ``xfaces`` over ``xsv``, in
     ``bands`` horizontal bands rendered in parallel; returns ``(color, depth, mask)``.
 
@@ -564,7 +609,12 @@ def raster_frame(sv, col, scale, faces, n_first, bounds, block, xsv, xcol, xface
     when ``col`` holds texture coordinates (deferred texturing per band, see :func:`_texture_rows`),
     ``(0, 0, 3)`` for vertex colours. ``rgb``: with ``factor = 1``, an ``(H, W, 3)
     uint8`` array that receives the colours in 8 bits too (one pass less for a
-    video frame), or ``(0, 0, 3)``.
+    video frame), or ``(0, 0, 3)``. ``alpha``, ``xalpha``: ``(N,)`` and ``(K,)
+    float32`` vertex coverage of ``sv`` and ``xsv`` (the soft silhouettes' fringe),
+    written as a fourth channel of ``color`` (and of ``out_color``; 0 where nothing
+    is covered), each sample taking the alpha of its triangle's corner of largest
+    barycentric weight (:func:`_nearest`: one alpha per corner's cell), or ``(0,)``
+    for none.
 
     ``faces[:n_first]`` are drawn first; later faces and blocks (``bounds`` from
     :func:`block_bounds`) are skipped when they lie behind the farthest depth drawn
@@ -582,7 +632,8 @@ def raster_frame(sv, col, scale, faces, n_first, bounds, block, xsv, xcol, xface
         ...     np.zeros((0, 3), np.float32), np.zeros((0, 3), np.float32), empty, 4, 4, 2,
         ...     np.zeros(3, np.float32), np.zeros((0, 0), np.int32), color, depth, mask, 0,
         ...     np.zeros((0, 0, 3), np.float32), none, none, np.zeros((0, 0), np.uint32),
-        ...     0.0, np.zeros((0, 0, 3), np.uint8))
+        ...     0.0, np.zeros((0, 0, 3), np.uint8), np.zeros(0, np.float32),
+        ...     np.zeros(0, np.float32))
         >>> mask.astype(int)
         array([[1, 1, 1, 0],
                [1, 1, 0, 0],
@@ -594,6 +645,7 @@ def raster_frame(sv, col, scale, faces, n_first, bounds, block, xsv, xcol, xface
     tile = 8
     cull = count.shape[0] == 0  # the coverage counter must see every face
     uv = texture.shape[0] > 0
+    four = color.shape[2] == 4
     unit = max(factor, 1)  # band boundaries on multiples of the resolve factor
     for i in prange(bands):
         # interleave so each thread gets bands from all over the image (prange hands
@@ -626,10 +678,12 @@ def raster_frame(sv, col, scale, faces, n_first, bounds, block, xsv, xcol, xface
                 i0, i1, i2 = faces[t, 0], faces[t, 1], faces[t, 2]
                 if use_tiles and _occluded(sv, i0, i1, i2, y_lo, y_hi, width, tile_max, tile):
                     continue
-                _draw(sv, col, scale, i0, i1, i2, y_lo, y_hi, width, color, depth, count, uv)
+                _draw(sv, col, scale, i0, i1, i2, y_lo, y_hi, width, color, depth, count, uv,
+                      alpha)
         for t in range(xfaces.shape[0]):
             i0, i1, i2 = xfaces[t, 0], xfaces[t, 1], xfaces[t, 2]
-            _draw_clipped(xsv, xcol, i0, i1, i2, y_lo, y_hi, width, color, depth, count, uv)
+            _draw_clipped(xsv, xcol, i0, i1, i2, y_lo, y_hi, width, color, depth, count, uv,
+                          xalpha)
         if texture.shape[0] > 0:
             _texture_rows(color, depth, texture, y_lo, y_hi)
         if factor == 1:  # the rows whose neighbours are all in this band
@@ -646,6 +700,8 @@ def raster_frame(sv, col, scale, faces, n_first, bounds, block, xsv, xcol, xface
                     if not hit:  # colour is only written where a triangle wins
                         for ch in range(3):
                             color[y, x, ch] = background[ch]
+                        if four:
+                            color[y, x, 3] = 0.0
     if factor == 1:  # the first and last row of each band, once every band is drawn
         for band in range(bands):
             y_lo, y_hi = _band_rows(band, bands, height, unit)

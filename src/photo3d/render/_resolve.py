@@ -236,23 +236,29 @@ def holes_to_rgb8(color, coverage, rgb):  # pragma: no cover - jit
 
 
 @numba.njit(cache=True, nogil=True)
-def blend_fringe(color, depth, f_color, f_coverage, f_alpha, f_depth):  # pragma: no cover
+def blend_fringe(color, depth, fringe, f_coverage, f_depth, rgb):  # pragma: no cover - jit
     """Blend the soft silhouettes' fringe over ``(H, W, 3)`` float ``color`` in place:
     where the fringe covers a pixel (``f_coverage > 0``) at or in front of ``depth``
-    (``(H, W)``, its nearest surface, within 0.1 %), ``a = f_alpha * min(2 f_coverage,
-    1)`` of ``f_color`` over ``color`` (the fringe's mesh ends at its outer pixels'
-    centres: it covers about half of them, while their alpha already is their
-    coverage); ``depth`` takes the fringe's where it is nearer. ``f_alpha`` is the
-    fringe's interpolated alpha, ``(H, W, 3)`` (its first channel is read)."""
+    (``(H, W)``, its nearest surface, within 0.1 %), ``a = alpha * min(2 f_coverage,
+    1)`` of the fringe's colour over ``color`` (the fringe's mesh ends at its outer
+    pixels' centres: it covers about half of them, while their alpha already is their
+    coverage); ``depth`` takes the fringe's where it is nearer. ``fringe``: ``(H, W,
+    4)`` float, the fringe's colours and (fourth channel) its alpha, the nearest
+    corner's (:func:`photo3d.render._kernels._nearest`). ``rgb``: ``(H, W, 3) uint8``
+    whose blended pixels are written again as :func:`to_rgb8` would (a frame
+    converted before the blend), or ``(0, 0, 3)``."""
     h, w = depth.shape
+    rgb8 = rgb.shape[0] > 0
     for y in range(h):
         for x in range(w):
             c = f_coverage[y, x]
             if c <= 0.0 or f_depth[y, x] > depth[y, x] * 1.001:
                 continue
-            a = f_alpha[y, x, 0] * min(2.0 * c, 1.0)
+            a = fringe[y, x, 3] * min(2.0 * c, 1.0)
             if a <= 0.0:
                 continue
             for ch in range(3):
-                color[y, x, ch] = a * f_color[y, x, ch] + (1.0 - a) * color[y, x, ch]
+                color[y, x, ch] = a * fringe[y, x, ch] + (1.0 - a) * color[y, x, ch]
+                if rgb8:
+                    rgb[y, x, ch] = _u8(color[y, x, ch])
             depth[y, x] = min(depth[y, x], f_depth[y, x])

@@ -19,6 +19,12 @@ How it maps onto OpenGL:
   ``ln(z / near) / ln(far / near)``: a constant relative resolution of about
   ``ln(far / near) / 2**24`` (6e-7 for near 1e-3, far 20), where a standard
   projection with near 1e-3 would resolve only 0.1 % at z = 20.
+* A mesh with a vertex coverage (``alpha``, the soft silhouettes' fringe) is drawn
+  through a geometry shader that hands each fragment its triangle's three alphas
+  (flat) and its perspective-correct barycentric weights; the fragment takes the
+  alpha of the corner of largest weight, as the CPU rasterizer does, into a second
+  ``R32F`` attachment (the result's fourth colour channel). GL clips after the
+  geometry shader, so a triangle crossing the near plane keeps its corners' cells.
 * Known differences from the CPU rasterizer: a pixel centre exactly on a triangle
   edge or vertex follows the GPU's own fill rule (so the right and bottom border of
   a mesh whose vertices lie on pixel centres may stay uncovered, where the CPU
@@ -45,7 +51,7 @@ import numpy as np
 
 from photo3d.camera import Intrinsics
 from photo3d.errors import InputError, require
-from photo3d.render.raster import Fragments, check_texture, prepare_mesh
+from photo3d.render.raster import Fragments, check_alpha, check_texture, prepare_mesh
 
 __all__ = ["GLRasterizer", "gl_available", "gl_renderer", "is_software_renderer"]
 
@@ -79,6 +85,70 @@ out vec4 f_out;
 void main() {
     f_out = vec4(clamp(v_color, 0.0, 1.0), v_z);
     gl_FragDepth = (log(v_z) - log_z.x) * log_z.y;
+}
+"""
+
+
+_VERTEX_SHADER_ALPHA = """
+#version 330
+uniform mat4 view;
+uniform vec4 k_ndc;
+uniform vec2 clip_z;
+in vec3 in_position;
+in vec3 in_color;
+in float in_alpha;
+out vec3 v_color;
+out float v_z;
+out float v_alpha;
+void main() {
+    vec4 c = view * vec4(in_position, 1.0);
+    v_color = in_color;
+    v_z = c.z;
+    v_alpha = in_alpha;
+    gl_Position = vec4(k_ndc.x * c.x + k_ndc.z * c.z, k_ndc.y * c.y + k_ndc.w * c.z,
+                       clip_z.x * c.z + clip_z.y, c.z);
+}
+"""
+
+_GEOMETRY_SHADER_ALPHA = """
+#version 330
+layout(triangles) in;
+layout(triangle_strip, max_vertices = 3) out;
+in vec3 v_color[];
+in float v_z[];
+in float v_alpha[];
+out vec3 g_color;
+out float g_z;
+out vec3 g_weight;      // barycentric weights, perspective-correct: e_i at corner i
+flat out vec3 g_alpha;  // the three corners' alpha
+void main() {
+    for (int i = 0; i < 3; ++i) {
+        gl_Position = gl_in[i].gl_Position;
+        g_color = v_color[i];
+        g_z = v_z[i];
+        g_weight = vec3(i == 0, i == 1, i == 2);
+        g_alpha = vec3(v_alpha[0], v_alpha[1], v_alpha[2]);
+        EmitVertex();
+    }
+    EndPrimitive();
+}
+"""
+
+_FRAGMENT_SHADER_ALPHA = """
+#version 330
+uniform vec2 log_z;
+in vec3 g_color;
+in float g_z;
+in vec3 g_weight;
+flat in vec3 g_alpha;
+layout(location = 0) out vec4 f_out;
+layout(location = 1) out float f_alpha;
+void main() {
+    f_out = vec4(clamp(g_color, 0.0, 1.0), g_z);
+    // the corner of largest weight (ties to the lower index, as on the CPU)
+    f_alpha = (g_weight.x >= g_weight.y && g_weight.x >= g_weight.z) ? g_alpha.x
+              : (g_weight.y >= g_weight.z ? g_alpha.y : g_alpha.z);
+    gl_FragDepth = (log(g_z) - log_z.x) * log_z.y;
 }
 """
 
@@ -181,6 +251,9 @@ class GLRasterizer:
         texture: ``(T, U, 3) uint8`` sRGB; then ``colors`` are texture coordinates
             ``(u, v, 0)`` rendered into the float target and looked up on the CPU
             afterwards (deferred texturing, as the numba rasterizer does).
+        alpha: ``(N,) float32`` vertex coverage in [0, 1] (vertex colours only): the
+            results' colours get a fourth channel, the alpha of the corner nearest
+            each sample (as :class:`~photo3d.render.raster.CPURasterizer`).
 
     Raises:
         MissingExtra: moderngl is not installed (extra ``gl``; an ImportError too).
@@ -194,8 +267,10 @@ class GLRasterizer:
     """
 
     def __init__(self, vertices, colors, faces, *, device_index: int | None = None,
-                 texture: np.ndarray | None = None):
+                 texture: np.ndarray | None = None, alpha: np.ndarray | None = None):
         vertices, colors, scale, faces, _, _ = prepare_mesh(vertices, colors, faces, None)
+        alpha = check_alpha(alpha, len(vertices), texture)
+        self._alpha = alpha.shape[0] > 0
         self._texture = check_texture(texture)
         self._packed = None  # the texture as the CPU lookup reads it, on first use
         if not np.all(np.isfinite(vertices)):
@@ -207,22 +282,31 @@ class GLRasterizer:
         self._fbo = None
         try:
             with ctx:
-                self._prog = ctx.program(
-                    vertex_shader=_VERTEX_SHADER, fragment_shader=_FRAGMENT_SHADER
-                )
+                if self._alpha:
+                    self._prog = ctx.program(
+                        vertex_shader=_VERTEX_SHADER_ALPHA,
+                        geometry_shader=_GEOMETRY_SHADER_ALPHA,
+                        fragment_shader=_FRAGMENT_SHADER_ALPHA,
+                    )
+                else:
+                    self._prog = ctx.program(
+                        vertex_shader=_VERTEX_SHADER, fragment_shader=_FRAGMENT_SHADER
+                    )
                 self._buffers = [
                     _upload(ctx, vertices),
                     _upload(ctx, colors),
                     _upload(ctx, faces.astype(np.uint32)),
                 ]
                 color_format = "3f1" if scale != 1.0 else "3f4"
+                attributes = [
+                    (self._buffers[0], "3f4", "in_position"),
+                    (self._buffers[1], color_format, "in_color"),
+                ]
+                if self._alpha:
+                    self._buffers.append(_upload(ctx, alpha))
+                    attributes.append((self._buffers[3], "f4", "in_alpha"))
                 self._vao = ctx.vertex_array(
-                    self._prog,
-                    [
-                        (self._buffers[0], "3f4", "in_position"),
-                        (self._buffers[1], color_format, "in_color"),
-                    ],
-                    index_buffer=self._buffers[2],
+                    self._prog, attributes, index_buffer=self._buffers[2],
                     index_element_size=4,
                 )
         except Exception:
@@ -245,8 +329,10 @@ class GLRasterizer:
         if self._fbo is None or self._fbo.size != (width, height):
             self._release_fbo()
             size = (width, height)
-            color = self._ctx.texture(size, 4, dtype="f4")
-            self._fbo = self._ctx.framebuffer([color], self._ctx.depth_texture(size))
+            attachments = [self._ctx.texture(size, 4, dtype="f4")]
+            if self._alpha:
+                attachments.append(self._ctx.texture(size, 1, dtype="f4"))
+            self._fbo = self._ctx.framebuffer(attachments, self._ctx.depth_texture(size))
         return self._fbo
 
     def render(
@@ -261,8 +347,9 @@ class GLRasterizer:
 
         Returns:
             :class:`Fragments` of shape ``(intrinsics.height, intrinsics.width)``:
-            ``color (H, W, 3) float32`` in [0, 1], ``depth (H, W) float32`` camera
-            z (``+inf`` where empty), ``mask (H, W) bool``.
+            ``color (H, W, 3) float32`` in [0, 1] (``(H, W, 4)`` with ``alpha``, 0
+            where empty), ``depth (H, W) float32`` camera z (``+inf`` where empty),
+            ``mask (H, W) bool``.
         """
         ctx = self._live()
         pose, bg = _check_view(intrinsics, pose, near, background)
@@ -281,9 +368,15 @@ class GLRasterizer:
                 self._vao.render(vertices=self._n_indices)
             out = np.empty((height, width, 4), np.float32)
             fbo.read_into(out, components=4, dtype="f4")
+            if self._alpha:
+                alpha = np.empty((height, width), np.float32)
+                fbo.read_into(alpha, components=1, attachment=1, dtype="f4")
         depth = out[:, :, 3]
         mask = depth < _EMPTY_Z * 0.5
         depth = np.where(mask, depth, np.float32(np.inf))
+        if self._alpha:  # (r, g, b, alpha): the alpha over the camera z
+            out[:, :, 3] = np.where(mask, alpha, np.float32(0.0))
+            return Fragments(color=out, depth=depth, mask=mask)
         color = self._textured(np.ascontiguousarray(out[:, :, :3]), depth)
         return Fragments(color=color, depth=depth, mask=mask)
 

@@ -23,6 +23,11 @@ How it works:
   centres, reproduces every vertex colour, also along the mesh borders.
 * Colour and depth are interpolated perspective-correctly (``c/z`` and ``1/z`` are
   linear in screen space); the nearest surface wins, ties keep the first triangle.
+* A mesh with a vertex coverage (``alpha``, the soft silhouettes' fringe) gets a
+  fourth channel: each sample takes the alpha of its triangle's corner with the
+  largest perspective-correct barycentric weight, so the alpha is constant over each
+  vertex's footprint (the corner's cell: bounded by the lines from the triangle's
+  edge midpoints to its centroid) while the colours stay interpolated.
 """
 
 from __future__ import annotations
@@ -53,7 +58,8 @@ class Fragments:
 
     Attributes:
         color: ``(H, W, 3) float32`` in [0, 1]; the background colour where nothing
-            was hit.
+            was hit. ``(H, W, 4)`` for a mesh with ``alpha``: the fourth channel is
+            the nearest corner's alpha (0 where nothing was hit).
         depth: ``(H, W) float32`` camera z of the nearest surface, ``+inf`` where
             nothing was hit.
         mask: ``(H, W) bool``, True where a triangle covered the pixel centre.
@@ -67,6 +73,7 @@ class Fragments:
 _NO_COUNT = np.zeros((0, 0), np.int32)
 _NO_TEXTURE = np.zeros((0, 0, 3), np.uint8)
 _NO_PACKED = np.zeros((0, 0), np.uint32)
+_NO_ALPHA = np.zeros(0, np.float32)
 
 
 def _check_array(name: str, array: np.ndarray, shape: str) -> None:
@@ -136,6 +143,27 @@ def _check_pose(pose) -> tuple[np.ndarray, np.ndarray]:
     return np.ascontiguousarray(pose[:3, :3]), np.ascontiguousarray(pose[:3, 3])
 
 
+def check_alpha(alpha, n: int, texture: np.ndarray | None = None) -> np.ndarray:
+    """A vertex coverage as the rasterizers take it: ``(n,) float32`` in [0, 1]
+    C-contiguous, or ``(0,)`` for None.
+
+    Raises:
+        InputError: not ``n`` values, or given with a texture (not supported).
+
+    Example:
+        >>> check_alpha(None, 3).shape, check_alpha([1, 0.5, 2], 3).tolist()
+        ((0,), [1.0, 0.5, 1.0])
+    """
+    if alpha is None:
+        return _NO_ALPHA
+    if texture is not None and np.size(texture):
+        raise InputError("alpha is not supported with a texture (vertex colours only)")
+    alpha = np.asarray(alpha, np.float32)
+    if alpha.shape != (n,):
+        raise InputError(f"alpha must have shape ({n},) like vertices, got {alpha.shape}")
+    return np.ascontiguousarray(np.clip(alpha, 0.0, 1.0))
+
+
 def check_texture(texture) -> np.ndarray:
     """A texture as the rasterizers take it: ``(T, U, 3) uint8`` C-contiguous, or
     ``(0, 0, 3)`` for None (no texture: vertex colours).
@@ -174,6 +202,7 @@ def rasterize(
     background: tuple[float, float, float] = (0.0, 0.0, 0.0),
     bands: int | None = None,
     first: int | None = None,
+    alpha: np.ndarray | None = None,
 ) -> Fragments:
     """Render a vertex-coloured triangle mesh from a pinhole camera.
 
@@ -192,6 +221,8 @@ def rasterize(
         first: draw ``faces[:first]`` first and cull later faces hidden behind them
             (hierarchical z, same image, less work when the first faces are the
             visible layer: photo3d meshes list the input layer first). None: all.
+        alpha: ``(N,) float32`` vertex coverage in [0, 1], drawn as the fourth
+            channel of ``color`` (the nearest corner's, see the module), or None.
 
     Returns:
         :class:`Fragments` of shape ``(intrinsics.height, intrinsics.width)``.
@@ -218,7 +249,8 @@ def rasterize(
     k = np.array([intrinsics.fx, intrinsics.fy, intrinsics.cx, intrinsics.cy], np.float64)
     image = (height, width, min(bands, height), bg, _NO_COUNT)
     n_first = len(prepared[3]) if first is None else int(np.clip(first, 0, len(prepared[3])))
-    color, depth, mask = _render(*prepared, k, float(near), *image, n_first=n_first)
+    color, depth, mask = _render(*prepared, k, float(near), *image, n_first=n_first,
+                                 alpha=check_alpha(alpha, len(prepared[0])))
     return Fragments(color=color, depth=depth, mask=mask)
 
 
@@ -240,7 +272,8 @@ class _Buffers:
 
 def _render(vertices, colors, scale, faces, rot, trans, k, near, height, width, bands, bg, count,
             n_first=None, buffers: _Buffers | None = None, blocks=None, factor: int = 0,
-            texture: np.ndarray = _NO_PACKED, smooth: float = 0.0, rgb8: bool = False):
+            texture: np.ndarray = _NO_PACKED, smooth: float = 0.0, rgb8: bool = False,
+            alpha: np.ndarray = _NO_ALPHA):
     """Vertex stage, clipping and rasterization on validated inputs (``blocks``:
     :func:`block_vertices` of ``faces``, computed when None). ``factor > 0``: return
     the supersampling resolve ``(color, coverage, depth)`` at ``1 / factor`` the size
@@ -248,7 +281,8 @@ def _render(vertices, colors, scale, faces, rot, trans, k, near, height, width, 
     :meth:`CPURasterizer.render_edges` (``factor`` 1), which with ``rgb8`` also returns
     the colours in 8 bits (a fresh ``(H, W, 3) uint8``, fourth). ``texture``: ``(T, U)
     uint32`` (:func:`~photo3d.render._kernels.pack_texture`) when ``colors`` are
-    texture coordinates ``(u, v, 0)``."""
+    texture coordinates ``(u, v, 0)``. ``alpha``: ``(N,) float32`` (:func:`check_alpha`)
+    adds a fourth channel to the colours, or ``(0,)``."""
     n_first = len(faces) if n_first is None else n_first
     blocks = block_vertices(faces, BLOCK) if blocks is None else blocks
     buffers = buffers or _Buffers()
@@ -257,21 +291,24 @@ def _render(vertices, colors, scale, faces, rot, trans, k, near, height, width, 
     if n_bad:
         raise InputError(f"{n_bad} vertices have non-finite coordinates")
     if n_behind:
-        xsv, xcol, xfaces = clip_near(sv, faces, vertices, colors, scale, rot, trans, k, near)
+        xsv, xcol, xfaces, xalpha = clip_near(sv, faces, vertices, colors, scale, rot, trans, k,
+                                              near, alpha)
     else:
         xsv, xcol = np.empty((0, 3), np.float32), np.empty((0, 3), np.float32)
-        xfaces = np.empty((0, 3), np.int32)
+        xfaces, xalpha = np.empty((0, 3), np.int32), _NO_ALPHA
     image = (height, width, bands, bg, count)
     bounds = block_bounds(sv, *blocks)
-    out = (buffers.get("color", (height, width, 3), np.float32),
+    channels = 4 if alpha.shape[0] else 3
+    out = (buffers.get("color", (height, width, channels), np.float32),
            buffers.get("depth", (height, width), np.float32),
            buffers.get("mask", (0, 0) if factor else (height, width), np.bool_))
     small = (height // factor, width // factor) if factor else (0, 0)
-    resolved = (np.empty((*small, 3), np.float32), np.empty(small, np.float32),
+    resolved = (np.empty((*small, channels), np.float32), np.empty(small, np.float32),
                 np.empty(small, np.float32))
     rgb = np.empty((height, width, 3) if rgb8 and factor == 1 else (0, 0, 3), np.uint8)
     frame = raster_frame(sv, colors, scale, faces, n_first, bounds, BLOCK, xsv, xcol, xfaces,
-                         *image, *out, factor, *resolved, texture, float(smooth), rgb)
+                         *image, *out, factor, *resolved, texture, float(smooth), rgb, alpha,
+                         xalpha)
     if rgb.size:
         return (*resolved, rgb)
     return resolved if factor else frame
@@ -292,13 +329,18 @@ class CPURasterizer:
     renderer = "numba (CPU)"
 
     def __init__(self, vertices, colors, faces, *, first: int | None = None,
-                 reuse: bool = False, texture: np.ndarray | None = None) -> None:
+                 reuse: bool = False, texture: np.ndarray | None = None,
+                 alpha: np.ndarray | None = None) -> None:
         """``first``: see :func:`rasterize`. ``reuse``: return the same arrays from every
         :meth:`render` call (each call overwrites the previous result): no
         allocation per frame, for callers that consume a frame before the next.
         ``texture``: ``(T, U, 3) uint8`` sRGB; then ``colors`` are ``(N, 3) float32``
-        texture coordinates ``(u, v, 0)`` (glTF convention, origin top-left)."""
+        texture coordinates ``(u, v, 0)`` (glTF convention, origin top-left).
+        ``alpha``: ``(N,) float32`` vertex coverage in [0, 1] (vertex colours only):
+        every result's colours get a fourth channel, the alpha of the corner nearest
+        each sample (see the module)."""
         self._prepared = prepare_mesh(vertices, colors, faces, None)[:4]
+        self._alpha = check_alpha(alpha, len(self._prepared[0]), texture)
         self._texture = pack_texture(check_texture(texture))
         n = len(self._prepared[3])
         self._first = n if first is None else int(np.clip(first, 0, n))
@@ -322,7 +364,7 @@ class CPURasterizer:
         color, depth, mask = _render(
             *self._prepared, *view, min(default_bands(), view[-2]),
             np.asarray(background, np.float32), _NO_COUNT, n_first=self._first,
-            buffers=self._buffers, blocks=self._blocks, texture=self._texture,
+            buffers=self._buffers, blocks=self._blocks, texture=self._texture, alpha=self._alpha,
         )
         return Fragments(color=color, depth=depth, mask=mask)
 
@@ -343,7 +385,8 @@ class CPURasterizer:
         Returns:
             ``(color (h, w, 3), coverage (h, w), depth (h, w))`` float32 at ``1 /
             factor`` the size: the mean colour of the covered samples (0 where none),
-            the covered fraction and the nearest depth (inf where none).
+            the covered fraction and the nearest depth (inf where none); ``color`` is
+            ``(h, w, 4)`` with ``alpha`` (its mean over the covered samples too).
 
         Example:
             >>> v = np.array([[-9, -9, 1], [9, -9, 1], [0, 9, 1]], np.float32)
@@ -359,7 +402,7 @@ class CPURasterizer:
         return _render(
             *self._prepared, *view, min(default_bands(), height // factor),
             np.zeros(3, np.float32), _NO_COUNT, n_first=self._first, buffers=self._buffers,
-            blocks=self._blocks, factor=factor, texture=self._texture,
+            blocks=self._blocks, factor=factor, texture=self._texture, alpha=self._alpha,
         )
 
     def render_edges(self, intrinsics: Intrinsics, *, pose=None, near: float = 1e-3,
@@ -372,9 +415,10 @@ class CPURasterizer:
 
         Returns:
             ``(color (H, W, 3), coverage (H, W), depth (H, W))`` float32 at the size
-            of ``intrinsics``; coverage is 0 or 1. With ``rgb8``, a fourth array: the
-            colours as ``(H, W, 3) uint8`` (black where coverage is 0), made in the
-            same pass.
+            of ``intrinsics``; coverage is 0 or 1; ``color`` is ``(H, W, 4)`` with
+            ``alpha`` (blended at depth edges like the colours). With ``rgb8``, a
+            fourth array: the colours as ``(H, W, 3) uint8`` (black where coverage is
+            0), made in the same pass.
 
         Example:
             >>> v = np.array([[-9, -9, 1], [9, -9, 2], [0, 9, 1]], np.float32)
@@ -388,6 +432,7 @@ class CPURasterizer:
             *self._prepared, *view, min(default_bands(), view[-2]), np.zeros(3, np.float32),
             _NO_COUNT, n_first=self._first, buffers=self._buffers, blocks=self._blocks,
             factor=1, texture=self._texture, smooth=max(float(tolerance), 0.0), rgb8=rgb8,
+            alpha=self._alpha,
         )
 
     def release(self) -> None:

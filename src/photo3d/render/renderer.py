@@ -35,6 +35,8 @@ from photo3d.render._resolve import (
 )
 from photo3d.structures.mesh import Mesh, TexturedMesh
 
+_NO_RGB = np.zeros((0, 0, 3), np.uint8)
+
 AUTHORS_CROP = (0.03, 0.03, 0.05, 0.03)
 """Border crop of the authors' videos: top, left, bottom, right fractions."""
 
@@ -198,32 +200,30 @@ class Renderer:
         if antialias == "auto":
             antialias = "edges" if texture is not None else "full"
         self._edges = self.backend == "numba" and antialias == "edges" and self.settings.ssaa > 1
-        if overlay is not None:  # each pixel's footprint one alpha (Mesh.cells)
-            overlay = overlay.cells()
-            self._overlay = (self._rasterizer(overlay, alpha=False),
-                             self._rasterizer(overlay, alpha=True))
-        else:
-            self._overlay = None
+        self._overlay = None if overlay is None else self._rasterizer(overlay)
 
-    def _rasterizer(self, fringe: Mesh, *, alpha: bool):
+    def _rasterizer(self, fringe: Mesh):
         """A rasterizer of this renderer's backend for the fringe mesh ``fringe``: its
-        vertex colours, or (``alpha``) its coverage as a grey colour."""
+        vertex colours and, as a fourth channel, its alpha, each sample taking that of
+        its triangle's corner of largest barycentric weight (so each pixel's footprint
+        carries its own alpha: interpolated from one pixel centre to the next, a
+        silhouette's outermost opaque pixel faded halfway toward its transparent
+        neighbour; ``docs/edges.md``)."""
         vertices, colors, _, faces = fringe.checked()
-        if alpha:
-            colors = np.repeat(np.asarray(fringe.alpha, np.float32)[:, None], 3, axis=1)
+        alpha = np.ones(len(vertices), np.float32) if fringe.alpha is None else fringe.alpha
         if self.backend == "gl":
             from photo3d.render.gl import GLRasterizer
 
-            return GLRasterizer(vertices, colors, faces)
+            return GLRasterizer(vertices, colors, faces, alpha=alpha)
         from photo3d.render.raster import CPURasterizer
 
-        return CPURasterizer(vertices, colors, faces, reuse=True)
+        return CPURasterizer(vertices, colors, faces, reuse=True, alpha=alpha)
 
     def close(self) -> None:
         """Release GPU resources (if any)."""
         self._raster.release()
-        for raster in self._overlay or ():
-            raster.release()
+        if self._overlay is not None:
+            self._overlay.release()
 
     def __enter__(self) -> Renderer:
         return self
@@ -254,25 +254,26 @@ class Renderer:
         big = Intrinsics(k.fx * f, k.fy * f, k.cx * f, k.cy * f, k.width * f, k.height * f)
         return raster.render_resolved(big, f, pose=pose, near=s.near)
 
-    def _blend(self, color: np.ndarray, depth: np.ndarray, k: Intrinsics,
-               pose) -> tuple[np.ndarray, np.ndarray]:
+    def _blend(self, color: np.ndarray, depth: np.ndarray, k: Intrinsics, pose,
+               rgb: np.ndarray = _NO_RGB) -> tuple[np.ndarray, np.ndarray]:
         """``color`` with the soft silhouettes' fringe blended over it where the fringe
-        is in front: ``a * fringe + (1 - a) * color``, ``a`` the fringe's interpolated
-        alpha times twice its coverage of the pixel, at most 1
-        (:func:`~photo3d.render._resolve.blend_fringe`); and the nearer depth."""
-        colors, alphas = self._overlay
-        f_color, f_coverage, f_depth = self._draw(colors, k, pose)
-        f_alpha = self._draw(alphas, k, pose)[0]
+        is in front: ``a * fringe + (1 - a) * color``, ``a`` the fringe's alpha (its
+        nearest corner's, drawn in the same pass as its colours) times twice its
+        coverage of the pixel, at most 1
+        (:func:`~photo3d.render._resolve.blend_fringe`); and the nearer depth.
+        ``rgb``: the frame in 8 bits, whose blended pixels are written again."""
+        f_color, f_coverage, f_depth = self._draw(self._overlay, k, pose)
         color = np.ascontiguousarray(color, np.float32)
         depth = np.array(depth, np.float32)  # a new array: the rasterizer may reuse its own
-        blend_fringe(color, depth, f_color, f_coverage, f_alpha, f_depth)
+        blend_fringe(color, depth, f_color, f_coverage, f_depth, rgb)
         return color, depth
 
     def render_rgb8(self, camera: Camera) -> np.ndarray:
         """``render(camera).color`` in 8 bits (``to_rgb8``): a new ``(H, W, 3) uint8``
         array. With ``antialias`` ``edges`` on the CPU the rasterizer writes the 8-bit
-        colours in the pass that blends the edges, and only the filled holes are
-        converted afterwards (a video frame: one pass over the image less).
+        colours in the pass that blends the edges, and only the filled holes and the
+        pixels the soft silhouettes' fringe is blended into are converted afterwards
+        (a video frame: one pass over the image less).
 
         Example:
             >>> from photo3d.stages.ldi import from_image
@@ -284,12 +285,17 @@ class Renderer:
             >>> rgb.shape, rgb.dtype, int(rgb[4, 4, 0])
             ((8, 8, 3), dtype('uint8'), 128)
         """
-        if not self._edges or self._overlay is not None:
+        if not self._edges:
             return to_rgb8(self.render(camera).color)
+        check()
+        k = self._intrinsics(camera)
         color, coverage, depth, rgb = self._raster.render_edges(
-            self._intrinsics(camera), pose=camera.pose, near=self.settings.near,
-            tolerance=EDGE_TOLERANCE, rgb8=True)
-        return holes_to_rgb8(self._holes(color, coverage, depth), coverage, rgb)
+            k, pose=camera.pose, near=self.settings.near, tolerance=EDGE_TOLERANCE, rgb8=True)
+        color = self._holes(color, coverage, depth)
+        holes_to_rgb8(color, coverage, rgb)
+        if self._overlay is not None:
+            self._blend(color, depth, k, camera.pose, rgb)
+        return rgb
 
     def frame_workers(self) -> int:
         """How many frames :func:`~photo3d.render.animate.render_frames` renders at

@@ -73,50 +73,6 @@ class Mesh:
             faces=inverse.reshape(-1, 3).astype(np.int32),
             alpha=np.asarray(self.alpha, np.float32)[used])
 
-    def cells(self) -> Mesh:
-        """This mesh with each triangle split into its corners' cells (the corner, the
-        midpoints of its two edges and the centroid; two triangles each), every cell
-        taking its corner's ``alpha``: drawn, the alpha is constant over each vertex's
-        footprint instead of interpolated from one pixel's centre to the next (which
-        faded a silhouette's outermost opaque pixel halfway toward its transparent
-        neighbour). Positions and colours stay interpolated. Six triangles and 18
-        vertices of their own for each triangle (a fringe's: see ``docs/edges.md``).
-
-        Example:
-            >>> v = np.array([[0, 0, 1], [2, 0, 1], [0, 2, 1]], np.float32)
-            >>> m = Mesh(v, np.zeros((3, 3), np.uint8), np.ones(3, np.uint8),
-            ...          np.array([[0, 1, 2]], np.int32), 2, 2, 1.0, 1.0,
-            ...          alpha=np.array([1, 0.5, 0], np.float32))
-            >>> c = m.cells()
-            >>> len(c.faces), sorted(set(c.alpha.tolist()))
-            (6, [0.0, 0.5, 1.0])
-        """
-        vertices = np.asarray(self.vertices, np.float32)
-        colors = np.asarray(self.colors, np.float32)
-        alpha = (np.ones(len(vertices), np.float32) if self.alpha is None
-                 else np.asarray(self.alpha, np.float32))
-        faces = np.asarray(self.faces, np.int64)
-        labels = np.asarray(self.labels)
-        centre_v, centre_c = vertices[faces].mean(axis=1), colors[faces].mean(axis=1)
-        out_v, out_c, out_a, out_l = [], [], [], []
-        for i in range(3):
-            corner, nxt, prev = faces[:, i], faces[:, (i + 1) % 3], faces[:, (i + 2) % 3]
-            v, c = vertices[corner], colors[corner]
-            to_next_v, to_next_c = (v + vertices[nxt]) / 2, (c + colors[nxt]) / 2
-            to_prev_v, to_prev_c = (v + vertices[prev]) / 2, (c + colors[prev]) / 2
-            # (corner, to next, centre) and (corner, centre, to prev): the face's winding
-            out_v += [np.stack([v, to_next_v, centre_v], 1), np.stack([v, centre_v, to_prev_v], 1)]
-            out_c += [np.stack([c, to_next_c, centre_c], 1), np.stack([c, centre_c, to_prev_c], 1)]
-            out_a += [np.repeat(alpha[corner][:, None], 3, 1)] * 2
-            out_l += [np.repeat(labels[corner][:, None], 3, 1)] * 2
-        count = 6 * len(faces)
-        return dataclasses.replace(
-            self, vertices=np.concatenate(out_v).reshape(-1, 3),
-            colors=np.clip(np.rint(np.concatenate(out_c).reshape(-1, 3)), 0, 255).astype(np.uint8),
-            labels=np.concatenate(out_l).reshape(-1).astype(np.uint8),
-            faces=np.arange(3 * count, dtype=np.int32).reshape(-1, 3),
-            alpha=np.concatenate(out_a).reshape(-1))
-
     def checked(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """``(vertices, colors, labels, faces)`` in the documented dtypes, validated.
 
