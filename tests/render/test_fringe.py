@@ -1,6 +1,7 @@
-"""The soft silhouettes' fringe drawn in one pass: each sample takes the alpha of its
-triangle's corner of largest barycentric weight (the corner's cell), against the
-cells split out explicitly and drawn twice (how the renderer drew it before)."""
+"""The soft silhouettes' fringe drawn in one pass: each sample takes the colour and
+alpha of its triangle's corner of largest barycentric weight (the corner's cell),
+against the cells split out explicitly and drawn twice, colours then alpha (how the
+renderer drew it before, then with interpolated colours)."""
 
 from __future__ import annotations
 
@@ -12,27 +13,25 @@ import photo3d
 from photo3d.camera import Camera, Intrinsics
 from photo3d.config import Config
 from photo3d.errors import InputError
-from photo3d.render._resolve import to_rgb8
+from photo3d.render._resolve import blend_fringe, to_rgb8
 from photo3d.render.raster import CPURasterizer, rasterize
 from photo3d.render.renderer import Renderer, video_settings
 
 
 def cells(vertices, colors, alpha, faces):
     """Each triangle split at its edges' midpoints and centroid into its corners' cells
-    (two triangles each), every cell with its corner's alpha: ``(vertices (18 M, 3),
-    colors (18 M, 3) float32, alpha (18 M,), faces (6 M, 3))``. Colours are
-    interpolated to the new vertices (float, not rounded)."""
-    v, c = vertices[faces], colors[faces]  # (M, 3, 3)
-    centre_v, centre_c = v.mean(axis=1), c.mean(axis=1)
+    (two triangles each), every cell with its corner's colour and alpha (what
+    ``Mesh.cells`` did for the alpha): ``(vertices (18 M, 3), colors (18 M, 3)
+    float32, alpha (18 M,), faces (6 M, 3))``."""
+    v = vertices[faces]  # (M, 3, 3)
+    centre = v.mean(axis=1)
     out_v, out_c, out_a = [], [], []
     for i in range(3):
         nxt, prev = (i + 1) % 3, (i + 2) % 3
-        to_next_v, to_next_c = (v[:, i] + v[:, nxt]) / 2, (c[:, i] + c[:, nxt]) / 2
-        to_prev_v, to_prev_c = (v[:, i] + v[:, prev]) / 2, (c[:, i] + c[:, prev]) / 2
-        out_v += [np.stack([v[:, i], to_next_v, centre_v], 1),
-                  np.stack([v[:, i], centre_v, to_prev_v], 1)]
-        out_c += [np.stack([c[:, i], to_next_c, centre_c], 1),
-                  np.stack([c[:, i], centre_c, to_prev_c], 1)]
+        to_next, to_prev = (v[:, i] + v[:, nxt]) / 2, (v[:, i] + v[:, prev]) / 2
+        out_v += [np.stack([v[:, i], to_next, centre], 1),
+                  np.stack([v[:, i], centre, to_prev], 1)]
+        out_c += [np.repeat(colors[faces[:, i]][:, None], 3, 1)] * 2
         out_a += [np.repeat(alpha[faces[:, i]][:, None], 3, 1)] * 2
     n = 6 * len(faces)
     return (np.concatenate(out_v).reshape(-1, 3).astype(np.float32),
@@ -54,11 +53,11 @@ def bumpy_grid(n: int = 24, seed: int = 4):
     return v, colors, alpha, grid_faces(n, n)
 
 
-def test_nearest_corner_alpha_is_each_pixels_own_at_the_input_camera():
+def test_nearest_corner_is_each_pixels_own_at_the_input_camera():
     """Vertices on pixel centres: every sample within half a pixel of a vertex (one
     sample a pixel, or the 2 x 2 supersamples at a quarter pixel) takes exactly that
-    vertex's alpha, while the colours stay interpolated between the corners (alpha
-    interpolated instead would average each supersample with its neighbours')."""
+    vertex's colour and alpha (interpolated, each supersample would mix in its
+    neighbours' by a quarter)."""
     rng = np.random.default_rng(2)
     depth = 2.0 + 0.5 * rng.random((K.height, K.width))
     v = input_view_grid(depth).astype(np.float32)
@@ -72,18 +71,19 @@ def test_nearest_corner_alpha_is_each_pixels_own_at_the_input_camera():
     big = Intrinsics(2 * K.fx, 2 * K.fy, 2 * K.cx, 2 * K.cy, 2 * K.width, 2 * K.height)
     color, coverage, _ = r.render_resolved(big, 2)
     inner = (slice(1, -1), slice(1, -1))  # the border pixels are covered in part
+    assert coverage[inner].min() == 1.0
     assert np.allclose(color[..., 3][inner], alpha.reshape(K.height, K.width)[inner], atol=1e-6)
-    # the colours: each supersample interpolated a quarter pixel toward its neighbours
-    assert not np.allclose(color[..., :3][inner], colors.reshape(K.height, K.width, 3)[inner],
-                           atol=1e-2)
+    assert np.allclose(color[..., :3][inner], colors.reshape(K.height, K.width, 3)[inner],
+                       atol=1e-6)
 
 
 @pytest.mark.parametrize("pose", [np.eye(4), look_pose(0.15, -0.25, (0.3, -0.1, 0.4))])
 def test_one_pass_draws_the_image_of_the_cells_drawn_twice(pose):
-    """The fringe drawn unsplit with the nearest corner's alpha equals its cells drawn
-    twice (colours, then alpha as grey), sample for sample: the same coverage, depth
-    and colours, and the same alpha except at a few samples on a cell's edge (the
-    cells' midpoints are snapped to the 1/256 px grid on their own)."""
+    """The fringe drawn unsplit with the nearest corner's colour and alpha equals its
+    cells drawn twice (colours, then alpha as grey), sample for sample: the same
+    coverage and depth, and the same colours and alpha except at a few samples on a
+    cell's edge (the cells' midpoints are snapped to the 1/256 px grid on their
+    own)."""
     v, colors, alpha, faces = bumpy_grid()
     frag = rasterize(v, colors, faces, K, pose=pose, alpha=alpha)
     cv, cc, ca, cf = cells(v, colors, alpha, faces)
@@ -93,10 +93,10 @@ def test_one_pass_draws_the_image_of_the_cells_drawn_twice(pose):
     assert frag.mask.sum() > 0.5 * frag.mask.size
     assert (frag.mask != ref.mask).sum() <= 0.002 * frag.mask.size
     assert np.allclose(frag.depth[both], ref.depth[both], rtol=1e-4)
-    # the snapped midpoints move the cells' interpolation by up to 1/512 px
-    assert np.abs(frag.color[..., :3][both] - ref.color[both]).max() < 5e-3
     differ = np.abs(frag.color[..., 3] - ref_alpha)[both] > 1e-6
     assert differ.mean() < 0.005, differ.mean()
+    same = both & (np.abs(frag.color[..., 3] - ref_alpha) <= 1e-6)
+    assert np.abs(frag.color[..., :3][same] - ref.color[same]).max() < 1e-6
     assert not np.any(frag.color[..., 3][~frag.mask])  # no fringe: alpha 0
 
 
@@ -151,3 +151,28 @@ def test_a_frame_with_a_fringe_keeps_the_8_bit_path():
         hard._overlay = None
         opaque = hard.render_rgb8(camera)
     assert (np.abs(rgb.astype(int) - opaque).max(-1) > 8).sum() > 10  # the fringe is drawn
+
+
+def test_the_fused_blend_equals_blending_the_fringes_own_frame():
+    """``blend_edges`` (the videos' path) gives the frame ``blend_fringe`` makes of
+    ``render_edges``'s result, in float and in 8 bits, and touches no other pixel."""
+    v, colors, alpha, faces = bumpy_grid(seed=6)
+    alpha[::3] = 0.0  # transparent corners: not blended
+    r = CPURasterizer(v, colors, faces, alpha=alpha)
+    rng = np.random.default_rng(1)
+    under = rng.random((K.height, K.width, 3), dtype=np.float32)
+    depth = np.full((K.height, K.width), 2.6, np.float32)  # the bumps cross it
+    depth[:, :8] = np.inf  # a hole
+    rgb = to_rgb8(under)
+    f_color, f_coverage, f_depth = r.render_edges(K, tolerance=0.03)
+    expected, expected_depth, expected_rgb = under.copy(), depth.copy(), rgb.copy()
+    blend_fringe(expected, expected_depth, f_color, f_coverage, f_depth, expected_rgb)
+    changed = np.any(expected != under, axis=-1)
+    assert 0.1 < changed.mean() < 0.9
+    r.blend_edges(K, under, depth, tolerance=0.03, rgb=rgb)
+    assert np.allclose(under, expected, atol=1e-6)
+    assert np.array_equal(depth, expected_depth)
+    assert np.array_equal(rgb, expected_rgb)
+    assert np.array_equal(rgb, to_rgb8(under))
+    with pytest.raises(InputError, match="color must be"):
+        r.blend_edges(K, under[:-1], depth)

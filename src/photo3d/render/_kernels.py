@@ -90,11 +90,15 @@ def _draw_float(sv, col, scale, i0, i1, i2, r0, r1, c0, c1, color, depth, count,
             z = np.float32(area / suma)
             if z < depth[y, x]:
                 depth[y, x] = z
-                for ch in range(3):
-                    v = (a0 * col[i0, ch] + a1 * col[i1, ch] + a2 * col[i2, ch]) / suma * scale
-                    color[y, x, ch] = min(max(v, 0.0), 1.0)
-                if fringe:
-                    color[y, x, 3] = _nearest(a0, a1, a2, alpha[i0], alpha[i1], alpha[i2])
+                if fringe:  # the nearest corner's colour and alpha
+                    j = _nearest(a0, a1, a2, i0, i1, i2)
+                    for ch in range(3):
+                        color[y, x, ch] = min(max(col[j, ch] * scale, 0.0), 1.0)
+                    color[y, x, 3] = alpha[j]
+                else:
+                    for ch in range(3):
+                        v = (a0 * col[i0, ch] + a1 * col[i1, ch] + a2 * col[i2, ch]) / suma
+                        color[y, x, ch] = min(max(v * scale, 0.0), 1.0)
 
 
 _SPAN_MIN = 1
@@ -135,9 +139,11 @@ def _draw(sv, col, scale, i0, i1, i2, y_lo, y_hi, width, color, depth, count, uv
     to (24.8 fixed point), stepped incrementally along each row; a row of a wide box
     is scanned only between its edges (:func:`_span`). ``uv``: ``col`` holds texture
     coordinates (two channels, not clamped). ``alpha``: ``(N,) float32`` vertex
-    coverage, written to ``color``'s fourth channel as that of the corner with the
-    largest perspective-correct barycentric weight (:func:`_nearest`), or ``(0,)``
-    for none (``color`` may then have three channels)."""
+    coverage, or ``(0,)`` for none (``color`` may then have three channels); with it,
+    each sample takes the colour and (fourth channel) the alpha of the corner with
+    the largest perspective-correct barycentric weight (:func:`_nearest`: the
+    fringe of soft silhouettes, drawn as its pixels' footprints), not interpolated
+    colours."""
     ay, by, cy = np.float64(sv[i0, 1]), np.float64(sv[i1, 1]), np.float64(sv[i2, 1])
     r0 = max(y_lo, math.ceil(min(ay, by, cy) - 0.5))
     r1 = min(y_hi - 1, math.floor(max(ay, by, cy) - 0.5))
@@ -179,9 +185,6 @@ def _draw(sv, col, scale, i0, i1, i2, y_lo, y_hi, width, color, depth, count, uv
     r1c, g1c, b1c = col[i1, 0] * scale, col[i1, 1] * scale, col[i1, 2] * scale
     r2c, g2c, b2c = col[i2, 0] * scale, col[i2, 1] * scale, col[i2, 2] * scale
     fringe = alpha.shape[0] > 0
-    al0 = alpha[i0] if fringe else np.float32(0.0)
-    al1 = alpha[i1] if fringe else np.float32(0.0)
-    al2 = alpha[i2] if fringe else np.float32(0.0)
     s0, s1, s2 = dy0 * 256, dy1 * 256, dy2 * 256
     inv0 = 1.0 / abs(s0) if s0 != 0 else 0.0
     inv1 = 1.0 / abs(s1) if s1 != 0 else 0.0
@@ -229,13 +232,16 @@ def _draw(sv, col, scale, i0, i1, i2, y_lo, y_hi, width, color, depth, count, uv
                         if uv:  # texture coordinates: the texture lookup clamps them
                             color[y, x, 0] = sr * inv
                             color[y, x, 1] = sg * inv
+                        elif fringe:  # the nearest corner's colour and alpha (its cell)
+                            j = _nearest(w0 * iz0, w1 * iz1, w2 * iz2, i0, i1, i2)
+                            color[y, x, 0] = min(max(col[j, 0] * scale, 0.0), 1.0)
+                            color[y, x, 1] = min(max(col[j, 1] * scale, 0.0), 1.0)
+                            color[y, x, 2] = min(max(col[j, 2] * scale, 0.0), 1.0)
+                            color[y, x, 3] = alpha[j]
                         else:
                             color[y, x, 0] = min(max(sr * inv, 0.0), 1.0)
                             color[y, x, 1] = min(max(sg * inv, 0.0), 1.0)
                             color[y, x, 2] = min(max(sb * inv, 0.0), 1.0)
-                        if fringe:  # the nearest corner's: one alpha per cell
-                            color[y, x, 3] = _nearest(w0 * iz0, w1 * iz1, w2 * iz2,
-                                                      al0, al1, al2)
             w0 -= s0
             w1 -= s1
             w2 -= s2
@@ -495,7 +501,7 @@ samples when the edge is within a quarter pixel of it, none otherwise)."""
 
 
 @njit(cache=True, error_model="numpy", nogil=True, fastmath=FASTMATH)
-def _finish_rows(color, depth, smooth, r0, r1, out_color, out_cov, out_depth, out_rgb):
+def _finish_rows(color, depth, smooth, r0, r1, out_color, out_cov, out_depth, out_rgb, blend):
     """One sample per pixel, rows ``r0..r1-1``: the resolve of :func:`_resolve_rows`
     with ``factor = 1``, and with ``smooth > 0`` a covered pixel whose 4-neighbour is
     covered but more than ``smooth`` (relative) nearer or farther mixes in
@@ -504,7 +510,15 @@ def _finish_rows(color, depth, smooth, r0, r1, out_color, out_cov, out_depth, ou
     uint8`` receives the colours in 8 bits as well (as
     :func:`photo3d.render._resolve.to_rgb8`; black where nothing is covered), or
     ``(0, 0, 3)`` for none. A fourth channel (alpha) is copied and blended like the
-    colours (0 where nothing is covered)."""
+    colours (0 where nothing is covered).
+
+    ``blend``: ``color`` (four channels: the soft silhouettes' fringe) is instead
+    blended over the frame ``out_color`` ``(H, W, 3)``, ``out_depth`` (and
+    ``out_rgb``) drawn before, in place: where a covered pixel is at or in front of
+    ``out_depth`` (within 0.1 %), ``a`` (its alpha) of its colour over
+    ``out_color``, and ``out_depth`` the nearer; other pixels are left as they are
+    (``out_cov`` is not used). :func:`photo3d.render._resolve.blend_fringe` with
+    coverage 1, fused."""
     h, w = depth.shape
     grow = 1.0 + smooth
     rgb8 = out_rgb.shape[0] > 0
@@ -512,7 +526,11 @@ def _finish_rows(color, depth, smooth, r0, r1, out_color, out_cov, out_depth, ou
     for y in range(r0, r1):
         for x in range(w):
             z = depth[y, x]
-            out_depth[y, x] = z
+            if blend:
+                if z == np.inf or z > out_depth[y, x] * 1.001:
+                    continue
+            else:
+                out_depth[y, x] = z
             if z == np.inf:
                 out_cov[y, x] = 0.0
                 out_color[y, x, 0], out_color[y, x, 1], out_color[y, x, 2] = 0.0, 0.0, 0.0
@@ -521,7 +539,8 @@ def _finish_rows(color, depth, smooth, r0, r1, out_color, out_cov, out_depth, ou
                 if rgb8:
                     out_rgb[y, x, 0], out_rgb[y, x, 1], out_rgb[y, x, 2] = 0, 0, 0
                 continue
-            out_cov[y, x] = 1.0
+            if not blend:
+                out_cov[y, x] = 1.0
             r, g, b = color[y, x, 0], color[y, x, 1], color[y, x, 2]
             mr, mg, mb = r, g, b
             a = color[y, x, 3] if four else np.float32(0.0)
@@ -543,12 +562,20 @@ def _finish_rows(color, depth, smooth, r0, r1, out_color, out_cov, out_depth, ou
                         mb += EDGE_BLEND * (color[yy, xx, 2] - b)
                         if four:
                             ma += EDGE_BLEND * (color[yy, xx, 3] - a)
-            out_color[y, x, 0], out_color[y, x, 1], out_color[y, x, 2] = mr, mg, mb
-            if four:
+            if blend:
+                if ma <= 0.0:
+                    continue
+                mr = ma * mr + (1.0 - ma) * out_color[y, x, 0]
+                mg = ma * mg + (1.0 - ma) * out_color[y, x, 1]
+                mb = ma * mb + (1.0 - ma) * out_color[y, x, 2]
+                out_depth[y, x] = min(out_depth[y, x], z)
+            elif four:
                 out_color[y, x, 3] = ma
-            if rgb8:
-                out_rgb[y, x, 0], out_rgb[y, x, 1] = _to_8bit(mr), _to_8bit(mg)
-                out_rgb[y, x, 2] = _to_8bit(mb)
+            out_color[y, x, 0], out_color[y, x, 1], out_color[y, x, 2] = mr, mg, mb
+            if rgb8:  # from the float32 colours, as to_rgb8 of the frame
+                out_rgb[y, x, 0] = _to_8bit(out_color[y, x, 0])
+                out_rgb[y, x, 1] = _to_8bit(out_color[y, x, 1])
+                out_rgb[y, x, 2] = _to_8bit(out_color[y, x, 2])
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -588,7 +615,7 @@ def _inner_rows(y_lo, y_hi, height):
 @njit(parallel=True, cache=True, error_model="numpy", nogil=True, fastmath=FASTMATH)
 def raster_frame(sv, col, scale, faces, n_first, bounds, block, xsv, xcol, xfaces, height,
                  width, bands, background, count, color, depth, mask, factor, out_color, out_cov,
-                 out_depth, texture, smooth, rgb, alpha, xalpha):
+                 out_depth, texture, smooth, rgb, alpha, xalpha, blend):
     """Z-buffer render of ``faces`` over ``sv`` and ``xfaces`` over ``xsv``, in
     ``bands`` horizontal bands rendered in parallel; returns ``(color, depth, mask)``.
 
@@ -612,9 +639,11 @@ def raster_frame(sv, col, scale, faces, n_first, bounds, block, xsv, xcol, xface
     video frame), or ``(0, 0, 3)``. ``alpha``, ``xalpha``: ``(N,)`` and ``(K,)
     float32`` vertex coverage of ``sv`` and ``xsv`` (the soft silhouettes' fringe),
     written as a fourth channel of ``color`` (and of ``out_color``; 0 where nothing
-    is covered), each sample taking the alpha of its triangle's corner of largest
-    barycentric weight (:func:`_nearest`: one alpha per corner's cell), or ``(0,)``
-    for none.
+    is covered), each sample taking the colour and alpha of its triangle's corner of
+    largest barycentric weight (:func:`_nearest`: one colour and alpha per corner's
+    cell), or ``(0,)`` for none. ``blend`` (with ``factor = 1`` and ``alpha``):
+    blend the result over the frame ``out_color``, ``out_depth`` and ``rgb`` hold
+    instead of writing them (see :func:`_finish_rows`).
 
     ``faces[:n_first]`` are drawn first; later faces and blocks (``bounds`` from
     :func:`block_bounds`) are skipped when they lie behind the farthest depth drawn
@@ -633,7 +662,7 @@ def raster_frame(sv, col, scale, faces, n_first, bounds, block, xsv, xcol, xface
         ...     np.zeros(3, np.float32), np.zeros((0, 0), np.int32), color, depth, mask, 0,
         ...     np.zeros((0, 0, 3), np.float32), none, none, np.zeros((0, 0), np.uint32),
         ...     0.0, np.zeros((0, 0, 3), np.uint8), np.zeros(0, np.float32),
-        ...     np.zeros(0, np.float32))
+        ...     np.zeros(0, np.float32), False)
         >>> mask.astype(int)
         array([[1, 1, 1, 0],
                [1, 1, 0, 0],
@@ -688,7 +717,7 @@ def raster_frame(sv, col, scale, faces, n_first, bounds, block, xsv, xcol, xface
             _texture_rows(color, depth, texture, y_lo, y_hi)
         if factor == 1:  # the rows whose neighbours are all in this band
             lo, hi = _inner_rows(y_lo, y_hi, height)
-            _finish_rows(color, depth, smooth, lo, hi, out_color, out_cov, out_depth, rgb)
+            _finish_rows(color, depth, smooth, lo, hi, out_color, out_cov, out_depth, rgb, blend)
         elif factor > 1:
             _resolve_rows(color, depth, factor, y_lo // factor, y_hi // factor, out_color,
                           out_cov, out_depth)
@@ -706,9 +735,10 @@ def raster_frame(sv, col, scale, faces, n_first, bounds, block, xsv, xcol, xface
         for band in range(bands):
             y_lo, y_hi = _band_rows(band, bands, height, unit)
             lo, hi = _inner_rows(y_lo, y_hi, height)
-            _finish_rows(color, depth, smooth, y_lo, lo, out_color, out_cov, out_depth, rgb)
+            _finish_rows(color, depth, smooth, y_lo, lo, out_color, out_cov, out_depth, rgb,
+                         blend)
             _finish_rows(color, depth, smooth, max(hi, lo), y_hi, out_color, out_cov, out_depth,
-                         rgb)
+                         rgb, blend)
     return color, depth, mask
 
 

@@ -20,11 +20,12 @@ How it maps onto OpenGL:
   ``ln(far / near) / 2**24`` (6e-7 for near 1e-3, far 20), where a standard
   projection with near 1e-3 would resolve only 0.1 % at z = 20.
 * A mesh with a vertex coverage (``alpha``, the soft silhouettes' fringe) is drawn
-  through a geometry shader that hands each fragment its triangle's three alphas
-  (flat) and its perspective-correct barycentric weights; the fragment takes the
-  alpha of the corner of largest weight, as the CPU rasterizer does, into a second
-  ``R32F`` attachment (the result's fourth colour channel). GL clips after the
-  geometry shader, so a triangle crossing the near plane keeps its corners' cells.
+  through a geometry shader that hands each fragment its triangle's three colours
+  and alphas (flat) and its perspective-correct barycentric weights; the fragment
+  takes the colour and alpha of the corner of largest weight, as the CPU rasterizer
+  does, the alpha into a second ``R32F`` attachment (the result's fourth colour
+  channel). GL clips after the geometry shader, so a triangle crossing the near
+  plane keeps its corners' cells.
 * Known differences from the CPU rasterizer: a pixel centre exactly on a triangle
   edge or vertex follows the GPU's own fill rule (so the right and bottom border of
   a mesh whose vertices lie on pixel centres may stay uncovered, where the CPU
@@ -117,17 +118,19 @@ layout(triangle_strip, max_vertices = 3) out;
 in vec3 v_color[];
 in float v_z[];
 in float v_alpha[];
-out vec3 g_color;
 out float g_z;
 out vec3 g_weight;      // barycentric weights, perspective-correct: e_i at corner i
-flat out vec3 g_alpha;  // the three corners' alpha
+flat out vec4 g_c0;     // the three corners' colour and alpha
+flat out vec4 g_c1;
+flat out vec4 g_c2;
 void main() {
     for (int i = 0; i < 3; ++i) {
         gl_Position = gl_in[i].gl_Position;
-        g_color = v_color[i];
         g_z = v_z[i];
         g_weight = vec3(i == 0, i == 1, i == 2);
-        g_alpha = vec3(v_alpha[0], v_alpha[1], v_alpha[2]);
+        g_c0 = vec4(v_color[0], v_alpha[0]);
+        g_c1 = vec4(v_color[1], v_alpha[1]);
+        g_c2 = vec4(v_color[2], v_alpha[2]);
         EmitVertex();
     }
     EndPrimitive();
@@ -137,17 +140,19 @@ void main() {
 _FRAGMENT_SHADER_ALPHA = """
 #version 330
 uniform vec2 log_z;
-in vec3 g_color;
 in float g_z;
 in vec3 g_weight;
-flat in vec3 g_alpha;
+flat in vec4 g_c0;
+flat in vec4 g_c1;
+flat in vec4 g_c2;
 layout(location = 0) out vec4 f_out;
 layout(location = 1) out float f_alpha;
 void main() {
-    f_out = vec4(clamp(g_color, 0.0, 1.0), g_z);
     // the corner of largest weight (ties to the lower index, as on the CPU)
-    f_alpha = (g_weight.x >= g_weight.y && g_weight.x >= g_weight.z) ? g_alpha.x
-              : (g_weight.y >= g_weight.z ? g_alpha.y : g_alpha.z);
+    vec4 c = (g_weight.x >= g_weight.y && g_weight.x >= g_weight.z) ? g_c0
+             : (g_weight.y >= g_weight.z ? g_c1 : g_c2);
+    f_out = vec4(clamp(c.rgb, 0.0, 1.0), g_z);
+    f_alpha = c.a;
     gl_FragDepth = (log(g_z) - log_z.x) * log_z.y;
 }
 """
@@ -251,9 +256,10 @@ class GLRasterizer:
         texture: ``(T, U, 3) uint8`` sRGB; then ``colors`` are texture coordinates
             ``(u, v, 0)`` rendered into the float target and looked up on the CPU
             afterwards (deferred texturing, as the numba rasterizer does).
-        alpha: ``(N,) float32`` vertex coverage in [0, 1] (vertex colours only): the
-            results' colours get a fourth channel, the alpha of the corner nearest
-            each sample (as :class:`~photo3d.render.raster.CPURasterizer`).
+        alpha: ``(N,) float32`` vertex coverage in [0, 1] (vertex colours only): each
+            sample takes the colour and alpha of its triangle's corner nearest to it,
+            the alpha as a fourth colour channel (as
+            :class:`~photo3d.render.raster.CPURasterizer`).
 
     Raises:
         MissingExtra: moderngl is not installed (extra ``gl``; an ImportError too).

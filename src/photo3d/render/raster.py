@@ -23,11 +23,11 @@ How it works:
   centres, reproduces every vertex colour, also along the mesh borders.
 * Colour and depth are interpolated perspective-correctly (``c/z`` and ``1/z`` are
   linear in screen space); the nearest surface wins, ties keep the first triangle.
-* A mesh with a vertex coverage (``alpha``, the soft silhouettes' fringe) gets a
-  fourth channel: each sample takes the alpha of its triangle's corner with the
-  largest perspective-correct barycentric weight, so the alpha is constant over each
-  vertex's footprint (the corner's cell: bounded by the lines from the triangle's
-  edge midpoints to its centroid) while the colours stay interpolated.
+* A mesh with a vertex coverage (``alpha``, the soft silhouettes' fringe) is not
+  interpolated: each sample takes the colour and alpha (a fourth channel) of its
+  triangle's corner with the largest perspective-correct barycentric weight, so both
+  are constant over each vertex's footprint (the corner's cell: bounded by the lines
+  from the triangle's edge midpoints to its centroid), as a pixel of the photo is.
 """
 
 from __future__ import annotations
@@ -58,8 +58,8 @@ class Fragments:
 
     Attributes:
         color: ``(H, W, 3) float32`` in [0, 1]; the background colour where nothing
-            was hit. ``(H, W, 4)`` for a mesh with ``alpha``: the fourth channel is
-            the nearest corner's alpha (0 where nothing was hit).
+            was hit. ``(H, W, 4)`` for a mesh with ``alpha``: the nearest corner's
+            colour and, fourth, its alpha (0 where nothing was hit).
         depth: ``(H, W) float32`` camera z of the nearest surface, ``+inf`` where
             nothing was hit.
         mask: ``(H, W) bool``, True where a triangle covered the pixel centre.
@@ -222,7 +222,8 @@ def rasterize(
             (hierarchical z, same image, less work when the first faces are the
             visible layer: photo3d meshes list the input layer first). None: all.
         alpha: ``(N,) float32`` vertex coverage in [0, 1], drawn as the fourth
-            channel of ``color`` (the nearest corner's, see the module), or None.
+            channel of ``color``, with the colours, as the nearest corner's (see the
+            module), or None.
 
     Returns:
         :class:`Fragments` of shape ``(intrinsics.height, intrinsics.width)``.
@@ -273,7 +274,7 @@ class _Buffers:
 def _render(vertices, colors, scale, faces, rot, trans, k, near, height, width, bands, bg, count,
             n_first=None, buffers: _Buffers | None = None, blocks=None, factor: int = 0,
             texture: np.ndarray = _NO_PACKED, smooth: float = 0.0, rgb8: bool = False,
-            alpha: np.ndarray = _NO_ALPHA):
+            alpha: np.ndarray = _NO_ALPHA, under: tuple | None = None):
     """Vertex stage, clipping and rasterization on validated inputs (``blocks``:
     :func:`block_vertices` of ``faces``, computed when None). ``factor > 0``: return
     the supersampling resolve ``(color, coverage, depth)`` at ``1 / factor`` the size
@@ -282,7 +283,10 @@ def _render(vertices, colors, scale, faces, rot, trans, k, near, height, width, 
     the colours in 8 bits (a fresh ``(H, W, 3) uint8``, fourth). ``texture``: ``(T, U)
     uint32`` (:func:`~photo3d.render._kernels.pack_texture`) when ``colors`` are
     texture coordinates ``(u, v, 0)``. ``alpha``: ``(N,) float32`` (:func:`check_alpha`)
-    adds a fourth channel to the colours, or ``(0,)``."""
+    adds a fourth channel to the colours, or ``(0,)``. ``under``: ``(color (H, W, 3)
+    float32, depth (H, W) float32, rgb (H, W, 3) | (0, 0, 3) uint8)`` of a frame drawn
+    before, which the result (``factor`` 1, ``alpha``) is blended over in place
+    instead of being returned (:meth:`CPURasterizer.blend_edges`)."""
     n_first = len(faces) if n_first is None else n_first
     blocks = block_vertices(faces, BLOCK) if blocks is None else blocks
     buffers = buffers or _Buffers()
@@ -303,12 +307,18 @@ def _render(vertices, colors, scale, faces, rot, trans, k, near, height, width, 
            buffers.get("depth", (height, width), np.float32),
            buffers.get("mask", (0, 0) if factor else (height, width), np.bool_))
     small = (height // factor, width // factor) if factor else (0, 0)
-    resolved = (np.empty((*small, channels), np.float32), np.empty(small, np.float32),
-                np.empty(small, np.float32))
-    rgb = np.empty((height, width, 3) if rgb8 and factor == 1 else (0, 0, 3), np.uint8)
+    if under is not None:
+        resolved = (under[0], np.empty((0, 0), np.float32), under[1])
+        rgb = under[2]
+    else:
+        resolved = (np.empty((*small, channels), np.float32), np.empty(small, np.float32),
+                    np.empty(small, np.float32))
+        rgb = np.empty((height, width, 3) if rgb8 and factor == 1 else (0, 0, 3), np.uint8)
     frame = raster_frame(sv, colors, scale, faces, n_first, bounds, BLOCK, xsv, xcol, xfaces,
                          *image, *out, factor, *resolved, texture, float(smooth), rgb, alpha,
-                         xalpha)
+                         xalpha, under is not None)
+    if under is not None:
+        return None
     if rgb.size:
         return (*resolved, rgb)
     return resolved if factor else frame
@@ -337,8 +347,8 @@ class CPURasterizer:
         ``texture``: ``(T, U, 3) uint8`` sRGB; then ``colors`` are ``(N, 3) float32``
         texture coordinates ``(u, v, 0)`` (glTF convention, origin top-left).
         ``alpha``: ``(N,) float32`` vertex coverage in [0, 1] (vertex colours only):
-        every result's colours get a fourth channel, the alpha of the corner nearest
-        each sample (see the module)."""
+        each sample takes the colour and alpha of its triangle's corner nearest to
+        it, the alpha as a fourth colour channel (see the module)."""
         self._prepared = prepare_mesh(vertices, colors, faces, None)[:4]
         self._alpha = check_alpha(alpha, len(self._prepared[0]), texture)
         self._texture = pack_texture(check_texture(texture))
@@ -434,6 +444,50 @@ class CPURasterizer:
             factor=1, texture=self._texture, smooth=max(float(tolerance), 0.0), rgb8=rgb8,
             alpha=self._alpha,
         )
+
+    def blend_edges(self, intrinsics: Intrinsics, color: np.ndarray, depth: np.ndarray, *,
+                    pose=None, near: float = 1e-3, tolerance: float = 0.03,
+                    rgb: np.ndarray | None = None) -> None:
+        """:meth:`render_edges` of a mesh with ``alpha`` (the soft silhouettes' fringe),
+        blended in the same pass over a frame drawn before, in place: where the mesh
+        covers a pixel at or in front of ``depth`` (within 0.1 %), ``a`` of its colour
+        over ``color`` (``a``: its alpha), and ``depth`` the nearer; the other pixels
+        are not touched. The same frame as :func:`~photo3d.render._resolve.blend_fringe`
+        of :meth:`render_edges`'s result, without the fringe's own frame.
+
+        Args:
+            color: ``(H, W, 3) float32`` C-contiguous, the size of ``intrinsics``.
+            depth: ``(H, W) float32`` its camera z (``inf`` where empty).
+            rgb: ``(H, W, 3) uint8`` the frame's colours in 8 bits, whose blended
+                pixels are written again (as ``to_rgb8``), or None.
+
+        Example:
+            >>> v = np.array([[-9, -9, 1], [9, -9, 1], [0, 9, 1]], np.float32)
+            >>> r = CPURasterizer(v, np.ones((3, 3), np.float32), np.array([[0, 1, 2]]),
+            ...                   alpha=np.full(3, 0.25, np.float32))
+            >>> color, depth = np.zeros((4, 4, 3), np.float32), np.full((4, 4), 2.0, np.float32)
+            >>> r.blend_edges(Intrinsics.default(4, 4), color, depth)
+            >>> float(color[0, 0, 0]), float(depth[0, 0])
+            (0.25, 1.0)
+        """
+        view = self._view(intrinsics, pose, near)
+        height, width = view[-2], view[-1]
+        if self._alpha.shape[0] == 0:
+            raise InputError("blend_edges needs a mesh with alpha")
+        rgb = np.zeros((0, 0, 3), np.uint8) if rgb is None else rgb
+        for name, array, shape, dtype in (("color", color, (height, width, 3), np.float32),
+                                          ("depth", depth, (height, width), np.float32),
+                                          ("rgb", rgb, (height, width, 3), np.uint8)):
+            if name == "rgb" and array.size == 0:
+                continue
+            if (array.shape != shape or array.dtype != dtype
+                    or not array.flags.c_contiguous or not array.flags.writeable):
+                raise InputError(f"{name} must be a writeable C-contiguous {shape} "
+                                 f"{np.dtype(dtype).name} array, got {array.shape} {array.dtype}")
+        _render(*self._prepared, *view, min(default_bands(), height), np.zeros(3, np.float32),
+                _NO_COUNT, n_first=self._first, buffers=self._buffers, blocks=self._blocks,
+                factor=1, texture=self._texture, smooth=max(float(tolerance), 0.0),
+                alpha=self._alpha, under=(color, depth, rgb))
 
     def release(self) -> None:
         """Nothing to release (symmetry with the OpenGL rasterizer)."""

@@ -204,11 +204,12 @@ class Renderer:
 
     def _rasterizer(self, fringe: Mesh):
         """A rasterizer of this renderer's backend for the fringe mesh ``fringe``: its
-        vertex colours and, as a fourth channel, its alpha, each sample taking that of
-        its triangle's corner of largest barycentric weight (so each pixel's footprint
-        carries its own alpha: interpolated from one pixel centre to the next, a
-        silhouette's outermost opaque pixel faded halfway toward its transparent
-        neighbour; ``docs/edges.md``)."""
+        colours and, as a fourth channel, its alpha in one pass, each sample taking
+        those of its triangle's corner of largest barycentric weight, so each pixel's
+        footprint carries its own colour and alpha, as in the photo (alpha
+        interpolated from one pixel centre to the next faded a silhouette's
+        outermost opaque pixel halfway toward its transparent neighbour;
+        ``docs/edges.md``)."""
         vertices, colors, _, faces = fringe.checked()
         alpha = np.ones(len(vertices), np.float32) if fringe.alpha is None else fringe.alpha
         if self.backend == "gl":
@@ -261,9 +262,16 @@ class Renderer:
         nearest corner's, drawn in the same pass as its colours) times twice its
         coverage of the pixel, at most 1
         (:func:`~photo3d.render._resolve.blend_fringe`); and the nearer depth.
-        ``rgb``: the frame in 8 bits, whose blended pixels are written again."""
-        f_color, f_coverage, f_depth = self._draw(self._overlay, k, pose)
+        ``rgb``: the frame in 8 bits, whose blended pixels are written again. With
+        ``antialias`` ``edges`` on the CPU the blend is fused into the fringe's pass
+        (:meth:`~photo3d.render.raster.CPURasterizer.blend_edges`), in place."""
         color = np.ascontiguousarray(color, np.float32)
+        if self._edges:  # the rasterizer's resolved frames are new arrays: in place
+            depth = np.ascontiguousarray(depth, np.float32)
+            self._overlay.blend_edges(k, color, depth, pose=pose, near=self.settings.near,
+                                      tolerance=EDGE_TOLERANCE, rgb=rgb)
+            return color, depth
+        f_color, f_coverage, f_depth = self._draw(self._overlay, k, pose)
         depth = np.array(depth, np.float32)  # a new array: the rasterizer may reuse its own
         blend_fringe(color, depth, f_color, f_coverage, f_depth, rgb)
         return color, depth
