@@ -76,6 +76,9 @@ VARIANTS: dict[str, dict] = {
     "ramp8": {"preprocess": {"ramp_passes": 8}},
     "nomedian": {"preprocess": {"filter_windows": []}},
     "nomedian-ramp0": {"preprocess": {"filter_windows": [], "ramp_passes": 0}},
+    "median5": {"preprocess": {"filter_windows": [5, 5, 5]}},
+    "median3": {"preprocess": {"filter_windows": [3, 3, 3]}},
+    "ramp2": {"preprocess": {"ramp_passes": 2}},
 }
 """Settings of this tree's variants (nested ``Config.to_dict`` keys)."""
 

@@ -199,15 +199,17 @@ def sharpen_ramps(disparity: np.ndarray, *, threshold: float = 0.04,
     discontinuity threshold, so each would be cut out as a sliver of its own depth,
     stretched between the two sides in novel views (and a median keeps a monotone
     ramp as it is). The ramp's pixels are those within one pixel of a 4-neighbour
-    step (more than ``threshold``) whose value lies strictly between their 3 x 3
-    window's smallest and largest, in the map as it comes; each is given a side:
-    below the middle of its 7 x 7 window's range the far side, else (at the middle
-    too) the near side. Then each pass, every ramp pixel takes its 3 x 3 window's
-    largest value (near side) or smallest (far side), all at once: the plateaus grow
-    into the ramp from both ends, each pixel only moves towards its side, and the
-    step ends up where the ramp crossed its middle. The other pixels keep their
-    values: plateaus, a 1 px pole, a layer between two others, and slopes whose
-    neighbours differ by less than ``threshold`` (no step near them).
+    step (more than ``threshold``) whose value lies strictly between their left and
+    right neighbours' or their upper and lower neighbours', in the map as it comes;
+    each is given a side: below the middle of its 7 x 7 window's range the far side,
+    else (at the middle too) the near side. Then each pass, every ramp pixel takes
+    its 3 x 3 window's largest value (near side) or smallest (far side), all at
+    once: the plateaus grow into the ramp from both ends, each pixel only moves
+    towards its side, and the step ends up where the ramp crossed its middle. The
+    other pixels keep their values: plateaus, a 1 px pole, a corner where three
+    layers meet (between two of them only diagonally), and slopes whose neighbours
+    differ by less than ``threshold`` (no step near them). A ramp wider than about
+    twice ``iterations`` keeps a middle part.
 
     Args:
         disparity: ``(H, W) float32`` normalised disparity.
@@ -224,16 +226,13 @@ def sharpen_ramps(disparity: np.ndarray, *, threshold: float = 0.04,
         [0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 1.0, 1.0, 1.0]
     """
     out = np.array(disparity, np.float32, copy=True)
-    lo, hi = _window_range(out, 1)
-    ramp = (lo < out) & (out < hi) & _steps_within_one(out, threshold)
-    ys, xs = np.nonzero(ramp)
+    ys, xs = np.nonzero(_between_neighbours(out) & _steps_within_one(out, threshold))
     if ys.size == 0:
         return out
     lo7, hi7 = _window_range(out, 3)
     near_side = (out - lo7 >= hi7 - out)[ys, xs]
-    for i in range(iterations):
-        if i:
-            lo, hi = _window_range(out, 1)
+    for _ in range(iterations):
+        lo, hi = _window_range(out, 1)
         target = np.where(near_side, hi[ys, xs], lo[ys, xs])
         if np.array_equal(target, out[ys, xs]):
             break
@@ -257,6 +256,18 @@ def _window_range(disparity: np.ndarray, radius: int) -> tuple[np.ndarray, np.nd
         np.maximum(hi[:, k:], rows_hi[:, :-k], out=hi[:, k:])
         np.maximum(hi[:, :-k], rows_hi[:, k:], out=hi[:, :-k])
     return lo, hi
+
+
+def _between_neighbours(disparity: np.ndarray) -> np.ndarray:
+    """``(H, W) bool``: pixels strictly between their left and right neighbours' values
+    or between their upper and lower neighbours' (inside a ramp; a corner where three
+    layers meet, between two layers only diagonally, is not)."""
+    d = np.pad(disparity, 1, mode="edge")
+    mid = d[1:-1, 1:-1]
+    out = np.zeros(mid.shape, bool)
+    for a, b in ((d[1:-1, :-2], d[1:-1, 2:]), (d[:-2, 1:-1], d[2:, 1:-1])):
+        out |= ((a < mid) & (mid < b)) | ((b < mid) & (mid < a))
+    return out
 
 
 def _steps_within_one(disparity: np.ndarray, threshold: float) -> np.ndarray:
