@@ -190,7 +190,7 @@ def bilateral_median(
 
 
 def sharpen_ramps(disparity: np.ndarray, *, threshold: float = 0.04,
-                  iterations: int = 4) -> np.ndarray:
+                  iterations: int = 4, min_rise: float = 3.0) -> np.ndarray:
     """Turn ramps across depth steps into steps at their middle (a toggle filter,
     Kramer and Bruckner 1975, limited to the pixels inside a ramp).
 
@@ -200,8 +200,9 @@ def sharpen_ramps(disparity: np.ndarray, *, threshold: float = 0.04,
     stretched between the two sides in novel views (and a median keeps a monotone
     ramp as it is). The ramp's pixels are those within one pixel of a 4-neighbour
     step (more than ``threshold``) whose value lies strictly between their left and
-    right neighbours' or their upper and lower neighbours', in the map as it comes;
-    each is given a side: below the middle of its 7 x 7 window's range the far side,
+    right neighbours' or their upper and lower neighbours', and whose 7 x 7 window
+    spans more than ``min_rise`` thresholds, in the map as it comes (a gentler rise:
+    a slanted surface or a small step, left to the median); each is given a side: below the middle of its 7 x 7 window's range the far side,
     else (at the middle too) the near side. Then each pass, every ramp pixel takes
     its 3 x 3 window's largest value (near side) or smallest (far side), all at
     once: the plateaus grow into the ramp from both ends, each pixel only moves
@@ -216,6 +217,7 @@ def sharpen_ramps(disparity: np.ndarray, *, threshold: float = 0.04,
         threshold: the discontinuity threshold (normalised disparity).
         iterations: passes (each moves a ramp's plateaus one pixel further in: ramps
             up to about twice as wide become steps).
+        min_rise: the smallest range of a ramp pixel's 7 x 7 window, in thresholds.
 
     Returns:
         ``(H, W) float32`` copy.
@@ -230,6 +232,8 @@ def sharpen_ramps(disparity: np.ndarray, *, threshold: float = 0.04,
     if ys.size == 0:
         return out
     lo7, hi7 = _window_range(out, 3)
+    tall = (hi7 - lo7)[ys, xs] > min_rise * threshold
+    ys, xs = ys[tall], xs[tall]
     near_side = (out - lo7 >= hi7 - out)[ys, xs]
     for _ in range(iterations):
         lo, hi = _window_range(out, 1)
