@@ -202,15 +202,16 @@ def sharpen_ramps(disparity: np.ndarray, *, threshold: float = 0.04,
     step (more than ``threshold``) whose value lies strictly between their left and
     right neighbours' or their upper and lower neighbours', and whose 7 x 7 window
     spans more than ``min_rise`` thresholds, in the map as it comes (a gentler rise:
-    a slanted surface or a small step, left to the median); each is given a side: below the middle of its 7 x 7 window's range the far side,
-    else (at the middle too) the near side. Then each pass, every ramp pixel takes
-    its 3 x 3 window's largest value (near side) or smallest (far side), all at
-    once: the plateaus grow into the ramp from both ends, each pixel only moves
-    towards its side, and the step ends up where the ramp crossed its middle. The
-    other pixels keep their values: plateaus, a 1 px pole, a corner where three
-    layers meet (between two of them only diagonally), and slopes whose neighbours
-    differ by less than ``threshold`` (no step near them). A ramp wider than about
-    twice ``iterations`` keeps a middle part.
+    a slanted surface or a small step, left to the median). Each is given a side:
+    below the middle of its 7 x 7 window's range the far side, else (at the middle
+    too) the near side. Then each pass, every ramp pixel takes its 3 x 3 window's
+    largest value (near side) or smallest (far side), all at once: the plateaus grow
+    into the ramp from both ends, each pixel only moves towards its side, and the
+    step ends up where the ramp crossed its middle. The other pixels keep their
+    values: plateaus, a 1 px pole, a corner where three layers meet (between two of
+    them only diagonally), and slopes whose neighbours differ by less than
+    ``threshold`` (no step near them). A ramp wider than about twice ``iterations``
+    keeps a middle part.
 
     Args:
         disparity: ``(H, W) float32`` normalised disparity.
