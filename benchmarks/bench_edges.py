@@ -72,6 +72,13 @@ VARIANTS: dict[str, dict] = {
     "grow1": {"preprocess": {"grow_foreground": 1.0}},
     "exact-grow0": {"edges": "exact", "preprocess": {"grow_foreground": 0.0}},
     "soft": {"edges": "soft"},
+    "ramp0": {"preprocess": {"ramp_passes": 0}},
+    "ramp8": {"preprocess": {"ramp_passes": 8}},
+    "nomedian": {"preprocess": {"filter_windows": []}},
+    "nomedian-ramp0": {"preprocess": {"filter_windows": [], "ramp_passes": 0}},
+    "median5": {"preprocess": {"filter_windows": [5, 5, 5]}},
+    "median3": {"preprocess": {"filter_windows": [3, 3, 3]}},
+    "ramp2": {"preprocess": {"ramp_passes": 2}},
 }
 """Settings of this tree's variants (nested ``Config.to_dict`` keys)."""
 

@@ -66,6 +66,31 @@ def section_edges(load, machine_line, missing) -> str:
                 out.append(f"| {row} | " + " | ".join(cells) + " |")
         out += ["", "Cells: LPIPS within 4 px of steps, share of those off by > 0.25, "
                 "LPIPS of the disoccluded pixels.", ""]
+    ramps = load("edges_ramps.json")
+    if ramps is not None:
+        vs = ramps["versions"]
+        out += ["### Ramps across depth steps turned into steps", "",
+                f"Command: `{ramps['command']}` (machine: {machine_line(ramps)}). `new` "
+                "sharpens the ramps (the default), `ramp0` is the code before it (the "
+                "alignment alone), the others: "
+                + ", ".join(f"`{k}`: {v['overrides']}" for k, v in vs.items() if v["overrides"])
+                + "; cells as in the soft silhouettes' table.", "",
+                "| depth | " + " | ".join(vs) + " |", "| --- |" + " --- |" * len(vs)]
+        for row in ROWS:
+            if all(row in v["summary"] for v in vs.values()):
+                cells = [f"{v['summary'][row]['lpips_steps']:.4f}, "
+                         f"{v['summary'][row]['gross_steps']:.1%}, "
+                         f"{v['summary'][row]['lpips_disoccluded']:.4f}" for v in vs.values()]
+                out.append(f"| {row} | " + " | ".join(cells) + " |")
+        out.append("")
+    tr = load("edges_time_ramps.json")
+    if tr is not None:
+        m = tr["median"]
+        out += [f"With the ramps (`{tr['command']}`, {len(tr['runs']['new'])} alternating runs "
+                f"each, medians; load average {tr['runs']['new'][0]['load_1min'][0]:.1f} at "
+                f"the start): ref {m['ref']['make_s']:.2f} s, new {m['new']['make_s']:.2f} s: "
+                f"{tr['ratio_make']:.2f}x (target <= 1.15x); preprocess "
+                f"{m['ref']['preprocess_s']:.2f} -> {m['new']['preprocess_s']:.2f} s.", ""]
     t = load("edges_time.json")
     if t is not None:
         m, load0 = t["median"], t["runs"]["new"][0]["load_1min"][0]

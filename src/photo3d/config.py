@@ -58,6 +58,11 @@ class PreprocessConfig:
     radius)."""
     align_sigma_color: float = 0.1
     """``edges="align"``: colour sigma of that median (RGB distance, colours in [0, 1])."""
+    ramp_passes: int = 4
+    """``edges="align"``: passes that turn ramps across depth steps (smooth network or
+    stereo depth) into steps at their middle before the bilateral median
+    (:func:`photo3d.stages.filters.sharpen_ramps`; ramps up to about twice as many
+    working pixels wide; 0 = off)."""
 
 
 @dataclass(frozen=True)

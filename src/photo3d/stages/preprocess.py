@@ -11,7 +11,7 @@ from photo3d.config import Config, working_shape
 from photo3d.depth.normalize import normalize
 from photo3d.stages.align import align_edges
 from photo3d.stages.edges import DepthEdges, link_edges
-from photo3d.stages.filters import bilateral_median
+from photo3d.stages.filters import bilateral_median, sharpen_ramps
 
 
 @dataclass(frozen=True)
@@ -118,6 +118,8 @@ def preprocess(image: np.ndarray, disparity: np.ndarray, *, config: Config) -> P
     norm, lo, hi = normalize(disp)
     pre = config.preprocess
     working = max(shape)
+    if config.edges in ("align", "soft") and pre.ramp_passes > 0:
+        norm = sharpen_ramps(norm, threshold=pre.discontinuity, iterations=pre.ramp_passes)
     filtered = bilateral_median(
         norm,
         windows=pre.filter_windows,
