@@ -138,15 +138,14 @@ class Config:
     """Inpainting backend name (see :func:`photo3d.inpaint.available`); the default,
     ``structured``, was chosen by measurement on held-out photos, the stereo pairs
     and time (``docs/fills.md``)."""
-    edges: str = "align"
-    """Where the depth edges go: ``align`` moves every depth step onto the photo's
-    colour edge within a few pixels before the LDI is cut (depth from networks and
-    stereo is fat or smooth at silhouettes; ``docs/edges.md``), ``soft`` does that and
-    gives the mixed pixels along each occluding contour a coverage (alpha) and their
-    foreground colour (soft silhouettes, :attr:`silhouettes`; not the default: as good as
-    ``align`` on novel views but worse on a real pair's disoccluded pixels, and slower
-    to draw, ``docs/edges.md``), ``exact`` keeps the steps where the depth
-    map puts them (depth known to be exact, or the old behaviour)."""
+    edges: str = "soft"
+    """Where the depth edges go: ``soft`` (the default) moves every depth step onto
+    the photo's colour edge within a few pixels before the LDI is cut (depth from
+    networks and stereo is fat or smooth at silhouettes) and gives the mixed pixels
+    along each occluding contour a coverage (alpha) and their foreground colour (soft
+    silhouettes, :attr:`silhouettes`); ``align`` only moves the steps; ``exact`` keeps
+    them where the depth map puts them (depth known to be exact, or the old
+    behaviour). Chosen by measurement (``docs/edges.md``)."""
     metric: bool = False
     """Keep the depth input's units (needs ``depth_kind="depth"``): z of every LDI pixel
     is the input depth instead of the authors' normalised [1/3, 20] range."""

@@ -125,12 +125,13 @@ def add_make_options(p: argparse.ArgumentParser, *, out_required: bool,
                    "(default 1024; 0 keeps the input size)")
     p.add_argument("--inpainter", help="inpainting backend: structured (default), diffusion "
                    "or learned")
-    p.add_argument("--edges", choices=EDGES, default="align",
-                   help="where the depth edges go: align (default) moves each depth step "
+    p.add_argument("--edges", choices=EDGES, default="soft",
+                   help="where the depth edges go: soft (default) moves each depth step "
                         "onto the photo's colour edge within a few pixels (depth from "
-                        "networks and stereo is fat or smooth at silhouettes); soft also "
-                        "gives the mixed pixels along each silhouette a coverage (alpha); "
-                        "exact keeps them where the depth map puts them")
+                        "networks and stereo is fat or smooth at silhouettes) and gives "
+                        "the mixed pixels along each silhouette a coverage (alpha); align "
+                        "only moves the steps; exact keeps them where the depth map puts "
+                        "them")
     p.add_argument("--weights", type=weights_arg, metavar="DIR|authors|compact",
                    help="weights of the learned inpainter: a folder with the authors' "
                         "edge-model.pth, depth-model.pth, color-model.pth or photo3d "
