@@ -72,6 +72,7 @@ VARIANTS: dict[str, dict] = {
     "grow1": {"preprocess": {"grow_foreground": 1.0}},
     "exact-grow0": {"edges": "exact", "preprocess": {"grow_foreground": 0.0}},
     "soft": {"edges": "soft"},
+    "align": {"edges": "align"},
     "ramp0": {"preprocess": {"ramp_passes": 0}},
     "ramp8": {"preprocess": {"ramp_passes": 8}},
     "nomedian": {"preprocess": {"filter_windows": []}},

@@ -268,7 +268,8 @@ def test_make_says_where_the_depth_came_from_and_records_it(files, capsys):
 
 @pytest.mark.parametrize("command", ["make", "batch"])
 def test_edges_option_reaches_the_config_of_make_and_batch(files, command):
-    """``--edges exact`` turns the alignment off and is recorded; the default aligns."""
+    """``--edges exact`` turns the alignment off and is recorded; the default aligns
+    and gives the silhouettes a coverage."""
     import argparse
     import json
 
@@ -276,7 +277,7 @@ def test_edges_option_reaches_the_config_of_make_and_batch(files, command):
 
     p = argparse.ArgumentParser()
     add_make_options(p, out_required=False)
-    assert config_from(p.parse_args([])).edges == "align"
+    assert config_from(p.parse_args([])).edges == "soft"
     assert config_from(p.parse_args(["--edges", "exact"])).edges == "exact"
     if command == "make":
         args = ["make", str(files / "photo.png"), "--depth", str(files / "depth.png"),

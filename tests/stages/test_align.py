@@ -102,6 +102,6 @@ def test_preprocess_aligns_by_default_and_not_with_exact():
 def test_the_edges_option_is_checked_and_recorded():
     with pytest.raises(ConfigError, match="edges must be one of align, soft, exact"):
         Config(edges="snap")
-    assert Config().edges == "align"
+    assert Config().edges == "soft"
     data = json.loads(Config(edges="exact").to_json())
     assert data["edges"] == "exact" and Config.from_dict(data).edges == "exact"

@@ -244,7 +244,7 @@ def silhouettes_of(image: np.ndarray, disparity: np.ndarray, cuts: np.ndarray, *
         >>> img = np.zeros((8, 12, 3), np.float32); img[:, 6:] = 1.0; img[:, 6] = 0.25
         >>> disp = np.zeros((8, 12), np.float32); disp[:, 6:] = 1.0
         >>> cuts = np.zeros((8, 12), np.uint8); cuts[:, 5] = 2  # right of column 5
-        >>> silhouettes_of(img, disp, cuts, config=Config(), working_size=1024).fringe
+        >>> silhouettes_of(img, disp, cuts, config=Config(edges="align"), working_size=1024).fringe
         0
         >>> silhouettes_of(img, disp, cuts, config=Config(edges="soft"), working_size=1024).fringe
         8

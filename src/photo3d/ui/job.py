@@ -81,7 +81,8 @@ class JobOptions:
             order first given (at most :data:`MAX_PATHS` entries).
         ply: also write ``mesh.ply`` (the full mesh, large; True or False).
         edges: where the depth edges go (:attr:`~photo3d.config.Config.edges`):
-            ``align`` (on the photo's colour edges), ``soft`` (also soft silhouettes) or ``exact``.
+            ``soft`` (the default: on the photo's colour edges, with soft silhouettes),
+            ``align`` (on the colour edges, cut hard) or ``exact``.
 
     Example:
         >>> options = JobOptions(size=512, paths=["swing"])
@@ -89,7 +90,7 @@ class JobOptions:
         >>> make.config.size, [v.path for v in make.save.videos], make.save.ply
         (512, ['swing'], None)
         >>> make.config.edges, JobOptions(edges="exact").make_options().config.edges
-        ('align', 'exact')
+        ('soft', 'exact')
         >>> make.save.exports
         ('splats.spz',)
         >>> JobOptions(paths=["swing", "circle", "swing"]).paths
