@@ -83,6 +83,7 @@ def section_edges(load, machine_line, missing) -> str:
                          f"{v['summary'][row]['lpips_disoccluded']:.4f}" for v in vs.values()]
                 out.append(f"| {row} | " + " | ".join(cells) + " |")
         out.append("")
+    out += _soft_default(load, machine_line, rec)
     tr = load("edges_time_ramps.json")
     if tr is not None:
         m = tr["median"]
@@ -103,3 +104,40 @@ def section_edges(load, machine_line, missing) -> str:
                 f"({m['new']['cpu_s'] / m['ref']['cpu_s']:.2f}x).",
                 ""]
     return "\n".join(out)
+
+
+def _soft_default(load, machine_line, rec: dict) -> list[str]:
+    """The soft silhouettes as the default against `align` (one run) and against
+    e951c93 (``edges.json``'s ``ref`` rows), with ``make``'s time."""
+    soft = load("edges_soft_default.json")
+    if soft is None:
+        return []
+    vs = dict(soft["versions"])
+    if "ref" in rec["versions"]:
+        vs = {"ref (e951c93)": rec["versions"]["ref"], **vs}
+    out = ["### Soft silhouettes as the default", "",
+           f"Command: `{soft['command']}` (machine: {machine_line(soft)}); `ref (e951c93)` "
+           "from the first table. `new` is the default, `soft` (the alignment, the ramps "
+           "and soft silhouettes, the fringe drawn in one pass, the synthesis regions "
+           "grown by the fringe's band); `align` the same without soft silhouettes. Cells: "
+           "LPIPS within 4 px of steps, share of those off by > 0.25, LPIPS of the "
+           "disoccluded pixels, LPIPS of the whole view.", "",
+           "| depth | " + " | ".join(vs) + " |", "| --- |" + " --- |" * len(vs)]
+    for row in ROWS:
+        if all(row in v["summary"] for v in vs.values()):
+            cells = [f"{v['summary'][row]['lpips_steps']:.4f}, "
+                     f"{v['summary'][row]['gross_steps']:.1%}, "
+                     f"{v['summary'][row]['lpips_disoccluded']:.4f}, "
+                     f"{v['summary'][row]['lpips_all']:.4f}" for v in vs.values()]
+            out.append(f"| {row} | " + " | ".join(cells) + " |")
+    out.append("")
+    t = load("edges_time_soft.json")
+    if t is not None:
+        m = t["median"]
+        out += [f"`make` of the sample at 1024 px with soft silhouettes on (`{t['command']}`, "
+                f"{len(t['runs']['new'])} alternating runs each, medians; load average "
+                f"{t['runs']['new'][0]['load_1min'][0]:.1f} at the start): ref "
+                f"{m['ref']['make_s']:.2f} s, new {m['new']['make_s']:.2f} s: "
+                f"{t['ratio_make']:.2f}x (target <= 1.15x); preprocess "
+                f"{m['ref']['preprocess_s']:.2f} -> {m['new']['preprocess_s']:.2f} s.", ""]
+    return out

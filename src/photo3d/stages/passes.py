@@ -146,11 +146,11 @@ def region_sizes(config: Config, working_size: int, *, pass_index: int = 0,
         paper_context: the paper's contexts only (no ``context_around``/``thin_context``).
 
     Example:
-        >>> s = region_sizes(Config(edges="align"), 512)
+        >>> s = region_sizes(Config(), 512)
         >>> s.synthesis_iterations, s.context_iterations, s.dilation, s.context_around
         (20, 50, 2, True)
-        >>> region_sizes(Config(), 512).synthesis_iterations  # soft: + the fringe's band
-        22
+        >>> [region_sizes(Config(edges=e), 64).synthesis_iterations for e in ("align", "soft")]
+        [2, 3]
         >>> later = region_sizes(Config(), 512, pass_index=1, later_context=0.5,
         ...                      paper_context=True)
         >>> later.context_iterations, later.dilation, later.context_around
@@ -162,12 +162,13 @@ def region_sizes(config: Config, working_size: int, *, pass_index: int = 0,
         return config.spatial(value, working_size)
 
     thin = 1.0 if pass_index == 0 else later_context
-    # soft silhouettes: the fringe on the near side is partly see-through, so what lies
-    # behind it is synthesised too, as deep again beyond it (a small photo's region
-    # is only a few pixels deep: a transparent fringe pixel would use one of them)
+    # soft silhouettes: the fringe on the near side is partly see-through, so a camera
+    # move shows what lies behind it too: the region reaches as far again beyond it (a
+    # small photo's region is only 2-3 pixels deep, and a transparent fringe pixel used
+    # one of them; at 1024 px it is 40 deep, the fringe 3)
     fringe = px(config.silhouettes.band) if config.edges == "soft" else 0
     return RegionSizes(
-        synthesis_iterations=px(reg.synthesis_iterations) + fringe,
+        synthesis_iterations=max(px(reg.synthesis_iterations), 2 * fringe + 1),
         context_iterations=max(1, round(px(reg.context_iterations) * thin)),
         dilation=px(reg.edge_dilation) if pass_index == 0 else 0,
         threshold=config.preprocess.discontinuity,
