@@ -116,10 +116,11 @@ def _soft_default(load, machine_line, rec: dict) -> list[str]:
     if "ref" in rec["versions"]:
         vs = {"ref (e951c93)": rec["versions"]["ref"], **vs}
     out = ["### Soft silhouettes as the default", "",
-           f"Command: `{soft['command']}` (machine: {machine_line(soft)}); `ref (e951c93)` "
-           "from the first table. `new` is the default, `soft` (the alignment, the ramps "
-           "and soft silhouettes, the fringe drawn in one pass, the synthesis regions "
-           "grown by the fringe's band); `align` the same without soft silhouettes. Cells: "
+           f"Command: `{soft['command']}` (machine: {machine_line(soft)}; the source a "
+           "`git archive` of commit 44ba968); `ref (e951c93)` from the first table. `new` "
+           "is the default, `soft` (the alignment, the ramps and soft silhouettes, the "
+           "fringe drawn in one pass, synthesis regions at least twice the fringe's band "
+           "deep); `align` the same without soft silhouettes. Cells: "
            "LPIPS within 4 px of steps, share of those off by > 0.25, LPIPS of the "
            "disoccluded pixels, LPIPS of the whole view.", "",
            "| depth | " + " | ".join(vs) + " |", "| --- |" + " --- |" * len(vs)]
