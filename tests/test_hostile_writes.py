@@ -129,6 +129,38 @@ def test_processes_recording_at_once_lose_no_entry(tmp_path):
     assert len(recorded_files(tmp_path)) == 100
 
 
+# --- a SIGKILL between a file's move into place and its record ----------------------------
+
+_KILLED = """
+import os, sys
+from photo3d import owned
+from photo3d.files.atomic import write_bytes
+owned.record_files = lambda folder, names: os._exit(9)  # killed right after the move
+with owned.recording(sys.argv[1]):
+    write_bytes(os.path.join(sys.argv[1], "splats.ply"), b"ply")
+"""
+
+
+def test_a_file_killed_before_its_record_is_still_photo3ds(o1, tmp_path):
+    """CI saw it: an export SIGKILLed after moving mesh.usdz into place and before
+    recording it left a folder that `make --overwrite` refused as not photo3d's. The
+    file's inode is noted before the move; that very file counts, another one of its
+    name does not."""
+    folder = tmp_path / "o"
+    __import__("shutil").copytree(o1, folder)
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(
+        [str(Path(photo3d.__file__).parents[1]), os.environ.get("PYTHONPATH", "")])}
+    done = subprocess.run([sys.executable, "-c", _KILLED, str(folder)], env=env, timeout=120)
+    assert done.returncode == 9 and (folder / "splats.ply").read_bytes() == b"ply"
+    assert "splats.ply" in recorded_files(folder)
+    (folder / "splats.ply").rename(tmp_path / "kept.ply")
+    (folder / "splats.ply").write_bytes(b"a user's")  # another file of that name
+    assert "splats.ply" not in recorded_files(folder)
+    (tmp_path / "kept.ply").replace(folder / "splats.ply")
+    assert main(["export", str(folder), "quilt", "-q"]) == 0  # the folder is photo3d's
+    assert {"splats.ply", "quilt_qs8x6a0.75.png"} <= recorded_files(folder)
+
+
 # --- issue 45, 12: a full disk is named as one --------------------------------------------
 
 def test_a_full_disk_during_export_says_so(o1, tmp_path, monkeypatch, capsys):

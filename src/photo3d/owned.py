@@ -64,7 +64,7 @@ def recorded_files(folder: str | Path) -> set[str]:
     meta = _config(Path(folder)) or {}
     written = meta.get("written")
     if isinstance(written, list):
-        return {w for w in written if isinstance(w, str)}
+        return {w for w in written if isinstance(w, str)} | _landed(Path(folder), meta)
     save = meta.get("save")  # saved before "written": the videos it asked for
     videos = save.get("videos") if isinstance(save, dict) else None
     if not isinstance(videos, list):
@@ -151,7 +151,71 @@ def record_files(folder: str | Path, names: Iterable[str]) -> None:
                 return
             meta = {}
         meta["written"] = sorted(recorded_files(folder) | set(names))
+        pending = meta.get("pending")
+        if isinstance(pending, dict):
+            for name in names:
+                pending.pop(name, None)
+            if not pending:
+                del meta["pending"]
         write_json(path, meta)
+
+
+def record_pending(folder: str | Path, name: str, temporary: Path) -> None:
+    """Note in ``config.json`` that the file ``temporary`` is about to be moved into
+    place as ``name`` (relative to ``folder``): its device, inode, size and
+    modification time, which the move keeps (the file is complete by then). Should
+    the process be killed (SIGKILL) after the move and before :func:`record_files`,
+    :func:`recorded_files` still counts ``name`` as photo3d's while that very file is
+    there, and nothing else of that name.
+
+    Example:
+        >>> import pathlib, tempfile
+        >>> folder = pathlib.Path(tempfile.mkdtemp())
+        >>> _ = (folder / "config.json").write_text("{}")
+        >>> tmp = folder / ".a.ply.0123abcd.tmp"; _ = tmp.write_bytes(b"ply")
+        >>> record_pending(folder, "splats.ply", tmp); tmp.rename(folder / "splats.ply")
+        PosixPath('...splats.ply')
+        >>> sorted(recorded_files(folder))  # killed here: still photo3d's
+        ['splats.ply']
+    """
+    folder = Path(folder)
+    path = refuse_symlink(folder / "config.json")
+    st = os.stat(temporary, follow_symlinks=False)
+    with locked(folder):
+        meta = _config(folder)
+        if meta is None:
+            if os.path.lexists(path):
+                return
+            meta = {}
+        pending = meta.get("pending")
+        meta["pending"] = {**(pending if isinstance(pending, dict) else {}),
+                           name: _identity(st)}
+        meta.setdefault("written", sorted(recorded_files(folder)))
+        write_json(path, meta)
+
+
+def _landed(folder: Path, meta: dict) -> set[str]:
+    """The names of ``meta``'s pending files (:func:`record_pending`) that are in
+    place: the same device, inode, size and modification time as noted."""
+    pending = meta.get("pending")
+    if not isinstance(pending, dict):
+        return set()
+    found = set()
+    for name, key in pending.items():
+        if not (isinstance(name, str) and isinstance(key, list) and len(key) == 4
+                and all(type(k) is int for k in key)) or name.startswith("/") or ".." in name:
+            continue
+        try:
+            st = os.stat(folder / name, follow_symlinks=False)
+        except (OSError, ValueError):
+            continue
+        if _identity(st) == key:
+            found.add(name)
+    return found
+
+
+def _identity(st: os.stat_result) -> list[int]:
+    return [st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns]
 
 
 @contextlib.contextmanager
@@ -159,7 +223,9 @@ def recording(folder: str | Path) -> Iterator[None]:
     """Inside the block, each file this thread moves into place in ``folder`` (or its
     ``video/``) that ``config.json`` must list (:data:`RECORDED`) is recorded there
     (:func:`record_files`) in the same step as its move: a Ctrl-C or SIGTERM never
-    leaves a file in place that the record does not list.
+    leaves a file in place that the record does not list. Just before the move its
+    inode is noted (:func:`record_pending`), so that even a SIGKILL between the move
+    and the record leaves a file the next command counts as photo3d's.
 
     Example:
         >>> import pathlib, tempfile
@@ -172,14 +238,23 @@ def recording(folder: str | Path) -> Iterator[None]:
     """
     root = os.path.realpath(folder)
 
-    def record(final: Path) -> None:
+    def recorded_name(final: Path) -> str | None:
         parent = os.path.realpath(final.parent)
         name = final.name if parent == root else (
             f"video/{final.name}" if parent == os.path.join(root, "video") else None)
         if name is not None and any(fnmatch.fnmatchcase(name, p) for p in RECORDED):
+            return name
+        return None
+
+    def before(temporary: Path, final: Path) -> None:
+        if (name := recorded_name(final)) is not None:
+            record_pending(folder, name, temporary)
+
+    def record(final: Path) -> None:
+        if (name := recorded_name(final)) is not None:
             record_files(folder, [name])
 
-    with on_commit(record):
+    with on_commit(record, before=before):
         yield
 
 

@@ -162,18 +162,25 @@ class PendingFile(Pending):
         except BaseException:
             self.discard()
             raise
+        hooks = list(getattr(_COMMITS, "hooks", ()))
         with deferred():  # in place and recorded (on_commit), or neither
             try:
+                for _, before in hooks:
+                    if before is not None:
+                        before(self.path, self.final)
                 os.replace(self.path, self.final)
             except OSError as err:
                 self.discard()
                 raise OutputError(f"cannot write {self.target}: "
                                   f"{err.strerror or err}") from None
+            except BaseException:
+                self.discard()
+                raise
             self._done = True
             LIVE.discard(self.path)
             release(self.path)
-            for hook in list(getattr(_COMMITS, "hooks", ())):
-                hook(self.final)
+            for after, _ in hooks:
+                after(self.final)
         return self.target
 
     def discard(self) -> None:
@@ -197,11 +204,15 @@ _COMMITS = threading.local()  # .hooks: on_commit()'s, of this thread
 
 
 @contextlib.contextmanager
-def on_commit(hook: Callable[[Path], None]) -> Iterator[None]:
+def on_commit(hook: Callable[[Path], None], *,
+              before: Callable[[Path, Path], None] | None = None) -> Iterator[None]:
     """Inside the block, call ``hook(final)`` as each file this thread writes is moved
     into place (:meth:`PendingFile.commit`), in the same step: a signal cannot land
     between the two (:func:`photo3d.files.signals.deferred`). For a record of what was
-    written (:func:`photo3d.owned.recording`).
+    written (:func:`photo3d.owned.recording`). ``before(temporary, final)`` is called
+    just before the move (an error there keeps the file out of place): a SIGKILL,
+    which nothing can hold, may still land between the move and ``hook``, and what
+    ``before`` records lets the next command tell the file as this one's.
 
     Example:
         >>> import pathlib, tempfile
@@ -211,11 +222,12 @@ def on_commit(hook: Callable[[Path], None]) -> Iterator[None]:
         a.txt
     """
     hooks = _COMMITS.__dict__.setdefault("hooks", [])
-    hooks.append(hook)
+    entry = (hook, before)
+    hooks.append(entry)
     try:
         yield
     finally:
-        hooks.remove(hook)
+        hooks.remove(entry)
 
 
 @contextlib.contextmanager
