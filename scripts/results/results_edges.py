@@ -57,13 +57,7 @@ def section_edges(load, machine_line, missing) -> str:
                 f"Command: `{soft['command']}` (machine: {machine_line(soft)}). `align` is "
                 "the default, `soft` is `--edges soft` (the alignment and soft silhouettes), "
                 "`exact` the depth map's steps; cells as above.", "",
-                "| depth | " + " | ".join(vs) + " |", "| --- |" + " --- |" * len(vs)]
-        for row in ROWS:
-            if all(row in v["summary"] for v in vs.values()):
-                cells = [f"{v['summary'][row]['lpips_steps']:.4f}, "
-                         f"{v['summary'][row]['gross_steps']:.1%}, "
-                         f"{v['summary'][row]['lpips_disoccluded']:.4f}" for v in vs.values()]
-                out.append(f"| {row} | " + " | ".join(cells) + " |")
+                *_table(vs)]
         out += ["", "Cells: LPIPS within 4 px of steps, share of those off by > 0.25, "
                 "LPIPS of the disoccluded pixels.", ""]
     ramps = load("edges_ramps.json")
@@ -74,15 +68,7 @@ def section_edges(load, machine_line, missing) -> str:
                 "sharpens the ramps (the default), `ramp0` is the code before it (the "
                 "alignment alone), the others: "
                 + ", ".join(f"`{k}`: {v['overrides']}" for k, v in vs.items() if v["overrides"])
-                + "; cells as in the soft silhouettes' table.", "",
-                "| depth | " + " | ".join(vs) + " |", "| --- |" + " --- |" * len(vs)]
-        for row in ROWS:
-            if all(row in v["summary"] for v in vs.values()):
-                cells = [f"{v['summary'][row]['lpips_steps']:.4f}, "
-                         f"{v['summary'][row]['gross_steps']:.1%}, "
-                         f"{v['summary'][row]['lpips_disoccluded']:.4f}" for v in vs.values()]
-                out.append(f"| {row} | " + " | ".join(cells) + " |")
-        out.append("")
+                + "; cells as in the soft silhouettes' table.", "", *_table(vs), ""]
     out += _soft_default(load, machine_line, rec)
     tr = load("edges_time_ramps.json")
     if tr is not None:
@@ -123,15 +109,7 @@ def _soft_default(load, machine_line, rec: dict) -> list[str]:
            "deep); `align` the same without soft silhouettes. Cells: "
            "LPIPS within 4 px of steps, share of those off by > 0.25, LPIPS of the "
            "disoccluded pixels, LPIPS of the whole view.", "",
-           "| depth | " + " | ".join(vs) + " |", "| --- |" + " --- |" * len(vs)]
-    for row in ROWS:
-        if all(row in v["summary"] for v in vs.values()):
-            cells = [f"{v['summary'][row]['lpips_steps']:.4f}, "
-                     f"{v['summary'][row]['gross_steps']:.1%}, "
-                     f"{v['summary'][row]['lpips_disoccluded']:.4f}, "
-                     f"{v['summary'][row]['lpips_all']:.4f}" for v in vs.values()]
-            out.append(f"| {row} | " + " | ".join(cells) + " |")
-    out.append("")
+           *_table(vs, whole=True), ""]
     t = load("edges_time_soft.json")
     if t is not None:
         m = t["median"]
@@ -141,4 +119,20 @@ def _soft_default(load, machine_line, rec: dict) -> list[str]:
                 f"{m['ref']['make_s']:.2f} s, new {m['new']['make_s']:.2f} s: "
                 f"{t['ratio_make']:.2f}x (target <= 1.15x); preprocess "
                 f"{m['ref']['preprocess_s']:.2f} -> {m['new']['preprocess_s']:.2f} s.", ""]
+    return out
+
+
+def _table(versions: dict, *, whole: bool = False) -> list[str]:
+    """A row per depth condition, a column per version: LPIPS within 4 px of steps,
+    gross errors, disoccluded LPIPS (and, ``whole``, the whole view's)."""
+    out = ["| depth | " + " | ".join(versions) + " |", "| --- |" + " --- |" * len(versions)]
+    for row in ROWS:
+        if all(row in v["summary"] for v in versions.values()):
+            cells = []
+            for v in versions.values():
+                r = v["summary"][row]
+                cells.append(f"{r['lpips_steps']:.4f}, {r['gross_steps']:.1%}, "
+                             f"{r['lpips_disoccluded']:.4f}"
+                             + (f", {r['lpips_all']:.4f}" if whole else ""))
+            out.append(f"| {row} | " + " | ".join(cells) + " |")
     return out

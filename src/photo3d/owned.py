@@ -142,14 +142,9 @@ def record_files(folder: str | Path, names: Iterable[str]) -> None:
         >>> record_files(folder, ["still.png"]); sorted(recorded_files(folder))
         ['still.png']
     """
-    folder = Path(folder)
-    path = refuse_symlink(folder / "config.json")
-    with locked(folder):
-        meta = _config(folder)
-        if meta is None:
-            if os.path.lexists(path):
-                return
-            meta = {}
+    names = list(names)
+
+    def change(meta: dict) -> None:
         meta["written"] = sorted(recorded_files(folder) | set(names))
         pending = meta.get("pending")
         if isinstance(pending, dict):
@@ -157,7 +152,8 @@ def record_files(folder: str | Path, names: Iterable[str]) -> None:
                 pending.pop(name, None)
             if not pending:
                 del meta["pending"]
-        write_json(path, meta)
+
+    _update_config(Path(folder), change)
 
 
 def record_pending(folder: str | Path, name: str, temporary: Path) -> None:
@@ -178,19 +174,28 @@ def record_pending(folder: str | Path, name: str, temporary: Path) -> None:
         >>> sorted(recorded_files(folder))  # killed here: still photo3d's
         ['splats.ply']
     """
-    folder = Path(folder)
+    key = _identity(os.stat(temporary, follow_symlinks=False))
+
+    def change(meta: dict) -> None:
+        pending = meta.get("pending")
+        meta["pending"] = {**(pending if isinstance(pending, dict) else {}), name: key}
+        meta.setdefault("written", sorted(recorded_files(folder)))
+
+    _update_config(Path(folder), change)
+
+
+def _update_config(folder: Path, change) -> None:
+    """Apply ``change(meta)`` to ``folder``'s ``config.json`` and write it back, under
+    the folder's lock (:func:`photo3d.files.gate.locked`: processes recording at once
+    lose no entry); a missing one is created, a damaged or foreign one left alone."""
     path = refuse_symlink(folder / "config.json")
-    st = os.stat(temporary, follow_symlinks=False)
     with locked(folder):
         meta = _config(folder)
         if meta is None:
             if os.path.lexists(path):
                 return
             meta = {}
-        pending = meta.get("pending")
-        meta["pending"] = {**(pending if isinstance(pending, dict) else {}),
-                           name: _identity(st)}
-        meta.setdefault("written", sorted(recorded_files(folder)))
+        change(meta)
         write_json(path, meta)
 
 

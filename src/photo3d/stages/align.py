@@ -26,7 +26,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from photo3d.stages.filters import weighted_median
+from photo3d.stages.filters import grow_square, near_steps, weighted_median
 
 
 def _offsets(radius: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -114,32 +114,6 @@ by :func:`photo3d.kernels.compile_kernels` (``tests/test_kernels.py`` checks ``m
 gives no others)."""
 
 
-def _near_steps(disparity: np.ndarray, radius: int, threshold: float) -> np.ndarray:
-    """``(H, W) bool``: pixels within ``radius`` (Chebyshev) of a pixel that differs from
-    a 4-neighbour by more than ``threshold`` (a smooth slope has none)."""
-    step = np.zeros(disparity.shape, bool)
-    jump = np.abs(np.diff(disparity, axis=1)) > threshold
-    step[:, 1:] |= jump
-    step[:, :-1] |= jump
-    jump = np.abs(np.diff(disparity, axis=0)) > threshold
-    step[1:] |= jump
-    step[:-1] |= jump
-    return _grow(step, radius)
-
-
-def _grow(mask: np.ndarray, radius: int) -> np.ndarray:
-    """``mask (H, W) bool`` grown by ``radius`` pixels (a square: Chebyshev distance)."""
-    near = mask.copy()
-    for k in range(1, radius + 1):  # along the rows' axis, then the columns'
-        near[k:] |= mask[:-k]
-        near[:-k] |= mask[k:]
-    grown = near.copy()
-    for k in range(1, radius + 1):
-        grown[:, k:] |= near[:, :-k]
-        grown[:, :-k] |= near[:, k:]
-    return grown
-
-
 def align_edges(
     image: np.ndarray,
     disparity: np.ndarray,
@@ -184,7 +158,7 @@ def align_edges(
     if radius < 1 or iterations < 1:
         return out
     guide = np.ascontiguousarray(image, dtype=np.float32)
-    ys, xs = np.nonzero(_near_steps(out, radius, threshold))
+    ys, xs = np.nonzero(near_steps(out, radius, threshold))
     if ys.size == 0:
         return out
     ys, xs = ys.astype(np.int64), xs.astype(np.int64)
@@ -202,6 +176,6 @@ def align_edges(
         # value) is not taken: this moves steps, the bilateral median filters
         moved = np.zeros(out.shape, bool)
         moved[ys[changed], xs[changed]] = True
-        again = _grow(moved, radius)[ys, xs]
+        again = grow_square(moved, radius)[ys, xs]
         ys, xs = ys[again], xs[again]
     return out

@@ -229,7 +229,7 @@ def sharpen_ramps(disparity: np.ndarray, *, threshold: float = 0.04,
         [0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 1.0, 1.0, 1.0]
     """
     out = np.array(disparity, np.float32, copy=True)
-    ys, xs = np.nonzero(_between_neighbours(out) & _steps_within_one(out, threshold))
+    ys, xs = np.nonzero(_between_neighbours(out) & near_steps(out, 1, threshold))
     if ys.size == 0:
         return out
     lo7, hi7 = _window_range(out, 3)
@@ -275,9 +275,15 @@ def _between_neighbours(disparity: np.ndarray) -> np.ndarray:
     return out
 
 
-def _steps_within_one(disparity: np.ndarray, threshold: float) -> np.ndarray:
-    """``(H, W) bool``: pixels whose 3 x 3 window holds two 4-neighbours more than
-    ``threshold`` apart."""
+def near_steps(disparity: np.ndarray, radius: int, threshold: float) -> np.ndarray:
+    """``(H, W) bool``: pixels within ``radius`` (Chebyshev) of a pixel that differs from
+    a 4-neighbour by more than ``threshold`` (a smooth slope has none).
+
+    Example:
+        >>> d = np.zeros((1, 6), np.float32); d[0, 3:] = 1.0
+        >>> near_steps(d, 1, 0.5).astype(int).tolist()
+        [[0, 1, 1, 1, 1, 0]]
+    """
     step = np.zeros(disparity.shape, bool)
     jump = np.abs(np.diff(disparity, axis=1)) > threshold
     step[:, 1:] |= jump
@@ -285,10 +291,23 @@ def _steps_within_one(disparity: np.ndarray, threshold: float) -> np.ndarray:
     jump = np.abs(np.diff(disparity, axis=0)) > threshold
     step[1:] |= jump
     step[:-1] |= jump
-    near = step.copy()
-    near[1:] |= step[:-1]
-    near[:-1] |= step[1:]
+    return grow_square(step, radius)
+
+
+def grow_square(mask: np.ndarray, radius: int) -> np.ndarray:
+    """``mask (H, W) bool`` grown by ``radius`` pixels (a square: Chebyshev distance).
+
+    Example:
+        >>> grow_square(np.eye(3, dtype=bool)[:1], 1).astype(int).tolist()
+        [[1, 1, 0]]
+    """
+    near = mask.copy()
+    for k in range(1, radius + 1):  # along the rows' axis, then the columns'
+        near[k:] |= mask[:-k]
+        near[:-k] |= mask[k:]
     grown = near.copy()
-    grown[:, 1:] |= near[:, :-1]
-    grown[:, :-1] |= near[:, 1:]
+    for k in range(1, radius + 1):
+        grown[:, k:] |= near[:, :-k]
+        grown[:, :-k] |= near[:, k:]
     return grown
+
