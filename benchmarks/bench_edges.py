@@ -80,6 +80,15 @@ VARIANTS: dict[str, dict] = {
     "median5": {"preprocess": {"filter_windows": [5, 5, 5]}},
     "median3": {"preprocess": {"filter_windows": [3, 3, 3]}},
     "ramp2": {"preprocess": {"ramp_passes": 2}},
+    "cmed0": {"preprocess": {"filter_sigma_color": 0.0}},
+    "cmed05": {"preprocess": {"filter_sigma_color": 0.05}},
+    "cmed2": {"preprocess": {"filter_sigma_color": 0.2}},
+    "thin0": {"preprocess": {"filter_thin_width": 0}},
+    "thin3": {"preprocess": {"filter_thin_width": 3}},
+    "thin7": {"preprocess": {"filter_thin_width": 7}},
+    "len0": {"preprocess": {"filter_thin_length": 0}},
+    "len16": {"preprocess": {"filter_thin_length": 16}},
+    "len64": {"preprocess": {"filter_thin_length": 64}},
 }
 """Settings of this tree's variants (nested ``Config.to_dict`` keys)."""
 

@@ -34,6 +34,21 @@ class PreprocessConfig:
     """Spatial sigma of the bilateral median filter, pixels."""
     sigma_intensity: float = 0.5
     """Range sigma of the bilateral median filter, in normalised disparity."""
+    filter_sigma_color: float = 0.1
+    """``edges="align"``/``"soft"``: colour sigma of the bilateral median filter (RGB
+    distance, colours in [0, 1]; its weights also fall with the photo's colour
+    difference from the centre pixel, so thin structures the photo shows survive it;
+    0 = off, the paper's filter, as with ``edges="exact"``)."""
+    filter_thin_width: int = 5
+    """``edges="align"``/``"soft"``: where the colour-guided and the paper's median
+    disagree, the colour-guided one's values are kept only in parts narrower than this
+    (working px: a ``width x width`` opening removes them;
+    :func:`photo3d.stages.filters.keep_thin`), the paper's elsewhere (0: the
+    colour-guided median everywhere)."""
+    filter_thin_length: int = 32
+    """``edges="align"``/``"soft"``: and only in those parts at least this long (px at
+    1024, the bounding box's longer side): a pole or a wire, not a stereo matcher's
+    speckle along an edge (0: any length)."""
     discontinuity: float = 0.04
     """Neighbour disparity difference (normalised) that marks a discontinuity."""
     min_edge_length: int = 10

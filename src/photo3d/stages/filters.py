@@ -4,6 +4,14 @@ Each output pixel is the weighted median of its window, weights
 ``exp(-r^2 / 2 sigma_s^2) * exp(-(d_q - d_p)^2 / 2 sigma_i^2)``. As in the authors'
 code it is applied only where the window straddles a discontinuity (elsewhere the
 median of a smooth ramp is the ramp itself), over several passes.
+
+That median erases structures thinner than about half its window (a 2 px pole in
+front of a wall takes the wall's disparity). With ``edges="align"``/``"soft"`` the
+thin structures the photo shows are kept (:func:`keep_thin`): a second, colour-guided
+run (each weight also falls with the photo's colour difference from the centre,
+so a pole's own pixels vote for the pole) gives the values of the long, thin parts
+where the two runs disagree; everywhere else, stereo outliers included, the paper's
+median stands (``docs/edges.md``, "A median that keeps thin structures").
 """
 
 from __future__ import annotations
@@ -101,11 +109,87 @@ def _weighted_median_at(disp, ys, xs, radius, sigma_s, sigma_i, out, vals,
         out[k] = weighted_median(vals, wts, n, 0.5 * total, top)
 
 
+@numba.njit(cache=True, nogil=True)
+def _guided_median_at(disp, image, ys, xs, radius, sigma_s, sigma_i, sigma_c, out, vals,
+                      wts):  # pragma: no cover - jit
+    """:func:`_weighted_median_at` with each weight also multiplied by ``exp(-|c_q -
+    c_p|^2 / 2 sigma_c^2)``, ``c`` the colour of ``image (H, W, 3) float32`` at the
+    neighbour and at the centre: the pixels that look like the centre vote (a thin
+    pole's own pixels for the pole), the others hardly."""
+    h, w = disp.shape
+    inv_s = 1.0 / (2.0 * sigma_s * sigma_s)
+    inv_i = 1.0 / (2.0 * sigma_i * sigma_i)
+    inv_c = 1.0 / (2.0 * sigma_c * sigma_c)
+    for k in range(ys.shape[0]):
+        y, x = ys[k], xs[k]
+        centre = disp[y, x]
+        r0, g0, b0 = image[y, x, 0], image[y, x, 1], image[y, x, 2]
+        n = 0
+        total = 0.0
+        top = centre
+        for dy in range(-radius, radius + 1):
+            yy = y + dy
+            if yy < 0 or yy >= h:
+                continue
+            for dx in range(-radius, radius + 1):
+                xx = x + dx
+                if xx < 0 or xx >= w:
+                    continue
+                v = disp[yy, xx]
+                dr = image[yy, xx, 0] - r0
+                dg = image[yy, xx, 1] - g0
+                db = image[yy, xx, 2] - b0
+                wt = np.exp(-(dy * dy + dx * dx) * inv_s - (v - centre) * (v - centre) * inv_i
+                            - (dr * dr + dg * dg + db * db) * inv_c)
+                vals[n] = v
+                wts[n] = wt
+                n += 1
+                total += wt
+                top = max(top, v)
+        out[k] = weighted_median(vals, wts, n, 0.5 * total, top)
+
+
 KERNELS = ((_weighted_median_at, "(float32[:, ::1], int64[::1], int64[::1], int64, float64, "
-                                 "float64, float32[::1], float32[::1], float32[::1])"),)
+                                 "float64, float32[::1], float32[::1], float32[::1])"),
+           (_guided_median_at, "(float32[:, ::1], float32[:, :, ::1], int64[::1], int64[::1], "
+                               "int64, float64, float64, float64, float32[::1], float32[::1], "
+                               "float32[::1])"))
 """The kernels ``make`` runs here and the argument types it gives them, compiled ahead
 by :func:`photo3d.kernels.compile_kernels` (``tests/test_kernels.py`` checks ``make``
 gives no others)."""
+
+
+def keep_thin(plain: np.ndarray, guided: np.ndarray, *, threshold: float,
+              width: int, min_length: int = 0,
+              original: np.ndarray | None = None) -> np.ndarray:
+    """``(H, W) float32``: ``plain`` (the paper's median) with the thin structures
+    ``guided`` (the colour-guided median) kept: where the two differ by more than
+    ``threshold``, the pixels a ``width x width`` opening of that set removes (parts
+    narrower than ``width``: a pole, a wire) take ``guided``'s value; wider parts (a
+    stereo outlier patch the photo's colours happen to outline) keep ``plain``'s.
+    ``width`` 0: ``guided`` everywhere.
+
+    Example:
+        >>> p = np.zeros((9, 9), np.float32); g = p.copy(); g[:, 4] = 1; g[1:6, 0:6] += 1
+        >>> out = keep_thin(p, g, threshold=0.5, width=3)
+        >>> out[8].tolist()[3:6], float(out[2, 2])
+        ([0.0, 1.0, 0.0], 0.0)
+    """
+    if width <= 0:
+        return guided
+    from scipy import ndimage
+
+    differ = np.abs(guided - plain) > threshold
+    if original is not None:
+        differ &= np.abs(guided - original) <= threshold
+    thin = differ & ~ndimage.binary_opening(differ, np.ones((width, width), bool))
+    if min_length > 1:
+        labels, _ = ndimage.label(thin, np.ones((3, 3), bool))
+        boxes = ndimage.find_objects(labels)
+        extent = np.array([0] + [max(b[0].stop - b[0].start, b[1].stop - b[1].start)
+                                 for b in boxes])
+        thin = extent[labels] >= min_length
+    return np.where(thin, guided, plain).astype(np.float32)
 
 
 def spread_above(disparity: np.ndarray, size: int, threshold: float) -> np.ndarray:
@@ -145,6 +229,9 @@ def bilateral_median(
     sigma_spatial: float = 4.0,
     sigma_intensity: float = 0.5,
     threshold: float = 0.04,
+    image: np.ndarray | None = None,
+    sigma_color: float = 0.1,
+    only: np.ndarray | None = None,
 ) -> np.ndarray:
     """Sharpen a normalised disparity map near its discontinuities.
 
@@ -154,6 +241,14 @@ def bilateral_median(
         sigma_spatial: spatial sigma, pixels.
         sigma_intensity: range sigma, normalised disparity.
         threshold: only pixels whose window spans more than this are filtered.
+        image: ``(H, W, 3) float32`` photo in [0, 1], or None. Given, each weight is
+            also multiplied by ``exp(-|c_q - c_p|^2 / 2 sigma_color^2)`` (colours of
+            the neighbour and of the centre): a thin structure the photo shows keeps
+            its disparity (its own pixels vote for it), while an outlier of the
+            surface's colour is still outvoted.
+        sigma_color: colour sigma (RGB distance, colours in [0, 1]) when ``image``.
+        only: ``(H, W) bool`` or None: filter only these pixels (and only where the
+            window spans more than ``threshold``).
 
     Returns:
         ``(H, W) float32`` filtered copy.
@@ -165,12 +260,16 @@ def bilateral_median(
         (True, 0.0, 1.0)
     """
     out = np.ascontiguousarray(disparity, dtype=np.float32).copy()
+    guide = None if image is None else np.ascontiguousarray(image, dtype=np.float32)
     threads = parallel.threads()  # this thread's budget: `batch` gives each worker 1
     with parallel.thread_pool(threads, name="median") as pool:
         for size in windows:
             if size < 1 or size % 2 == 0:
                 raise ValueError(f"filter window sizes must be odd and positive, got {size}")
-            ys, xs = np.nonzero(spread_above(out, size, threshold))
+            todo = spread_above(out, size, threshold)
+            if only is not None:
+                todo &= only
+            ys, xs = np.nonzero(todo)
             if ys.size == 0:
                 break
             ys, xs = ys.astype(np.int64), xs.astype(np.int64)  # contiguous: views of one array
@@ -178,6 +277,13 @@ def bilateral_median(
             cuts = np.linspace(0, len(ys), _CHUNKS * threads + 1).astype(np.int64)
 
             def run(a: int, b: int, size=size, ys=ys, xs=xs, medians=medians) -> None:
+                if guide is not None:
+                    _guided_median_at(out, guide, ys[a:b], xs[a:b], size // 2,
+                                      float(sigma_spatial), float(sigma_intensity),
+                                      float(sigma_color), medians[a:b],
+                                      np.empty(size * size, np.float32),
+                                      np.empty(size * size, np.float32))
+                    return
                 _weighted_median_at(out, ys[a:b], xs[a:b], size // 2, float(sigma_spatial),
                                     float(sigma_intensity), medians[a:b],
                                     np.empty(size * size, np.float32),

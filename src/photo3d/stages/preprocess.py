@@ -11,7 +11,7 @@ from photo3d.config import Config, working_shape
 from photo3d.depth.normalize import normalize
 from photo3d.stages.align import align_edges
 from photo3d.stages.edges import DepthEdges, link_edges
-from photo3d.stages.filters import bilateral_median, sharpen_ramps
+from photo3d.stages.filters import bilateral_median, keep_thin, sharpen_ramps
 
 
 @dataclass(frozen=True)
@@ -95,7 +95,9 @@ def grow_foreground(disparity: np.ndarray, steps: int, threshold: float) -> np.n
 def preprocess(image: np.ndarray, disparity: np.ndarray, *, config: Config) -> Preprocessed:
     """Resize, normalise, sharpen, align the depth steps with the photo's colour edges
     (``config.edges`` ``align`` or ``soft``: :func:`~photo3d.stages.align.align_edges`) and find
-    linked depth edges.
+    linked depth edges. With ``align`` or ``soft`` the bilateral median keeps the long
+    thin structures a colour-guided run of it keeps
+    (:func:`~photo3d.stages.filters.keep_thin`).
 
     Args:
         image: ``(H, W, 3) float32`` in [0, 1].
@@ -120,13 +122,17 @@ def preprocess(image: np.ndarray, disparity: np.ndarray, *, config: Config) -> P
     working = max(shape)
     if config.edges in ("align", "soft") and pre.ramp_passes > 0:
         norm = sharpen_ramps(norm, threshold=pre.discontinuity, iterations=pre.ramp_passes)
-    filtered = bilateral_median(
-        norm,
-        windows=pre.filter_windows,
-        sigma_spatial=pre.sigma_spatial,
-        sigma_intensity=pre.sigma_intensity,
-        threshold=pre.discontinuity,
-    )
+    median = {"windows": pre.filter_windows, "sigma_spatial": pre.sigma_spatial,
+              "sigma_intensity": pre.sigma_intensity, "threshold": pre.discontinuity}
+    filtered = bilateral_median(norm, **median)
+    if config.edges in ("align", "soft") and pre.filter_sigma_color > 0:
+        changed = np.abs(filtered - norm) > pre.discontinuity  # only these can be kept
+        guided = bilateral_median(norm, image=img, sigma_color=pre.filter_sigma_color,
+                                  only=changed, **median)
+        filtered = keep_thin(filtered, guided, threshold=pre.discontinuity,
+                             width=pre.filter_thin_width,
+                             min_length=config.spatial(pre.filter_thin_length, working),
+                             original=norm)
     if config.edges in ("align", "soft"):
         filtered = align_edges(img, filtered, radius=pre.align_radius,
                                iterations=pre.align_iterations,
