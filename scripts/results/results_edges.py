@@ -110,6 +110,23 @@ def _soft_default(load, machine_line, rec: dict) -> list[str]:
            "LPIPS within 4 px of steps, share of those off by > 0.25, LPIPS of the "
            "disoccluded pixels, LPIPS of the whole view.", "",
            *_table(vs, whole=True), ""]
+    thin = load("edges_thin_median.json")
+    if thin is not None:
+        before = {"soft, before": soft["versions"]["new"]}
+        out += ["### A median that keeps thin structures", "",
+                f"Command: `{thin['command']}` (machine: {machine_line(thin)}). `new` is the "
+                "default (soft) with the median keeping long thin structures a colour-guided "
+                "run of it keeps (`filters.keep_thin`), `align` the same without soft "
+                "silhouettes, `soft, before` the table above's default. Cells as above.", "",
+                *_table({**before, **thin["versions"]}, whole=True), ""]
+        tt = load("edges_time_thin.json")
+        if tt is not None:
+            m = tt["median"]
+            out += [f"`make` with it (`{tt['command']}`, the source a `git archive` of commit "
+                    f"c79d328; {len(tt['runs']['new'])} alternating runs each, medians): ref "
+                    f"{m['ref']['make_s']:.2f} s, new {m['new']['make_s']:.2f} s: "
+                    f"{tt['ratio_make']:.2f}x (target <= 1.15x); preprocess "
+                    f"{m['ref']['preprocess_s']:.2f} -> {m['new']['preprocess_s']:.2f} s.", ""]
     t = load("edges_time_soft.json")
     if t is not None:
         m = t["median"]
