@@ -73,6 +73,7 @@ VARIANTS: dict[str, dict] = {
     "exact-grow0": {"edges": "exact", "preprocess": {"grow_foreground": 0.0}},
     "soft": {"edges": "soft"},
     "align": {"edges": "align"},
+    "iter3": {"preprocess": {"align_iterations": 3}},
     "ramp0": {"preprocess": {"ramp_passes": 0}},
     "ramp8": {"preprocess": {"ramp_passes": 8}},
     "nomedian": {"preprocess": {"filter_windows": []}},
