@@ -76,7 +76,7 @@ class PreprocessConfig:
     ramp_passes: int = 4
     """``edges="align"``: passes that turn ramps across depth steps (smooth network or
     stereo depth) into steps at their middle before the bilateral median
-    (:func:`photo3d.stages.filters.sharpen_ramps`; ramps up to about twice as many
+    (:func:`photo3d.stages.steps.sharpen_ramps`; ramps up to about twice as many
     working pixels wide; 0 = off)."""
 
 

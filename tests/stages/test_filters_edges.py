@@ -82,7 +82,7 @@ def test_short_segment_touching_a_long_edge_is_attached_or_dropped():
 def test_spread_is_scipys_maximum_minus_minimum_filter():
     from scipy import ndimage
 
-    from photo3d.stages.filters import spread_above
+    from photo3d.stages.steps import spread_above
 
     rng = np.random.default_rng(3)
     d = np.where(rng.random((37, 53)) < 0.7, 0.25, rng.random((37, 53))).astype(np.float32)

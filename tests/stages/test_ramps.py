@@ -9,8 +9,8 @@ from scipy import ndimage
 from test_edges_pole import pole_scene
 
 from photo3d.config import Config, PreprocessConfig
-from photo3d.stages.filters import sharpen_ramps
 from photo3d.stages.preprocess import preprocess
+from photo3d.stages.steps import sharpen_ramps
 
 
 def _blurred_pole(width: int):

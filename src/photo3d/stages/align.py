@@ -26,7 +26,8 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from photo3d.stages.filters import grow_square, near_steps, weighted_median
+from photo3d.stages.filters import weighted_median
+from photo3d.stages.steps import grow_square, near_steps
 
 
 def _offsets(radius: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

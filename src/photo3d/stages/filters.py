@@ -20,6 +20,7 @@ import numba
 import numpy as np
 
 from photo3d import parallel
+from photo3d.stages.steps import spread_above
 
 _CHUNKS = 4  # pieces per thread, so that no thread is left alone with the last
 
@@ -192,36 +193,6 @@ def keep_thin(plain: np.ndarray, guided: np.ndarray, *, threshold: float,
     return np.where(thin, guided, plain).astype(np.float32)
 
 
-def spread_above(disparity: np.ndarray, size: int, threshold: float) -> np.ndarray:
-    """``(H, W) bool``: where the ``size x size`` window of ``disparity (H, W) float32``
-    spans more than ``threshold``: its largest minus its smallest value, the window
-    clipped at the border. The same as ``scipy.ndimage.maximum_filter(d, size) -
-    minimum_filter(d, size) > threshold`` (their default ``reflect`` border repeats
-    values the clipped window holds), in a sixth of the time: ``size - 1`` shifted
-    maxima and minima along each axis.
-
-    Example:
-        >>> d = np.zeros((3, 6), np.float32); d[:, 4:] = 1.0
-        >>> spread_above(d, 3, 0.5)[0].tolist()
-        [False, False, False, True, True, False]
-    """
-    d = np.asarray(disparity)
-    hi, lo = d.copy(), d.copy()
-    for k in range(1, size // 2 + 1):  # along the rows' axis
-        np.maximum(hi[k:], d[:-k], out=hi[k:])
-        np.maximum(hi[:-k], d[k:], out=hi[:-k])
-        np.minimum(lo[k:], d[:-k], out=lo[k:])
-        np.minimum(lo[:-k], d[k:], out=lo[:-k])
-    top, bottom = hi.copy(), lo.copy()
-    for k in range(1, size // 2 + 1):  # then along the columns'
-        np.maximum(top[:, k:], hi[:, :-k], out=top[:, k:])
-        np.maximum(top[:, :-k], hi[:, k:], out=top[:, :-k])
-        np.minimum(bottom[:, k:], lo[:, :-k], out=bottom[:, k:])
-        np.minimum(bottom[:, :-k], lo[:, k:], out=bottom[:, :-k])
-    top -= bottom
-    return top > threshold
-
-
 def bilateral_median(
     disparity: np.ndarray,
     *,
@@ -292,128 +263,3 @@ def bilateral_median(
             list(pool.map(run, cuts[:-1], cuts[1:]))
             out[ys, xs] = medians
     return out
-
-
-
-def sharpen_ramps(disparity: np.ndarray, *, threshold: float = 0.04,
-                  iterations: int = 4, min_rise: float = 3.0) -> np.ndarray:
-    """Turn ramps across depth steps into steps at their middle (a toggle filter,
-    Kramer and Bruckner 1975, limited to the pixels inside a ramp).
-
-    A network's or a stereo matcher's depth is smooth at a silhouette: the step is a
-    ramp a few pixels wide whose pixels differ from their neighbours by more than the
-    discontinuity threshold, so each would be cut out as a sliver of its own depth,
-    stretched between the two sides in novel views (and a median keeps a monotone
-    ramp as it is). The ramp's pixels are those within one pixel of a 4-neighbour
-    step (more than ``threshold``) whose value lies strictly between their left and
-    right neighbours' or their upper and lower neighbours', and whose 7 x 7 window
-    spans more than ``min_rise`` thresholds, in the map as it comes (a gentler rise:
-    a slanted surface or a small step, left to the median). Each is given a side:
-    below the middle of its 7 x 7 window's range the far side, else (at the middle
-    too) the near side. Then each pass, every ramp pixel takes its 3 x 3 window's
-    largest value (near side) or smallest (far side), all at once: the plateaus grow
-    into the ramp from both ends, each pixel only moves towards its side, and the
-    step ends up where the ramp crossed its middle. The other pixels keep their
-    values: plateaus, a 1 px pole, a corner where three layers meet (between two of
-    them only diagonally), and slopes whose neighbours differ by less than
-    ``threshold`` (no step near them). A ramp wider than about twice ``iterations``
-    keeps a middle part.
-
-    Args:
-        disparity: ``(H, W) float32`` normalised disparity.
-        threshold: the discontinuity threshold (normalised disparity).
-        iterations: passes (each moves a ramp's plateaus one pixel further in: ramps
-            up to about twice as wide become steps).
-        min_rise: the smallest range of a ramp pixel's 7 x 7 window, in thresholds.
-
-    Returns:
-        ``(H, W) float32`` copy.
-
-    Example:
-        >>> d = np.array([[0.0, 0.0, 0.1, 0.3, 0.45, 0.7, 0.9, 1.0, 1.0]], np.float32)
-        >>> sharpen_ramps(d)[0].tolist()
-        [0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 1.0, 1.0, 1.0]
-    """
-    out = np.array(disparity, np.float32, copy=True)
-    ys, xs = np.nonzero(_between_neighbours(out) & near_steps(out, 1, threshold))
-    if ys.size == 0:
-        return out
-    lo7, hi7 = _window_range(out, 3)
-    tall = (hi7 - lo7)[ys, xs] > min_rise * threshold
-    ys, xs = ys[tall], xs[tall]
-    near_side = (out - lo7 >= hi7 - out)[ys, xs]
-    for _ in range(iterations):
-        lo, hi = _window_range(out, 1)
-        target = np.where(near_side, hi[ys, xs], lo[ys, xs])
-        if np.array_equal(target, out[ys, xs]):
-            break
-        out[ys, xs] = target
-    return out
-
-
-def _window_range(disparity: np.ndarray, radius: int) -> tuple[np.ndarray, np.ndarray]:
-    """The smallest and largest value of each pixel's ``2 radius + 1`` square window
-    (clipped at the border), ``(H, W) float32`` each."""
-    lo, hi = disparity.copy(), disparity.copy()
-    for k in range(1, radius + 1):  # along the rows' axis
-        np.minimum(lo[k:], disparity[:-k], out=lo[k:])
-        np.minimum(lo[:-k], disparity[k:], out=lo[:-k])
-        np.maximum(hi[k:], disparity[:-k], out=hi[k:])
-        np.maximum(hi[:-k], disparity[k:], out=hi[:-k])
-    rows_lo, rows_hi = lo.copy(), hi.copy()
-    for k in range(1, radius + 1):  # then along the columns'
-        np.minimum(lo[:, k:], rows_lo[:, :-k], out=lo[:, k:])
-        np.minimum(lo[:, :-k], rows_lo[:, k:], out=lo[:, :-k])
-        np.maximum(hi[:, k:], rows_hi[:, :-k], out=hi[:, k:])
-        np.maximum(hi[:, :-k], rows_hi[:, k:], out=hi[:, :-k])
-    return lo, hi
-
-
-def _between_neighbours(disparity: np.ndarray) -> np.ndarray:
-    """``(H, W) bool``: pixels strictly between their left and right neighbours' values
-    or between their upper and lower neighbours' (inside a ramp; a corner where three
-    layers meet, between two layers only diagonally, is not)."""
-    d = np.pad(disparity, 1, mode="edge")
-    mid = d[1:-1, 1:-1]
-    out = np.zeros(mid.shape, bool)
-    for a, b in ((d[1:-1, :-2], d[1:-1, 2:]), (d[:-2, 1:-1], d[2:, 1:-1])):
-        out |= ((a < mid) & (mid < b)) | ((b < mid) & (mid < a))
-    return out
-
-
-def near_steps(disparity: np.ndarray, radius: int, threshold: float) -> np.ndarray:
-    """``(H, W) bool``: pixels within ``radius`` (Chebyshev) of a pixel that differs from
-    a 4-neighbour by more than ``threshold`` (a smooth slope has none).
-
-    Example:
-        >>> d = np.zeros((1, 6), np.float32); d[0, 3:] = 1.0
-        >>> near_steps(d, 1, 0.5).astype(int).tolist()
-        [[0, 1, 1, 1, 1, 0]]
-    """
-    step = np.zeros(disparity.shape, bool)
-    jump = np.abs(np.diff(disparity, axis=1)) > threshold
-    step[:, 1:] |= jump
-    step[:, :-1] |= jump
-    jump = np.abs(np.diff(disparity, axis=0)) > threshold
-    step[1:] |= jump
-    step[:-1] |= jump
-    return grow_square(step, radius)
-
-
-def grow_square(mask: np.ndarray, radius: int) -> np.ndarray:
-    """``mask (H, W) bool`` grown by ``radius`` pixels (a square: Chebyshev distance).
-
-    Example:
-        >>> grow_square(np.eye(3, dtype=bool)[:1], 1).astype(int).tolist()
-        [[1, 1, 0]]
-    """
-    near = mask.copy()
-    for k in range(1, radius + 1):  # along the rows' axis, then the columns'
-        near[k:] |= mask[:-k]
-        near[:-k] |= mask[k:]
-    grown = near.copy()
-    for k in range(1, radius + 1):
-        grown[:, k:] |= near[:, :-k]
-        grown[:, :-k] |= near[:, k:]
-    return grown
-

@@ -11,7 +11,8 @@ from photo3d.config import Config, working_shape
 from photo3d.depth.normalize import normalize
 from photo3d.stages.align import align_edges
 from photo3d.stages.edges import DepthEdges, link_edges
-from photo3d.stages.filters import bilateral_median, keep_thin, sharpen_ramps
+from photo3d.stages.filters import bilateral_median, keep_thin
+from photo3d.stages.steps import sharpen_ramps
 
 
 @dataclass(frozen=True)
