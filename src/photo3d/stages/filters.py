@@ -73,7 +73,7 @@ def weighted_median(vals, wts, n, half, top):  # pragma: no cover - jit
 
 
 @numba.njit(cache=True, nogil=True)
-def _weighted_median_at(disp, ys, xs, radius, sigma_s, sigma_i, out, vals,
+def _weighted_median_at(disp, image, ys, xs, radius, sigma_s, sigma_i, sigma_c, out, vals,
                         wts):  # pragma: no cover - jit
     """Fill ``out (K,) float32`` with the weighted median of the window of each pixel
     ``(ys[k], xs[k])`` of ``disp (H, W) float32`` (the window clipped at the image
@@ -82,13 +82,22 @@ def _weighted_median_at(disp, ys, xs, radius, sigma_s, sigma_i, out, vals,
     ``wts``: ``((2 radius + 1)^2,) float32`` scratch). Summed in float64, up to 64
     float32 weights give the same sums in any order while the largest is less than
     2^23 times the smallest (the defaults: 0.08 to 1), so this is the value the
-    insertion sort and scan of before found."""
+    insertion sort and scan of before found. With ``sigma_c > 0`` each weight is also
+    multiplied by ``exp(-|c_q - c_p|^2 / 2 sigma_c^2)``, ``c`` the colour of ``image
+    (H, W, 3) float32`` at the neighbour and at the centre: the pixels that look like
+    the centre vote (a thin pole's own pixels for the pole), the others hardly; with
+    ``sigma_c`` 0 ``image`` is not read (the paper's filter)."""
     h, w = disp.shape
     inv_s = 1.0 / (2.0 * sigma_s * sigma_s)
     inv_i = 1.0 / (2.0 * sigma_i * sigma_i)
+    colour = sigma_c > 0.0
+    inv_c = 1.0 / (2.0 * sigma_c * sigma_c) if colour else 0.0
+    r0 = g0 = b0 = np.float32(0.0)
     for k in range(ys.shape[0]):
         y, x = ys[k], xs[k]
         centre = disp[y, x]
+        if colour:
+            r0, g0, b0 = image[y, x, 0], image[y, x, 1], image[y, x, 2]
         n = 0
         total = 0.0
         top = centre
@@ -101,7 +110,13 @@ def _weighted_median_at(disp, ys, xs, radius, sigma_s, sigma_i, out, vals,
                 if xx < 0 or xx >= w:
                     continue
                 v = disp[yy, xx]
-                wt = np.exp(-(dy * dy + dx * dx) * inv_s - (v - centre) * (v - centre) * inv_i)
+                e = (dy * dy + dx * dx) * inv_s + (v - centre) * (v - centre) * inv_i
+                if colour:
+                    dr = image[yy, xx, 0] - r0
+                    dg = image[yy, xx, 1] - g0
+                    db = image[yy, xx, 2] - b0
+                    e += (dr * dr + dg * dg + db * db) * inv_c
+                wt = np.exp(-e)
                 vals[n] = v
                 wts[n] = wt
                 n += 1
@@ -110,51 +125,9 @@ def _weighted_median_at(disp, ys, xs, radius, sigma_s, sigma_i, out, vals,
         out[k] = weighted_median(vals, wts, n, 0.5 * total, top)
 
 
-@numba.njit(cache=True, nogil=True)
-def _guided_median_at(disp, image, ys, xs, radius, sigma_s, sigma_i, sigma_c, out, vals,
-                      wts):  # pragma: no cover - jit
-    """:func:`_weighted_median_at` with each weight also multiplied by ``exp(-|c_q -
-    c_p|^2 / 2 sigma_c^2)``, ``c`` the colour of ``image (H, W, 3) float32`` at the
-    neighbour and at the centre: the pixels that look like the centre vote (a thin
-    pole's own pixels for the pole), the others hardly."""
-    h, w = disp.shape
-    inv_s = 1.0 / (2.0 * sigma_s * sigma_s)
-    inv_i = 1.0 / (2.0 * sigma_i * sigma_i)
-    inv_c = 1.0 / (2.0 * sigma_c * sigma_c)
-    for k in range(ys.shape[0]):
-        y, x = ys[k], xs[k]
-        centre = disp[y, x]
-        r0, g0, b0 = image[y, x, 0], image[y, x, 1], image[y, x, 2]
-        n = 0
-        total = 0.0
-        top = centre
-        for dy in range(-radius, radius + 1):
-            yy = y + dy
-            if yy < 0 or yy >= h:
-                continue
-            for dx in range(-radius, radius + 1):
-                xx = x + dx
-                if xx < 0 or xx >= w:
-                    continue
-                v = disp[yy, xx]
-                dr = image[yy, xx, 0] - r0
-                dg = image[yy, xx, 1] - g0
-                db = image[yy, xx, 2] - b0
-                wt = np.exp(-(dy * dy + dx * dx) * inv_s - (v - centre) * (v - centre) * inv_i
-                            - (dr * dr + dg * dg + db * db) * inv_c)
-                vals[n] = v
-                wts[n] = wt
-                n += 1
-                total += wt
-                top = max(top, v)
-        out[k] = weighted_median(vals, wts, n, 0.5 * total, top)
-
-
-KERNELS = ((_weighted_median_at, "(float32[:, ::1], int64[::1], int64[::1], int64, float64, "
-                                 "float64, float32[::1], float32[::1], float32[::1])"),
-           (_guided_median_at, "(float32[:, ::1], float32[:, :, ::1], int64[::1], int64[::1], "
-                               "int64, float64, float64, float64, float32[::1], float32[::1], "
-                               "float32[::1])"))
+KERNELS = ((_weighted_median_at, "(float32[:, ::1], float32[:, :, ::1], int64[::1], "
+                                 "int64[::1], int64, float64, float64, float64, float32[::1], "
+                                 "float32[::1], float32[::1])"),)
 """The kernels ``make`` runs here and the argument types it gives them, compiled ahead
 by :func:`photo3d.kernels.compile_kernels` (``tests/test_kernels.py`` checks ``make``
 gives no others)."""
@@ -231,7 +204,10 @@ def bilateral_median(
         (True, 0.0, 1.0)
     """
     out = np.ascontiguousarray(disparity, dtype=np.float32).copy()
-    guide = None if image is None else np.ascontiguousarray(image, dtype=np.float32)
+    if image is None:  # the paper's filter: no colour term, the photo is not read
+        guide, colour = np.zeros((1, 1, 3), np.float32), 0.0
+    else:
+        guide, colour = np.ascontiguousarray(image, dtype=np.float32), float(sigma_color)
     threads = parallel.threads()  # this thread's budget: `batch` gives each worker 1
     with parallel.thread_pool(threads, name="median") as pool:
         for size in windows:
@@ -248,16 +224,9 @@ def bilateral_median(
             cuts = np.linspace(0, len(ys), _CHUNKS * threads + 1).astype(np.int64)
 
             def run(a: int, b: int, size=size, ys=ys, xs=xs, medians=medians) -> None:
-                if guide is not None:
-                    _guided_median_at(out, guide, ys[a:b], xs[a:b], size // 2,
-                                      float(sigma_spatial), float(sigma_intensity),
-                                      float(sigma_color), medians[a:b],
-                                      np.empty(size * size, np.float32),
-                                      np.empty(size * size, np.float32))
-                    return
-                _weighted_median_at(out, ys[a:b], xs[a:b], size // 2, float(sigma_spatial),
-                                    float(sigma_intensity), medians[a:b],
-                                    np.empty(size * size, np.float32),
+                _weighted_median_at(out, guide, ys[a:b], xs[a:b], size // 2,
+                                    float(sigma_spatial), float(sigma_intensity), colour,
+                                    medians[a:b], np.empty(size * size, np.float32),
                                     np.empty(size * size, np.float32))
 
             list(pool.map(run, cuts[:-1], cuts[1:]))
