@@ -72,12 +72,8 @@ def section_edges(load, machine_line, missing) -> str:
     out += _soft_default(load, machine_line, rec)
     tr = load("edges_time_ramps.json")
     if tr is not None:
-        m = tr["median"]
-        out += [f"With the ramps (`{tr['command']}`, {len(tr['runs']['new'])} alternating runs "
-                f"each, medians; load average {tr['runs']['new'][0]['load_1min'][0]:.1f} at "
-                f"the start): ref {m['ref']['make_s']:.2f} s, new {m['new']['make_s']:.2f} s: "
-                f"{tr['ratio_make']:.2f}x (target <= 1.15x); preprocess "
-                f"{m['ref']['preprocess_s']:.2f} -> {m['new']['preprocess_s']:.2f} s.", ""]
+        out += [_time_line(tr, "With the ramps (", f"load average "
+                           f"{tr['runs']['new'][0]['load_1min'][0]:.1f} at the start"), ""]
     t = load("edges_time.json")
     if t is not None:
         m, load0 = t["median"], t["runs"]["new"][0]["load_1min"][0]
@@ -121,22 +117,26 @@ def _soft_default(load, machine_line, rec: dict) -> list[str]:
                 *_table({**before, **thin["versions"]}, whole=True), ""]
         tt = load("edges_time_thin.json")
         if tt is not None:
-            m = tt["median"]
-            out += [f"`make` with it (`{tt['command']}`, the source a `git archive` of commit "
-                    f"c79d328; {len(tt['runs']['new'])} alternating runs each, medians): ref "
-                    f"{m['ref']['make_s']:.2f} s, new {m['new']['make_s']:.2f} s: "
-                    f"{tt['ratio_make']:.2f}x (target <= 1.15x); preprocess "
-                    f"{m['ref']['preprocess_s']:.2f} -> {m['new']['preprocess_s']:.2f} s.", ""]
+            out += [_time_line(tt, "`make` with it (", None,
+                               "the source a `git archive` of commit c79d328; "), ""]
     t = load("edges_time_soft.json")
     if t is not None:
-        m = t["median"]
-        out += [f"`make` of the sample at 1024 px with soft silhouettes on (`{t['command']}`, "
-                f"{len(t['runs']['new'])} alternating runs each, medians; load average "
-                f"{t['runs']['new'][0]['load_1min'][0]:.1f} at the start): ref "
-                f"{m['ref']['make_s']:.2f} s, new {m['new']['make_s']:.2f} s: "
-                f"{t['ratio_make']:.2f}x (target <= 1.15x); preprocess "
-                f"{m['ref']['preprocess_s']:.2f} -> {m['new']['preprocess_s']:.2f} s.", ""]
+        out += [_time_line(t, "`make` of the sample at 1024 px with soft silhouettes on (",
+                           f"load average {t['runs']['new'][0]['load_1min'][0]:.1f} at the "
+                           "start"), ""]
     return out
+
+
+def _time_line(t: dict, lead: str, after: str | None, before: str = "") -> str:
+    """One ``bench_edges.py --time`` record as a sentence: ``lead``, the command, the
+    runs (``before`` them, ``after`` the medians), the two medians, their ratio
+    against the 1.15x target and the preprocess stage's seconds."""
+    m = t["median"]
+    runs = f"{len(t['runs']['new'])} alternating runs each, medians"
+    tail = f"; {after}" if after else ""
+    return (f"{lead}`{t['command']}`, {before}{runs}{tail}): ref {m['ref']['make_s']:.2f} s, "
+            f"new {m['new']['make_s']:.2f} s: {t['ratio_make']:.2f}x (target <= 1.15x); "
+            f"preprocess {m['ref']['preprocess_s']:.2f} -> {m['new']['preprocess_s']:.2f} s.")
 
 
 def _table(versions: dict, *, whole: bool = False) -> list[str]:
