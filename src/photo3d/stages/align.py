@@ -52,30 +52,52 @@ def _offsets(radius: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 @numba.njit(cache=True, nogil=True, parallel=True)
 def _joint_median_at(disp, image, ys, xs, dys, dxs, parents, sigma_s, sigma_c,
-                     min_contrast, out):  # pragma: no cover - jit
+                     min_contrast, threshold, out):  # pragma: no cover - jit
     """Fill ``out (K,) float32`` with the colour-weighted median of the window of each
-    pixel ``(ys[k], xs[k])`` of ``disp (H, W) float32``, guided by ``image (H, W, 3)
-    float32``: the neighbours at offsets ``dys, dxs`` (nearest first; ``parents``:
-    each offset's neighbour one step nearer the centre, -1 = the centre, see
-    :func:`_offsets`), each weighted by its distance and by the largest colour
-    difference from the centre met on the straight line to it (a neighbour behind a
-    colour edge does not vote; nor does one whose weight is below ``exp(-16)``). A
-    pixel keeps its value when its neighbours all weigh
-    nothing or none differs from it in colour by ``min_contrast`` or more (no colour
-    edge to follow: a flat photo leaves the map as it is)."""
+    pixel ``(ys[k], xs[k])`` of ``disp (H, W) float32`` where that median differs from
+    the pixel's value by more than ``threshold`` (a move :func:`align_edges` takes),
+    else with the pixel's value. The window is guided by ``image (H, W, 3) float32``:
+    the neighbours at offsets ``dys, dxs`` (nearest first; ``parents``: each offset's
+    neighbour one step nearer the centre, -1 = the centre, see :func:`_offsets`), each
+    weighted by its distance and by the largest colour difference from the centre met
+    on the straight line to it (a neighbour behind a colour edge does not vote; nor
+    does one whose weight is below ``exp(-16)``). A pixel keeps its value when its
+    neighbours all weigh nothing or none differs from it in colour by
+    ``min_contrast`` or more (no colour edge to follow: a flat photo leaves the map as
+    it is).
+
+    The median is one of the window's values, so it is only sought where a neighbour
+    differs from the pixel by more than ``threshold`` and those neighbours above it,
+    or those below it, weigh about half of all (0.5 - 1e-9: float64 sums of float32
+    weights are off by far less); elsewhere it cannot move the pixel across a step.
+    ``threshold`` is taken a millionth lower than given, so that float32 rounding never
+    has a neighbour counted near here that :func:`align_edges` counts far."""
     h, w = disp.shape
     inv_s = 1.0 / (2.0 * sigma_s * sigma_s)
     inv_c = 1.0 / (2.0 * sigma_c * sigma_c)
+    far = threshold * (1.0 - 1e-6)
     m = dys.shape[0]
     for k in numba.prange(ys.shape[0]):
+        y, x = ys[k], xs[k]
+        centre = disp[y, x]
+        out[k] = centre
+        step = False  # a neighbour across a step from the pixel: else nothing to seek
+        for i in range(m):
+            yy, xx = y + dys[i], x + dxs[i]
+            if 0 <= yy < h and 0 <= xx < w:
+                dv = disp[yy, xx] - centre
+                if dv > far or -dv > far:
+                    step = True
+                    break
+        if not step:
+            continue
         vals = np.empty(m, np.float32)
         wts = np.empty(m, np.float32)
         seen = np.empty(m, np.float32)  # largest squared colour difference on the line
-        y, x = ys[k], xs[k]
         r0, g0, b0 = image[y, x, 0], image[y, x, 1], image[y, x, 2]
         n = 0
-        total = 0.0
-        top = disp[y, x]
+        total = above = below = 0.0  # all weights, those of the far values each side
+        top = centre
         contrast = 0.0  # the largest squared colour difference seen
         for i in range(m):
             yy, xx = y + dys[i], x + dxs[i]
@@ -101,15 +123,21 @@ def _joint_median_at(disp, image, ys, xs, dys, dxs, parents, sigma_s, sigma_c,
             n += 1
             total += wt
             top = max(top, v)
+            dv = v - centre
+            if dv > far:
+                above += wt
+            elif -dv > far:
+                below += wt
         if total < 1e-12 or contrast < min_contrast * min_contrast:
-            out[k] = disp[y, x]  # no colour edge to follow
-        else:
+            continue  # no colour edge to follow
+        half = (0.5 - 1e-9) * total
+        if above >= half or below >= half:
             out[k] = weighted_median(vals, wts, n, 0.5 * total, top)
 
 
 KERNELS = ((_joint_median_at, "(float32[:, ::1], float32[:, :, ::1], int64[::1], int64[::1], "
                               "int64[::1], int64[::1], int64[::1], float64, float64, "
-                              "float64, float32[::1])"),)
+                              "float64, float64, float32[::1])"),)
 """The kernels ``make`` runs here and the argument types it gives them, compiled ahead
 by :func:`photo3d.kernels.compile_kernels` (``tests/test_kernels.py`` checks ``make``
 gives no others)."""
@@ -167,7 +195,8 @@ def align_edges(
     for _ in range(iterations):
         medians = np.empty(ys.size, np.float32)
         _joint_median_at(out, guide, ys, xs, dys, dxs, parents, float(radius),
-                         float(sigma_color), 2.0 * float(sigma_color), medians)
+                         float(sigma_color), 2.0 * float(sigma_color), float(threshold),
+                         medians)
         changed = np.abs(medians - out[ys, xs]) > threshold  # across a step: moved
         if not changed.any():
             break
