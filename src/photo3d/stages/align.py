@@ -71,25 +71,39 @@ def _joint_median_at(disp, image, ys, xs, dys, dxs, parents, sigma_s, sigma_c,
     or those below it, weigh about half of all (0.5 - 1e-9: float64 sums of float32
     weights are off by far less); elsewhere it cannot move the pixel across a step.
     ``threshold`` is taken a millionth lower than given, so that float32 rounding never
-    has a neighbour counted near here that :func:`align_edges` counts far."""
+    has a neighbour counted near here that :func:`align_edges` counts far. The window
+    is left as soon as neither side can weigh half: the far neighbours not yet met
+    are counted at their spatial weight (the colour term is at most 1), plus a
+    millionth for rounding; the sums only grow, so the end would have said the same."""
     h, w = disp.shape
     inv_s = 1.0 / (2.0 * sigma_s * sigma_s)
     inv_c = 1.0 / (2.0 * sigma_c * sigma_c)
     far = threshold * (1.0 - 1e-6)
     m = dys.shape[0]
+    spatial = np.empty(m)  # each offset's spatial term of the exponent
+    most = np.empty(m)  # above any weight at the offset
+    for i in range(m):
+        spatial[i] = (dys[i] * dys[i] + dxs[i] * dxs[i]) * inv_s
+        most[i] = np.float32(np.exp(-spatial[i])) * (1.0 + 1e-6)
     for k in numba.prange(ys.shape[0]):
         y, x = ys[k], xs[k]
         centre = disp[y, x]
         out[k] = centre
-        step = False  # a neighbour across a step from the pixel: else nothing to seek
+        # the far neighbours above and below the pixel not yet met: how many, and the
+        # most they can weigh (none: no step to cross, nothing to seek)
+        count_a = count_b = 0
+        rest_a = rest_b = 0.0
         for i in range(m):
             yy, xx = y + dys[i], x + dxs[i]
             if 0 <= yy < h and 0 <= xx < w:
                 dv = disp[yy, xx] - centre
-                if dv > far or -dv > far:
-                    step = True
-                    break
-        if not step:
+                if dv > far:
+                    count_a += 1
+                    rest_a += most[i]
+                elif -dv > far:
+                    count_b += 1
+                    rest_b += most[i]
+        if count_a == 0 and count_b == 0:
             continue
         vals = np.empty(m, np.float32)
         wts = np.empty(m, np.float32)
@@ -99,6 +113,7 @@ def _joint_median_at(disp, image, ys, xs, dys, dxs, parents, sigma_s, sigma_c,
         total = above = below = 0.0  # all weights, those of the far values each side
         top = centre
         contrast = 0.0  # the largest squared colour difference seen
+        settled = False  # neither side can weigh half: the pixel stays
         for i in range(m):
             yy, xx = y + dys[i], x + dxs[i]
             if yy < 0 or yy >= h or xx < 0 or xx >= w:
@@ -113,26 +128,35 @@ def _joint_median_at(disp, image, ys, xs, dys, dxs, parents, sigma_s, sigma_c,
                 c2 = seen[p]
             seen[i] = c2
             contrast = max(contrast, c2)
-            e = (dys[i] * dys[i] + dxs[i] * dxs[i]) * inv_s + c2 * inv_c
-            if e > 16.0:  # a weight below 1e-7 of the nearest neighbour's: no vote
-                continue
-            wt = np.float32(np.exp(-e))
             v = disp[yy, xx]
-            vals[n] = v
-            wts[n] = wt
-            n += 1
-            total += wt
-            top = max(top, v)
             dv = v - centre
-            if dv > far:
-                above += wt
-            elif -dv > far:
-                below += wt
-        if total < 1e-12 or contrast < min_contrast * min_contrast:
-            continue  # no colour edge to follow
-        half = (0.5 - 1e-9) * total
-        if above >= half or below >= half:
-            out[k] = weighted_median(vals, wts, n, 0.5 * total, top)
+            side = 1 if dv > far else (-1 if -dv > far else 0)
+            e = spatial[i] + c2 * inv_c
+            if e <= 16.0:  # else a weight below 1e-7 of the nearest neighbour's: no vote
+                wt = np.float32(np.exp(-e))
+                vals[n] = v
+                wts[n] = wt
+                n += 1
+                total += wt
+                top = max(top, v)
+                if side > 0:
+                    above += wt
+                elif side < 0:
+                    below += wt
+            if side > 0:
+                count_a -= 1
+                rest_a = rest_a - most[i] if count_a > 0 else 0.0
+            elif side < 0:
+                count_b -= 1
+                rest_b = rest_b - most[i] if count_b > 0 else 0.0
+            half = (0.5 - 1e-9) * total
+            if above + rest_a < half and below + rest_b < half:
+                settled = True
+                break
+        if settled or total < 1e-12 or contrast < min_contrast * min_contrast:
+            continue  # no step to cross, or no colour edge to follow
+        # not settled: the last check had met every far neighbour, a side weighs half
+        out[k] = weighted_median(vals, wts, n, 0.5 * total, top)
 
 
 KERNELS = ((_joint_median_at, "(float32[:, ::1], float32[:, :, ::1], int64[::1], int64[::1], "
