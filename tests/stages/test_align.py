@@ -84,6 +84,61 @@ def test_a_flat_photo_leaves_the_map_as_it_is():
     np.testing.assert_array_equal(align_edges(np.zeros((40, 40, 3), np.float32), noise), noise)
 
 
+def _joint_medians(disp, image, radius, sigma_c, threshold):
+    """The colour-weighted median of every pixel's window (the definition in
+    :mod:`photo3d.stages.align`, in plain Python): ``(H, W) float32``."""
+    from photo3d.stages.align import _offsets
+
+    dys, dxs, parents = _offsets(radius)
+    h, w = disp.shape
+    out = disp.copy()
+    for y in range(h):
+        for x in range(w):
+            seen, vals, wts, contrast = {}, [], [], 0.0
+            for i, (dy, dx, p) in enumerate(zip(dys, dxs, parents, strict=True)):
+                if not (0 <= y + dy < h and 0 <= x + dx < w):
+                    seen[i] = np.inf
+                    continue
+                diff = image[y + dy, x + dx] - image[y, x]
+                c2 = max(float(np.dot(diff, diff)), seen[p] if p >= 0 else 0.0)
+                seen[i], contrast = c2, max(contrast, c2)
+                e = (dy * dy + dx * dx) / (2.0 * radius**2) + c2 / (2.0 * sigma_c**2)
+                if e <= 16.0:
+                    vals.append(disp[y + dy, x + dx])
+                    wts.append(np.float32(np.exp(-e)))
+            if sum(wts) < 1e-12 or contrast < (2 * sigma_c) ** 2:
+                continue
+            order = np.argsort(vals, kind="stable")
+            reach = np.cumsum(np.array(wts, np.float64)[order]) >= 0.5 * sum(wts)
+            out[y, x] = np.array(vals)[order][np.argmax(reach)]
+    return out
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_the_kernel_moves_the_pixels_the_median_moves(seed):
+    """The kernel seeks the median only where it can move the pixel across a step
+    (and leaves a window early once it cannot): the same moves as the definition, on
+    few colours and disparities at threshold multiples (+-1e-7, exactly on the edge)."""
+    from photo3d.stages.align import _joint_median_at, _offsets
+
+    rng = np.random.default_rng(seed)
+    radius, threshold, sigma_c = 2 + seed % 2, 0.04, 0.1
+    palette = (np.array([[0.1, 0.2, 0.3], [0.4, 0.3, 0.2], [0.2, 0.5, 0.4]])
+               + rng.uniform(-0.05, 0.05, (3, 3))).astype(np.float32)
+    image = np.ascontiguousarray(palette[rng.integers(0, 3, (14, 14))])
+    disp = (rng.integers(0, 4, (14, 14)) * threshold
+            + rng.choice([0.0, 1e-7, -1e-7, 1e-3], (14, 14))).astype(np.float32)
+    ys, xs = (a.astype(np.int64).ravel() for a in np.indices(disp.shape))
+    out = np.empty(ys.size, np.float32)
+    _joint_median_at(disp, image, ys, xs, *_offsets(radius), float(radius), sigma_c,
+                     2 * sigma_c, threshold, out)
+    expected = _joint_medians(disp, image, radius, sigma_c, threshold).ravel()
+    moves = np.abs(expected - disp.ravel()) > threshold
+    assert moves.sum() > 10
+    np.testing.assert_array_equal(np.abs(out - disp.ravel()) > threshold, moves)
+    np.testing.assert_array_equal(out[moves], expected[moves])
+
+
 def test_shapes_must_agree():
     with pytest.raises(ValueError, match="disparity has shape"):
         align_edges(np.zeros((4, 5, 3), np.float32), np.zeros((4, 4), np.float32))

@@ -52,31 +52,68 @@ def _offsets(radius: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 @numba.njit(cache=True, nogil=True, parallel=True)
 def _joint_median_at(disp, image, ys, xs, dys, dxs, parents, sigma_s, sigma_c,
-                     min_contrast, out):  # pragma: no cover - jit
+                     min_contrast, threshold, out):  # pragma: no cover - jit
     """Fill ``out (K,) float32`` with the colour-weighted median of the window of each
-    pixel ``(ys[k], xs[k])`` of ``disp (H, W) float32``, guided by ``image (H, W, 3)
-    float32``: the neighbours at offsets ``dys, dxs`` (nearest first; ``parents``:
-    each offset's neighbour one step nearer the centre, -1 = the centre, see
-    :func:`_offsets`), each weighted by its distance and by the largest colour
-    difference from the centre met on the straight line to it (a neighbour behind a
-    colour edge does not vote; nor does one whose weight is below ``exp(-16)``). A
-    pixel keeps its value when its neighbours all weigh
-    nothing or none differs from it in colour by ``min_contrast`` or more (no colour
-    edge to follow: a flat photo leaves the map as it is)."""
+    pixel ``(ys[k], xs[k])`` of ``disp (H, W) float32`` where that median differs from
+    the pixel's value by more than ``threshold`` (a move :func:`align_edges` takes),
+    else with the pixel's value. The window is guided by ``image (H, W, 3) float32``:
+    the neighbours at offsets ``dys, dxs`` (nearest first; ``parents``: each offset's
+    neighbour one step nearer the centre, -1 = the centre, see :func:`_offsets`), each
+    weighted by its distance and by the largest colour difference from the centre met
+    on the straight line to it (a neighbour behind a colour edge does not vote; nor
+    does one whose weight is below ``exp(-16)``). A pixel keeps its value when its
+    neighbours all weigh nothing or none differs from it in colour by
+    ``min_contrast`` or more (no colour edge to follow: a flat photo leaves the map as
+    it is).
+
+    The median is one of the window's values, so it is only sought where a neighbour
+    differs from the pixel by more than ``threshold`` and those neighbours above it,
+    or those below it, weigh about half of all (0.5 - 1e-9: float64 sums of float32
+    weights are off by far less); elsewhere it cannot move the pixel across a step.
+    ``threshold`` is taken a millionth lower than given, so that float32 rounding never
+    has a neighbour counted near here that :func:`align_edges` counts far. The window
+    is left as soon as neither side can weigh half: the far neighbours not yet met
+    are counted at their spatial weight (the colour term is at most 1), plus a
+    millionth for rounding; the sums only grow, so the end would have said the same."""
     h, w = disp.shape
     inv_s = 1.0 / (2.0 * sigma_s * sigma_s)
     inv_c = 1.0 / (2.0 * sigma_c * sigma_c)
+    far = threshold * (1.0 - 1e-6)
     m = dys.shape[0]
+    spatial = np.empty(m)  # each offset's spatial term of the exponent
+    most = np.empty(m)  # above any weight at the offset
+    for i in range(m):
+        spatial[i] = (dys[i] * dys[i] + dxs[i] * dxs[i]) * inv_s
+        most[i] = np.float32(np.exp(-spatial[i])) * (1.0 + 1e-6)
     for k in numba.prange(ys.shape[0]):
+        y, x = ys[k], xs[k]
+        centre = disp[y, x]
+        out[k] = centre
+        # the far neighbours above and below the pixel not yet met: how many, and the
+        # most they can weigh (none: no step to cross, nothing to seek)
+        count_a = count_b = 0
+        rest_a = rest_b = 0.0
+        for i in range(m):
+            yy, xx = y + dys[i], x + dxs[i]
+            if 0 <= yy < h and 0 <= xx < w:
+                dv = disp[yy, xx] - centre
+                if dv > far:
+                    count_a += 1
+                    rest_a += most[i]
+                elif -dv > far:
+                    count_b += 1
+                    rest_b += most[i]
+        if count_a == 0 and count_b == 0:
+            continue
         vals = np.empty(m, np.float32)
         wts = np.empty(m, np.float32)
         seen = np.empty(m, np.float32)  # largest squared colour difference on the line
-        y, x = ys[k], xs[k]
         r0, g0, b0 = image[y, x, 0], image[y, x, 1], image[y, x, 2]
         n = 0
-        total = 0.0
-        top = disp[y, x]
+        total = above = below = 0.0  # all weights, those of the far values each side
+        top = centre
         contrast = 0.0  # the largest squared colour difference seen
+        settled = False  # neither side can weigh half: the pixel stays
         for i in range(m):
             yy, xx = y + dys[i], x + dxs[i]
             if yy < 0 or yy >= h or xx < 0 or xx >= w:
@@ -91,25 +128,40 @@ def _joint_median_at(disp, image, ys, xs, dys, dxs, parents, sigma_s, sigma_c,
                 c2 = seen[p]
             seen[i] = c2
             contrast = max(contrast, c2)
-            e = (dys[i] * dys[i] + dxs[i] * dxs[i]) * inv_s + c2 * inv_c
-            if e > 16.0:  # a weight below 1e-7 of the nearest neighbour's: no vote
-                continue
-            wt = np.float32(np.exp(-e))
             v = disp[yy, xx]
-            vals[n] = v
-            wts[n] = wt
-            n += 1
-            total += wt
-            top = max(top, v)
-        if total < 1e-12 or contrast < min_contrast * min_contrast:
-            out[k] = disp[y, x]  # no colour edge to follow
-        else:
-            out[k] = weighted_median(vals, wts, n, 0.5 * total, top)
+            dv = v - centre
+            side = 1 if dv > far else (-1 if -dv > far else 0)
+            e = spatial[i] + c2 * inv_c
+            if e <= 16.0:  # else a weight below 1e-7 of the nearest neighbour's: no vote
+                wt = np.float32(np.exp(-e))
+                vals[n] = v
+                wts[n] = wt
+                n += 1
+                total += wt
+                top = max(top, v)
+                if side > 0:
+                    above += wt
+                elif side < 0:
+                    below += wt
+            if side > 0:
+                count_a -= 1
+                rest_a = rest_a - most[i] if count_a > 0 else 0.0
+            elif side < 0:
+                count_b -= 1
+                rest_b = rest_b - most[i] if count_b > 0 else 0.0
+            half = (0.5 - 1e-9) * total
+            if above + rest_a < half and below + rest_b < half:
+                settled = True
+                break
+        if settled or total < 1e-12 or contrast < min_contrast * min_contrast:
+            continue  # no step to cross, or no colour edge to follow
+        # not settled: the last check had met every far neighbour, a side weighs half
+        out[k] = weighted_median(vals, wts, n, 0.5 * total, top)
 
 
 KERNELS = ((_joint_median_at, "(float32[:, ::1], float32[:, :, ::1], int64[::1], int64[::1], "
                               "int64[::1], int64[::1], int64[::1], float64, float64, "
-                              "float64, float32[::1])"),)
+                              "float64, float64, float32[::1])"),)
 """The kernels ``make`` runs here and the argument types it gives them, compiled ahead
 by :func:`photo3d.kernels.compile_kernels` (``tests/test_kernels.py`` checks ``make``
 gives no others)."""
@@ -167,7 +219,8 @@ def align_edges(
     for _ in range(iterations):
         medians = np.empty(ys.size, np.float32)
         _joint_median_at(out, guide, ys, xs, dys, dxs, parents, float(radius),
-                         float(sigma_color), 2.0 * float(sigma_color), medians)
+                         float(sigma_color), 2.0 * float(sigma_color), float(threshold),
+                         medians)
         changed = np.abs(medians - out[ys, xs]) > threshold  # across a step: moved
         if not changed.any():
             break
