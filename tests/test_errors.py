@@ -47,7 +47,7 @@ def _tiff(tmp_path):
     tifffile = pytest.importorskip("tifffile")
     path = tmp_path / "d.tif"
     tifffile.imwrite(path, np.ones((8, 8), np.float64))
-    from photo3d.io.images import read_tiff_page
+    from photo3d.io.decoding import read_tiff_page
 
     return lambda: read_tiff_page(path)
 

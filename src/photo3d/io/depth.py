@@ -26,7 +26,8 @@ from PIL import Image, UnidentifiedImageError
 
 from photo3d.errors import InputError, OutputError
 from photo3d.files.atomic import open_write, writing
-from photo3d.io.images import decoded_shape, load_pixels, open_image, read_tiff_page
+from photo3d.io.decoding import load_pixels, open_image, read_tiff_page
+from photo3d.io.images import decoded_shape
 from photo3d.io.limits import check_available
 from photo3d.io.npy import read_npy
 

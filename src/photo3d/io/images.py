@@ -13,6 +13,10 @@ file or an in-memory array into that form live here, in :func:`to_float_image`:
   much larger is decoded reduced (:func:`decoded_shape`), and what decoding needs is
   checked against the available memory before any pixel is decoded.
 
+What Pillow needs help with to decode a file (its warnings, libtiff's messages,
+orientation tags, more than 8 bits per colour sample through OpenCV or tifffile) is
+in :mod:`photo3d.io.decoding`.
+
 Example:
     >>> import numpy as np
     >>> to_float_image(np.full((8, 8), 255, np.uint8))[0, 0]
@@ -21,23 +25,28 @@ Example:
 
 from __future__ import annotations
 
-import contextlib
 import math
 import os
 import struct
-import sys
-import tempfile
 import warnings
-import zlib
-from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
 from PIL import Image, UnidentifiedImageError
 
 from photo3d.config import working_shape
-from photo3d.errors import InputError, OutputError, install_hint, require
+from photo3d.errors import InputError, OutputError
 from photo3d.files.atomic import writing
+from photo3d.io.decoding import (
+    apply_orientation,
+    is_wide_colour_png,
+    is_wide_colour_tiff,
+    load_pixels,
+    open_image,
+    orientation_of,
+    read_png16,
+    read_tiff_page,
+)
 from photo3d.io.limits import check_available
 
 PathLike = str | os.PathLike[str]
@@ -259,31 +268,6 @@ def decoded_shape(shape: tuple[int, int], working_size: int | None) -> tuple[int
     return h, w
 
 
-def check_pixel_count(shape: tuple[int, ...]) -> None:
-    """Refuse a declared size above Pillow's decompression-bomb limit, before decoding.
-
-    Args:
-        shape: the declared array shape (pixels and samples).
-
-    Raises:
-        InputError: more values than twice ``PIL.Image.MAX_IMAGE_PIXELS`` (Pillow's
-            own error limit; no limit if that is None).
-
-    Example:
-        >>> check_pixel_count((1000, 1000, 3))
-        >>> try:
-        ...     check_pixel_count((100000, 100000))
-        ... except InputError as err:
-        ...     print(str(err)[:50])
-        declared size 100000x100000 (10,000,000,000 values
-    """
-    count = int(np.prod(shape, dtype=np.float64))
-    limit = Image.MAX_IMAGE_PIXELS
-    if limit and count > 2 * limit:
-        raise InputError(f"declared size {'x'.join(map(str, shape))} ({count:,} values) is "
-                         f"more than the {2 * limit:,} photo3d accepts (decompression bomb?)")
-
-
 def _scale_to_unit(array: np.ndarray) -> np.ndarray:
     """Map uint8 / uint16 / float values to float32 in [0, 1] (shape unchanged)."""
     if array.dtype in (np.uint8, np.uint16):
@@ -321,14 +305,14 @@ def _read_pixels(path: Path, working_size: int | None) -> np.ndarray:
     try:
         with open_image(path) as im:
             _note_frames(path, im)
-            if _is_wide_colour_tiff(im):
+            if is_wide_colour_tiff(im):
                 return _read_tiff_with_tifffile(path, working_size)
             orientation = orientation_of(im.getexif().get(0x0112))
             w, h = im.size
             rh, rw = decoded_shape((h, w), working_size)
             returned = rh * rw * _FLOAT_BYTES
             what = f"its {w}x{h} pixels"
-            if im.format == "PNG" and _is_wide_colour_png(path):
+            if im.format == "PNG" and is_wide_colour_png(path):
                 check_available(16 * w * h + returned, what)  # OpenCV's, one plane
                 wide = _read_png16_colour(path, orientation, (rh, rw))
                 if wide is not None:
@@ -339,7 +323,7 @@ def _read_pixels(path: Path, working_size: int | None) -> np.ndarray:
                 box = scaled[1] if scaled else box
             check_available(_decode_bytes(im) * im.size[0] * im.size[1] + returned, what)
             load_pixels(im)
-            return _apply_orientation(_resized(im, (rh, rw), box), orientation)
+            return apply_orientation(_resized(im, (rh, rw), box), orientation)
     except InputError:
         raise
     except UnidentifiedImageError as err:
@@ -417,106 +401,6 @@ def _lanczos(plane: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
     return np.asarray(image.resize((w, h), Image.Resampling.LANCZOS, reducing_gap=_GAP))
 
 
-@contextlib.contextmanager
-def open_image(path: Path) -> Iterator[Image.Image]:
-    """``Image.open(path)``, with a TIFF orientation tag that Pillow warns holds
-    several values (``(1, 6)``) refused rather than half read; Pillow's
-    ``DecompressionBombWarning`` dropped (the readers check the memory decoding needs
-    themselves, and refuse what does not fit); its other warnings pass through.
-
-    Raises:
-        InputError: such a tag (one line).
-        UnidentifiedImageError, OSError: as ``Image.open``.
-    """
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        im = Image.open(path)
-    with im:
-        for warning in caught:
-            if issubclass(warning.category, Image.DecompressionBombWarning):
-                continue  # the readers check what decoding needs against the memory
-            text = str(warning.message)
-            if text.startswith("Metadata Warning") and "tag 274 " in text:  # orientation
-                raise InputError("the orientation tag is damaged "
-                                 f"({text.removeprefix('Metadata Warning, ')})")
-            warnings.warn_explicit(warning.message, warning.category, warning.filename,
-                                   warning.lineno)
-        yield im
-
-
-def orientation_of(value) -> int:
-    """The EXIF/TIFF orientation 1..8 of a tag ``value`` (None: no tag, 1).
-
-    Numbers outside 1..8 (some cameras write 0) mean upright, as in Pillow.
-
-    Raises:
-        InputError: the tag holds text or several values.
-
-    Example:
-        >>> orientation_of(6), orientation_of((3,)), orientation_of(None), orientation_of(0)
-        (6, 3, 1, 1)
-        >>> orientation_of("six")
-        Traceback (most recent call last):
-        photo3d.errors.InputError: the orientation tag holds 'six'; expected one number 1 to 8
-    """
-    if value is None:
-        return 1
-    if isinstance(value, tuple) and len(value) == 1:
-        value = value[0]
-    if isinstance(value, int | np.integer) and not isinstance(value, bool):
-        return int(value) if 1 <= value <= 8 else 1
-    if isinstance(value, tuple) and all(isinstance(v, int) for v in value):
-        value = tuple(int(v) for v in value)  # tifffile's enums, shown as numbers
-    shown = repr(value) if len(repr(value)) <= 40 else repr(value)[:37] + "..."
-    raise InputError(f"the orientation tag holds {shown}; expected one number 1 to 8")
-
-
-def load_pixels(im: Image.Image) -> None:
-    """``im.load()``, keeping what libtiff writes on file descriptor 2 off the terminal:
-    replayed there if the image loads, the reason of the :class:`InputError` if not
-    (so a damaged compressed TIFF gives one line). Pillow's
-    ``DecompressionBombWarning`` (a TIFF warns again here) is dropped, as by
-    :func:`open_image`.
-
-    Raises:
-        InputError: the pixels cannot be decoded.
-    """
-    if im.format != "TIFF":
-        im.load()
-        return
-    said: list[bytes] = []
-    try:
-        with _stderr_into(said), warnings.catch_warnings():
-            warnings.simplefilter("ignore", Image.DecompressionBombWarning)
-            im.load()
-    except (OSError, SyntaxError, ValueError, zlib.error) as err:
-        lines = [t for t in b"".join(said).decode(errors="replace").splitlines() if t.strip()]
-        detail = f" ({' '.join(lines[-1].split())[:160]})" if lines else ""
-        raise InputError(f"damaged image data: {err}{detail}") from None
-    if said and said[0]:
-        os.write(2, said[0])
-
-
-@contextlib.contextmanager
-def _stderr_into(said: list[bytes]) -> Iterator[None]:
-    """Redirect file descriptor 2 (where C libraries print) into ``said`` meanwhile."""
-    try:
-        sys.stderr.flush()
-        saved = os.dup(2)
-    except (OSError, ValueError, AttributeError):
-        yield  # no descriptor 2 to redirect
-        return
-    with tempfile.TemporaryFile() as tmp:
-        os.dup2(tmp.fileno(), 2)
-        try:
-            yield
-        finally:
-            os.dup2(saved, 2)
-            os.close(saved)
-            tmp.seek(0)
-            said.append(tmp.read())
-
-
 def _pixels_of(im: Image.Image) -> np.ndarray:
     """Array of a loaded Pillow image in a dtype/shape :func:`to_float_image` takes."""
     mode = im.mode
@@ -536,86 +420,18 @@ def _pixels_of(im: Image.Image) -> np.ndarray:
     return np.asarray(im if mode == target else im.convert(target))  # no needless copy
 
 
-def _is_wide_colour_png(path: Path) -> bool:
-    """True for a 16-bit RGB or RGBA PNG (Pillow reduces those to 8 bits)."""
-    with path.open("rb") as file:
-        head = file.read(26)
-    return len(head) == 26 and head[24] == 16 and head[25] in (2, 6)
-
-
 def _read_png16_colour(path: Path, orientation: int, shape: tuple[int, int]
                        ) -> np.ndarray | None:
-    """``(H, W, 3|4) uint16`` of a 16-bit colour PNG through OpenCV (at another stored
-    ``shape``: ``(h, w, 3) float32``, :func:`_resize_array`), upright, or None without
-    OpenCV."""
-    try:
-        import cv2
-    except ImportError:
-        warnings.warn(f"{path.name}: 16-bit colour PNG read at 8 bits (full precision needs "
-                      f"OpenCV: {install_hint('stereo')})", stacklevel=3)
+    """``(H, W, 3|4) uint16`` of a 16-bit colour PNG through OpenCV (:func:`read_png16`;
+    at another stored ``shape``: ``(h, w, 3) float32``, :func:`_resize_array`),
+    upright, or None without OpenCV."""
+    array = read_png16(path)
+    if array is None:
         return None
-    array = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
-    if array is None or array.dtype != np.uint16 or array.ndim != 3:
-        return None  # let Pillow decode it (or say why it cannot)
     if array.shape[:2] != shape:  # resized first (alpha composited), then reordered
-        return _apply_orientation(_resize_array(array, shape)[:, :, ::-1], int(orientation))
+        return apply_orientation(_resize_array(array, shape)[:, :, ::-1], int(orientation))
     order = [2, 1, 0, 3][: array.shape[2]]  # BGR(A) -> RGB(A)
-    return _apply_orientation(np.ascontiguousarray(array[:, :, order]), int(orientation))
-
-
-def _is_wide_colour_tiff(im: Image.Image) -> bool:
-    """True for a TIFF with more than 8 bits per colour sample (Pillow truncates)."""
-    if im.format != "TIFF":
-        return False
-    bits = im.tag_v2.get(258, (8,))
-    bits = bits if isinstance(bits, tuple) else (bits,)
-    return len(bits) >= 3 and max(bits) > 8
-
-
-def read_tiff_page(path: Path) -> tuple[np.ndarray, int]:
-    """The first page of a TIFF through tifffile (extra ``photo3d[tiff]``), for the
-    files Pillow cannot decode exactly (more than 8 bits per colour sample, float64,
-    multi-channel float). Shared by :mod:`photo3d.io.depth`.
-
-    Returns:
-        ``(pixels, orientation)``: ``(H, W)`` or ``(H, W, C)`` samples as stored (any
-        dtype; separate colour planes are moved last) and the TIFF orientation 1..8
-        (1 without the tag), not applied.
-
-    Raises:
-        MissingExtra: tifffile is not installed.
-        InputError: not a readable TIFF (also damaged compressed data), too many
-            pixels (:func:`check_pixel_count`) or more than the available memory
-            holds (:func:`photo3d.io.limits.check_available`: twice the page's bytes
-            plus 16 bytes per pixel), or an orientation tag that is not one number
-            (:func:`orientation_of`).
-
-    Example:
-        >>> import pathlib, tempfile
-        >>> import tifffile
-        >>> path = pathlib.Path(tempfile.mkdtemp()) / "depth.tif"
-        >>> tifffile.imwrite(path, np.ones((2, 3), np.float64))
-        >>> pixels, orientation = read_tiff_page(path)
-        >>> pixels.shape, pixels.dtype, orientation
-        ((2, 3), dtype('float64'), 1)
-    """
-    tifffile = require("tifffile", "tiff", purpose="this TIFF", package="the tifffile package")
-    try:
-        with tifffile.TiffFile(path) as tif:
-            page = tif.pages[0]
-            check_pixel_count(page.shape)
-            pixels = int(page.imagewidth) * int(page.imagelength)
-            check_available(2 * page.nbytes + 16 * pixels,
-                            f"its {'x'.join(map(str, page.shape))} samples")
-            array = page.asarray()
-            if page.planarconfig == tifffile.PLANARCONFIG.SEPARATE and array.ndim == 3:
-                array = np.moveaxis(array, 0, -1)  # (C, H, W) planes -> (H, W, C)
-            tag = page.tags.get("Orientation")
-    except (OSError, ValueError, IndexError, KeyError, RuntimeError, zlib.error,
-            tifffile.TiffFileError) as err:  # RuntimeError: imagecodecs' decoder errors
-        text = " ".join(str(err).split())[:200]
-        raise InputError(f"damaged or unreadable TIFF ({text or type(err).__name__})") from err
-    return array, orientation_of(tag.value if tag is not None else None)
+    return apply_orientation(np.ascontiguousarray(array[:, :, order]), int(orientation))
 
 
 def _read_tiff_with_tifffile(path: Path, working_size: int | None) -> np.ndarray:
@@ -631,17 +447,4 @@ def _read_tiff_with_tifffile(path: Path, working_size: int | None) -> np.ndarray
     shape = decoded_shape(array.shape[:2], working_size)
     if shape != array.shape[:2]:
         array = _resize_array(array, shape)
-    return _apply_orientation(array, orientation)
-
-
-def _apply_orientation(array: np.ndarray, orientation: int) -> np.ndarray:
-    """Turn ``(H, W, ...)`` upright for EXIF/TIFF orientation 1..8 (as Pillow does)."""
-    # t = transpose rows/columns, h = mirror columns, v = mirror rows; in this order.
-    steps = {2: "h", 3: "hv", 4: "v", 5: "t", 6: "th", 7: "thv", 8: "tv"}.get(orientation, "")
-    if "t" in steps:
-        array = np.swapaxes(array, 0, 1)
-    if "h" in steps:
-        array = array[:, ::-1]
-    if "v" in steps:
-        array = array[::-1]
-    return array
+    return apply_orientation(array, orientation)
