@@ -78,6 +78,7 @@ BENCHMARKS = [
     ["bench_edges.py", "--ref", "", "--variants", "align", "--out",
      "benchmarks/results/edges_thin_median.json"],
     ["bench_edges.py", "--time", "5", "--out", "benchmarks/results/edges_time_thin.json"],
+    ["bench_edges.py", "--time", "7", "--out", "benchmarks/results/edges_time_fast.json"],
     ["bench_viewer.py"],
     ["bench_memory.py"],
     ["bench_batch.py"],

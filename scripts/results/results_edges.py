@@ -119,6 +119,12 @@ def _soft_default(load, machine_line, rec: dict) -> list[str]:
         if tt is not None:
             out += [_time_line(tt, "`make` with it (", None,
                                "the source a `git archive` of commit c79d328; "), ""]
+        tf = load("edges_time_fast.json")
+        if tf is not None:
+            out += [_time_line(tf, "With the alignment's median sought only where it can "
+                               "move a pixel and `link_edges` sorting only the silhouette "
+                               "pixels, the same output (", "calm machine",
+                               "the source a `git archive` of commit d734df1; "), ""]
     t = load("edges_time_soft.json")
     if t is not None:
         out += [_time_line(t, "`make` of the sample at 1024 px with soft silhouettes on (",
