@@ -8,7 +8,9 @@ Two versions of the code, each run with ``PYTHONPATH`` set to its own copy and i
   made while the benchmark runs do not mix in);
 * ``ref``: ``--ref`` (default ``HEAD``), ``git archive``'d into a temporary folder.
 
-The 3D photo is the demo's (``photo3d demo -o DIR --no-video``, made once by ``now``).
+The 3D photo is the demo's (``photo3d demo -o DIR --no-video``, made once by ``now``;
+with ``--own-photos`` each version renders the one it made itself: a ``ref`` older than
+the ``photo3d.npz`` format ``now`` writes cannot read ``now``'s).
 Timed, whole process, the two versions alternated ``--runs`` times (medians of wall
 seconds and of the child's CPU seconds, user + system, all threads; the machine's
 1-minute load average before and after each run is recorded, since the machine may
@@ -25,6 +27,7 @@ encoder replaced by a capture), PSNR of ``now`` against ``ref`` per path.
 Writes ``benchmarks/results/video.json``.
 
 Usage: python benchmarks/bench_video.py [--runs 3] [--ref HEAD] [--every 10] [--no-demo]
+           [--own-photos] [--out JSON]
 """
 
 from __future__ import annotations
@@ -104,14 +107,15 @@ def psnr(a: np.ndarray, b: np.ndarray) -> float:
     return 99.0 if mse == 0 else 10 * np.log10(255.0**2 / mse)
 
 
-def fidelity(srcs: dict[str, Path], caches: dict[str, Path], photo: Path, tmp: Path,
-             every: int) -> dict:
-    """PSNR of ``now``'s frames against ``ref``'s per preset path: mean, lowest, count."""
+def fidelity(srcs: dict[str, Path], caches: dict[str, Path], photos: dict[str, Path],
+             tmp: Path, every: int) -> dict:
+    """PSNR of ``now``'s frames against ``ref``'s per preset path: mean, lowest, count
+    (each version rendering ``photos[kind]``)."""
     frames = {}
     for kind in ("ref", "now"):
         out = tmp / f"frames_{kind}.npz"
-        run(srcs[kind], caches[kind], ["-c", FRAMES_CHILD, str(photo), str(out), str(every),
-                                       *PATHS])
+        run(srcs[kind], caches[kind], ["-c", FRAMES_CHILD, str(photos[kind]), str(out),
+                                       str(every), *PATHS])
         frames[kind] = np.load(out)
     result = {}
     for path in PATHS:
@@ -129,6 +133,8 @@ def main() -> None:
     parser.add_argument("--every", type=int, default=10,
                         help="fidelity: every n-th frame of each path")
     parser.add_argument("--no-demo", action="store_true", help="time render only")
+    parser.add_argument("--own-photos", action="store_true",
+                        help="each version renders the demo photo it made itself")
     parser.add_argument("--out", type=Path,
                         default=Path(__file__).parent / "results" / "video.json")
     args = parser.parse_args()
@@ -136,14 +142,17 @@ def main() -> None:
         tmp = Path(tmp_name)
         srcs = copy_sources(tmp, args.ref)
         caches = {kind: tmp / f"cache_{kind}" for kind in srcs}
-        photo, demo_out = tmp / "photo", tmp / "demo"
-        render = ["-m", "photo3d", "render", str(photo), "--path", "circle", "--size",
-                  "1280x720", "-q"]
+        demo_out = tmp / "demo"
+        photos = {kind: tmp / ("photo" if kind == "now" or not args.own_photos
+                               else f"photo_{kind}") for kind in srcs}
+        render = {kind: ["-m", "photo3d", "render", str(photos[kind]), "--path", "circle",
+                         "--size", "1280x720", "-q"] for kind in srcs}
         demo = ["-m", "photo3d", "demo", "-o", str(demo_out), "--overwrite", "-q"]
-        run(srcs["now"], caches["now"], ["-m", "photo3d", "demo", "-o", str(photo),
-                                         "--no-video", "-q"])
+        for kind in ("now", "ref") if args.own_photos else ("now",):
+            run(srcs[kind], caches[kind], ["-m", "photo3d", "demo", "-o", str(photos[kind]),
+                                           "--no-video", "-q"])
         for kind in ("ref", "now"):  # warm-ups: numba compiles into each cache
-            run(srcs[kind], caches[kind], [*render, "--frames", "2"])
+            run(srcs[kind], caches[kind], [*render[kind], "--frames", "2"])
             if not args.no_demo:
                 run(srcs[kind], caches[kind], [*demo, "--frames", "2"])
         runs: dict[str, list[dict]] = {f"{job}_{kind}": [] for job in ("render", "demo")
@@ -151,19 +160,20 @@ def main() -> None:
         sizes = {}
         for _ in range(args.runs):
             for kind in ("ref", "now"):
-                runs[f"render_{kind}"].append(run(srcs[kind], caches[kind], render))
-                sizes[kind] = (photo / "video" / "circle.mp4").stat().st_size
+                runs[f"render_{kind}"].append(run(srcs[kind], caches[kind], render[kind]))
+                sizes[kind] = (photos[kind] / "video" / "circle.mp4").stat().st_size
             if not args.no_demo:
                 for kind in ("ref", "now"):
                     runs[f"demo_{kind}"].append(run(srcs[kind], caches[kind], demo))
-        quality = fidelity(srcs, caches, photo, tmp, args.every)
+        quality = fidelity(srcs, caches, photos, tmp, args.every)
     medians = {name: {key: statistics.median(r[key] for r in rs) for key in ("wall_s", "cpu_s")}
                for name, rs in runs.items() if rs}
     for rs in runs.values():
         for r in rs:
             r.pop("stdout")
     record = {"runs": runs, "median": medians, "circle_mp4_bytes": sizes,
-              "psnr_now_vs_ref": quality, "ref": args.ref, "every": args.every}
+              "psnr_now_vs_ref": quality, "ref": args.ref, "every": args.every,
+              "own_photos": args.own_photos}
     for job in ("render", "demo"):
         if f"{job}_now" in medians:
             record[f"{job}_ratio"] = (medians[f"{job}_now"]["wall_s"]

@@ -79,6 +79,8 @@ BENCHMARKS = [
      "benchmarks/results/edges_thin_median.json"],
     ["bench_edges.py", "--time", "5", "--out", "benchmarks/results/edges_time_thin.json"],
     ["bench_edges.py", "--time", "7", "--out", "benchmarks/results/edges_time_fast.json"],
+    ["bench_video.py", "--runs", "3", "--ref", "cdd3384", "--no-demo", "--every", "40",
+     "--own-photos", "--out", "benchmarks/results/video_vs_cdd3384_soft.json"],
     ["bench_viewer.py"],
     ["bench_memory.py"],
     ["bench_batch.py"],
