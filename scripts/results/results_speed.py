@@ -38,7 +38,8 @@ def section_hard_depth(load, machine_line, missing) -> str:
     return "\n".join(out + [""])
 
 
-VIDEO_RUNS = ("video_vs_cdd3384_soft.json", "video_demo_round3.json", "video_vs_cdd3384_round3b.json",
+VIDEO_RUNS = ("video_vs_cdd3384_soft.json", "video_demo_round3.json",
+              "video_vs_cdd3384_round3b.json",
               "video_vs_cdd3384_round3.json",
               "video_demo_final.json", "video_vs_cdd3384_final.json",
               "video_vs_cdd3384_frames2.json", "video_vs_cdd3384_frames.json",
