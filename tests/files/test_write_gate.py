@@ -38,9 +38,9 @@ ALLOWED = {
     ("kernel_cache.py", "_write"): "the wheel's kernels into the cache folder numba's own "
                                    "locator picks (numba's files, never a user's output), "
                                    "whole or not at all",
-    ("kernel_cache.py", "collect"): "the release build's kernel sets (scripts/release), "
+    ("kernel_build.py", "collect"): "the release build's kernel sets (scripts/release), "
                                     "no command runs it",
-    ("kernel_cache.py", "write_manifest"): "the release build's manifest, likewise",
+    ("kernel_build.py", "write_manifest"): "the release build's manifest, likewise",
     ("kernels.py", "compile_kernels"): "removes the claims folder it created",
     ("kernels.py", "compile_from_end"): "marks a kernel done in its own claims folder",
     ("ui/workspace.py", "*"): "the UI's private workspace (0700, under its own root)",
