@@ -250,7 +250,8 @@ def test_two_trains_on_one_folder_do_not_both_run(tmp_path):
 
 
 def test_a_garbage_optimizer_state_is_one_line(tmp_path):
-    from photo3d.train.run import checkpoints, train
+    from photo3d.train.run import train
+    from photo3d.train.run_folder import checkpoints
 
     run = tmp_path / "run"
     train(_data(), run, _config(1), device="cpu")
@@ -262,7 +263,8 @@ def test_a_garbage_optimizer_state_is_one_line(tmp_path):
 
 
 def test_deeply_nested_records_are_one_line(tmp_path):
-    from photo3d.train.run import RECORD, train, written_checkpoints
+    from photo3d.train.run import train
+    from photo3d.train.run_folder import RECORD, written_checkpoints
 
     run = tmp_path / "run"
     train(_data(), run, _config(1), device="cpu")

@@ -1,7 +1,8 @@
-"""The wheel's compiled kernels (photo3d.kernel_cache): a cache built for the generic
-CPU is loaded, not compiled, on this one; one that does not fit (cut short, altered,
-from another numba or Python, for a stale source) is left out and the kernel compiles
-as before, with the right result; a stale cache fails the wheel's build."""
+"""The wheel's compiled kernels (photo3d.kernel_cache; built by photo3d.kernel_build): a
+cache built for the generic CPU is loaded, not compiled, on this one; one that does not
+fit (cut short, altered, from another numba or Python, for a stale source) is left out
+and the kernel compiles as before, with the right result; a stale cache fails the
+wheel's build."""
 
 from __future__ import annotations
 
@@ -17,7 +18,7 @@ from pathlib import Path
 import pytest
 
 import photo3d
-from photo3d import kernel_cache
+from photo3d import kernel_build, kernel_cache
 
 ROOT = Path(__file__).resolve().parents[1]
 PHOTO3D_PATH = str(Path(photo3d.__file__).resolve().parents[1])
@@ -61,8 +62,8 @@ def built(tmp_path_factory) -> Path:
                    env=_env(root, NUMBA_CPU_NAME="generic", NUMBA_CACHE_DIR=str(raw)),
                    check=True)
     shipped = package / "_kernel_cache"
-    target = kernel_cache.collect(raw, shipped, package, cpu="generic")
-    kernel_cache.write_manifest(shipped, [target], package)
+    target = kernel_build.collect(raw, shipped, package, cpu="generic")
+    kernel_build.write_manifest(shipped, [target], package)
     return root
 
 

@@ -16,7 +16,7 @@ LAYERS = {
     # 0: foundations every layer may use
     "photo3d.errors": 0, "photo3d.progress": 0, "photo3d.config": 0, "photo3d.camera": 0,
     "photo3d.holes": 0, "photo3d.files": 0, "photo3d.parallel": 0,
-    "photo3d.kernel_cache": 0,
+    "photo3d.kernel_cache": 0, "photo3d.kernel_build": 0,
     # 1: the types that cross layers (the LDI, the meshes, the patch and its result)
     "photo3d.structures": 1,
     # 2: file formats

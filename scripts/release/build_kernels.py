@@ -1,5 +1,6 @@
 """Build the numba caches the wheel ships: make's, render's and export's kernels
-compiled for a portable x86-64 CPU (``photo3d.kernel_cache``).
+compiled for a portable x86-64 CPU (``photo3d.kernel_build``; ``photo3d.kernel_cache``
+adopts them).
 
 For each CPU name (``--cpu``, default ``generic``) and each Python (``--python``,
 default this one), in fresh processes with ``NUMBA_CPU_NAME`` set, ``src/`` first on
@@ -42,7 +43,8 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[2]
 SRC = ROOT / "src"
 sys.path.insert(0, str(SRC))
-from photo3d.kernel_cache import TARGETS, collect, write_manifest  # noqa: E402
+from photo3d.kernel_build import collect, write_manifest  # noqa: E402
+from photo3d.kernel_cache import TARGETS  # noqa: E402
 
 EXPORTS = {"splats.ply": None, "splats.spz": None, "splats.glb": None, "quilt": None,
            "mesh.usdz": "pxr"}

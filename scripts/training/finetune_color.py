@@ -29,7 +29,7 @@ from photo3d.train import (
     train,
     write_builtin,
 )
-from photo3d.train.run import checkpoints
+from photo3d.train.run_folder import checkpoints
 
 START = 1250
 """Steps the shipped colour net was trained for (``training.json``)."""

@@ -24,7 +24,8 @@ from pathlib import Path
 from photo3d.errors import InputError, OutputError
 from photo3d.files.atomic import on_commit, refuse_symlink, write_json
 from photo3d.files.gate import locked
-from photo3d.files.staging import owned_by_names, remove_orphans_in
+from photo3d.files.staging import owned_by_names
+from photo3d.files.temps import remove_orphans_in
 from photo3d.io.bounded import read_json
 
 LDI_FILE = "photo3d.npz"
@@ -99,7 +100,7 @@ def owned_photo(folder: Path) -> list[str]:
 def claim_files(folder: str | Path, names: Iterable[str]) -> None:
     """Check before rendering that photo3d may write ``names`` (relative to ``folder``),
     after removing the temporary files killed writers left in it
-    (:func:`photo3d.files.staging.remove_orphans_in`).
+    (:func:`photo3d.files.temps.remove_orphans_in`).
 
     Raises:
         OutputError: one of them is a symbolic link, or exists and photo3d did not

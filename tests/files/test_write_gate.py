@@ -38,16 +38,16 @@ ALLOWED = {
     ("kernel_cache.py", "_write"): "the wheel's kernels into the cache folder numba's own "
                                    "locator picks (numba's files, never a user's output), "
                                    "whole or not at all",
-    ("kernel_cache.py", "collect"): "the release build's kernel sets (scripts/release), "
+    ("kernel_build.py", "collect"): "the release build's kernel sets (scripts/release), "
                                     "no command runs it",
-    ("kernel_cache.py", "write_manifest"): "the release build's manifest, likewise",
+    ("kernel_build.py", "write_manifest"): "the release build's manifest, likewise",
     ("kernels.py", "compile_kernels"): "removes the claims folder it created",
     ("kernels.py", "compile_from_end"): "marks a kernel done in its own claims folder",
     ("ui/workspace.py", "*"): "the UI's private workspace (0700, under its own root)",
     ("ui/server.py", "*"): "the UI's per-job folders inside its workspace",
     ("viewer/serve.py", "*"): "opens files for reading only (O_RDONLY)",
     ("train/run.py", "_checkpoint"): "prunes only checkpoints checkpoints.json recorded",
-    ("train/run.py", "_remove_made"): "removes only empty folders this call created",
+    ("train/run_folder.py", "_remove_made"): "removes only empty folders this call created",
     ("train/dataset.py", "_clear_cache"): "removes a data cache only after checking it "
                                           "holds nothing but what preparation writes",
     ("cli/evaluate.py", "*"): "removes only the results folder this run created",

@@ -124,7 +124,7 @@ def _run(args: argparse.Namespace) -> int:
         write_builtin,
     )
     from photo3d.train.bounds import check_request
-    from photo3d.train.run import check_checkpoints, check_run, checkpoints, open_run
+    from photo3d.train.run_folder import check_checkpoints, check_run, checkpoints, open_run
 
     options = {k: getattr(args, k) for k in _TRAIN_OPTIONS if getattr(args, k) is not None}
     config = TrainConfig(args.kind, **options)

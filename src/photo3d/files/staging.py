@@ -24,7 +24,7 @@ The rules (what photo3d promises, README "Inputs"):
 * A temporary folder is locked (``flock``) by the process writing it for as long as
   it does; the kernel drops the lock when that process ends, even killed with
   SIGKILL. The next :func:`stage_output` of the same output removes the temporary
-  folders nobody holds any more (:func:`remove_orphans`).
+  folders nobody holds any more (:func:`photo3d.files.temps.remove_orphans`).
 
 Example:
     >>> import pathlib, tempfile
@@ -39,12 +39,10 @@ Example:
 from __future__ import annotations
 
 import atexit
-import contextlib
 import errno
 import fnmatch
 import os
 import shutil
-import time
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from pathlib import Path
 
@@ -53,11 +51,10 @@ from photo3d.files.atomic import Pending
 from photo3d.files.gate import issue_folder, release_folder
 from photo3d.files.rename import claim, identity, swap
 from photo3d.files.temps import (
-    ORPHAN_AGE_S,
     hold,
-    is_temp_name,
-    orphaned,
     release,
+    remove_orphans,
+    remove_orphans_in,
     temp_entries,
     temp_sibling,
 )
@@ -346,93 +343,6 @@ def _make_temp(parent: Path, name: str) -> Path:
         issue_folder(tmp)
         return tmp
     raise OSError(errno.EEXIST, "no free temporary name")
-
-
-def remove_orphans(out: PathLike) -> list[Path]:
-    """Remove the temporary folders of ``out`` whose writer is gone: named as
-    :func:`stage_output` names them, made more than
-    :data:`~photo3d.files.temps.ORPHAN_AGE_S` ago and
-    locked by no process (a live writer holds its folder's lock; the kernel drops it
-    when the writer dies, even of SIGKILL). Safe while other processes write ``out``.
-    Returns what was removed.
-
-    Example:
-        >>> import pathlib, tempfile
-        >>> out = pathlib.Path(tempfile.mkdtemp()) / "result"
-        >>> staging = stage_output(out)  # alive: this process holds its lock
-        >>> remove_orphans(out), staging.path.exists()
-        ([], True)
-        >>> staging.discard()
-    """
-    removed = []
-    for tmp in temp_entries(out, suffixed=False):
-        if tmp.is_dir() and not tmp.is_symlink() and orphaned(tmp):
-            shutil.rmtree(tmp, ignore_errors=True)
-            removed.append(tmp)
-    return removed
-
-
-def remove_orphans_in(folder: PathLike) -> list[Path]:
-    """Remove the temporary files and folders of any name (:func:`is_temp_name`) in
-    ``folder`` and in its subfolders (not links) whose writer is gone
-    (:func:`~photo3d.files.temps.orphaned`): what a killed command left in a folder
-    it wrote into. Safe while other processes write there. Returns what was removed.
-
-    Example:
-        >>> import pathlib, tempfile
-        >>> folder = pathlib.Path(tempfile.mkdtemp())
-        >>> _ = (folder / ".splats.ply.0123abcd.tmp.ply").write_bytes(b"ply")  # nobody holds it
-        >>> [p.name for p in remove_orphans_in(folder)], list(folder.iterdir())
-        (['.splats.ply.0123abcd.tmp.ply'], [])
-    """
-    removed, unsure = [], []
-    try:
-        entries = sorted(Path(folder).iterdir())
-    except OSError:
-        return removed
-    for entry in entries:
-        if entry.is_symlink():
-            continue
-        if is_temp_name(entry.name) and orphaned(entry):
-            _remove(entry)
-            removed.append(entry)
-        elif is_temp_name(entry.name) and orphaned(entry, age=0):
-            unsure.append(entry)  # unlocked but young and empty: made a moment ago?
-        elif entry.is_dir() and not is_temp_name(entry.name):  # a live writer's: its own
-            removed += _orphan_files(entry)
-    if unsure:  # a writer locks its file a moment after making it: wait that out once
-        made = []
-        for entry in unsure:
-            with contextlib.suppress(OSError):
-                made.append(entry.stat().st_ctime)
-        time.sleep(min(ORPHAN_AGE_S, max(0.0, ORPHAN_AGE_S - time.time() + max(made, default=0))))
-        for entry in unsure:
-            if orphaned(entry):
-                _remove(entry)
-                removed.append(entry)
-    return removed
-
-
-def _remove(entry: Path) -> None:
-    """Remove the temporary file or folder ``entry`` (gone already: nothing)."""
-    if entry.is_dir():
-        shutil.rmtree(entry, ignore_errors=True)
-    else:
-        with contextlib.suppress(FileNotFoundError):
-            entry.unlink()
-
-
-def _orphan_files(folder: Path) -> list[Path]:
-    """:func:`remove_orphans_in` one level down (files only)."""
-    removed = []
-    with contextlib.suppress(OSError):
-        for entry in sorted(folder.iterdir()):
-            if is_temp_name(entry.name) and entry.is_file() and not entry.is_symlink() \
-                    and orphaned(entry):
-                with contextlib.suppress(FileNotFoundError):
-                    entry.unlink()
-                removed.append(entry)
-    return removed
 
 
 def remove_leftovers(out: PathLike) -> list[Path]:

@@ -5,7 +5,9 @@ Every photo3d writer works under a hidden temporary name beside its target,
 :mod:`photo3d.files.staging` for folders), and holds it locked with ``flock`` while it
 writes (:func:`hold`). The kernel drops the lock when the writer dies, even killed
 with SIGKILL, so a later command tells a killed writer's leftover (:func:`orphaned`)
-from a live writer's and removes only the former (:func:`remove_orphan_files`).
+from a live writer's and removes only the former: a file's (:func:`remove_orphan_files`,
+before every atomic write), a staged folder's (:func:`remove_orphans`, before every
+staged one), or any left in a folder a command writes into (:func:`remove_orphans_in`).
 :data:`LIVE` lists this process's temporary files, which are removed at exit as a
 last resort.
 
@@ -21,6 +23,7 @@ import contextlib
 import os
 import re
 import secrets
+import shutil
 import time
 from pathlib import Path
 
@@ -233,6 +236,94 @@ def remove_orphan_files(path: PathLike) -> list[Path]:
             with contextlib.suppress(FileNotFoundError):
                 entry.unlink()
             removed.append(entry)
+    return removed
+
+
+def remove_orphans(out: PathLike) -> list[Path]:
+    """Remove the temporary folders of ``out`` whose writer is gone: named as
+    :func:`~photo3d.files.staging.stage_output` names them, made more than
+    :data:`~photo3d.files.temps.ORPHAN_AGE_S` ago and
+    locked by no process (a live writer holds its folder's lock; the kernel drops it
+    when the writer dies, even of SIGKILL). Safe while other processes write ``out``.
+    Returns what was removed.
+
+    Example:
+        >>> import pathlib, tempfile
+        >>> from photo3d.files.staging import stage_output
+        >>> out = pathlib.Path(tempfile.mkdtemp()) / "result"
+        >>> staging = stage_output(out)  # alive: this process holds its lock
+        >>> remove_orphans(out), staging.path.exists()
+        ([], True)
+        >>> staging.discard()
+    """
+    removed = []
+    for tmp in temp_entries(out, suffixed=False):
+        if tmp.is_dir() and not tmp.is_symlink() and orphaned(tmp):
+            shutil.rmtree(tmp, ignore_errors=True)
+            removed.append(tmp)
+    return removed
+
+
+def remove_orphans_in(folder: PathLike) -> list[Path]:
+    """Remove the temporary files and folders of any name (:func:`is_temp_name`) in
+    ``folder`` and in its subfolders (not links) whose writer is gone
+    (:func:`~photo3d.files.temps.orphaned`): what a killed command left in a folder
+    it wrote into. Safe while other processes write there. Returns what was removed.
+
+    Example:
+        >>> import pathlib, tempfile
+        >>> folder = pathlib.Path(tempfile.mkdtemp())
+        >>> _ = (folder / ".splats.ply.0123abcd.tmp.ply").write_bytes(b"ply")  # nobody holds it
+        >>> [p.name for p in remove_orphans_in(folder)], list(folder.iterdir())
+        (['.splats.ply.0123abcd.tmp.ply'], [])
+    """
+    removed, unsure = [], []
+    try:
+        entries = sorted(Path(folder).iterdir())
+    except OSError:
+        return removed
+    for entry in entries:
+        if entry.is_symlink():
+            continue
+        if is_temp_name(entry.name) and orphaned(entry):
+            _remove(entry)
+            removed.append(entry)
+        elif is_temp_name(entry.name) and orphaned(entry, age=0):
+            unsure.append(entry)  # unlocked but young and empty: made a moment ago?
+        elif entry.is_dir() and not is_temp_name(entry.name):  # a live writer's: its own
+            removed += _orphan_files(entry)
+    if unsure:  # a writer locks its file a moment after making it: wait that out once
+        made = []
+        for entry in unsure:
+            with contextlib.suppress(OSError):
+                made.append(entry.stat().st_ctime)
+        time.sleep(min(ORPHAN_AGE_S, max(0.0, ORPHAN_AGE_S - time.time() + max(made, default=0))))
+        for entry in unsure:
+            if orphaned(entry):
+                _remove(entry)
+                removed.append(entry)
+    return removed
+
+
+def _remove(entry: Path) -> None:
+    """Remove the temporary file or folder ``entry`` (gone already: nothing)."""
+    if entry.is_dir():
+        shutil.rmtree(entry, ignore_errors=True)
+    else:
+        with contextlib.suppress(FileNotFoundError):
+            entry.unlink()
+
+
+def _orphan_files(folder: Path) -> list[Path]:
+    """:func:`remove_orphans_in` one level down (files only)."""
+    removed = []
+    with contextlib.suppress(OSError):
+        for entry in sorted(folder.iterdir()):
+            if is_temp_name(entry.name) and entry.is_file() and not entry.is_symlink() \
+                    and orphaned(entry):
+                with contextlib.suppress(FileNotFoundError):
+                    entry.unlink()
+                removed.append(entry)
     return removed
 
 

@@ -9,7 +9,8 @@
   flipped, swapped; net inputs built by the learned backend's own code.
 - :mod:`photo3d.train.losses`: colour, depth and EdgeConnect objectives.
 - :mod:`photo3d.train.trainer`: config, nets, Adam, one step, checkpoints.
-- :mod:`photo3d.train.run`: a run folder (resume, loss CSV, sample grids, export).
+- :mod:`photo3d.train.run`: the training loop (resume, loss CSV, sample grids, export).
+- :mod:`photo3d.train.run_folder`: a run's folder (layout, checks, lock, checkpoints).
 - :mod:`photo3d.train.grid`, :mod:`photo3d.train.builtin`: sample grids; a training
   folder from offline data.
 
@@ -35,7 +36,8 @@ from photo3d.train.dataset import (
     prepare_data,
 )
 from photo3d.train.pairs import RegionPair, extract_region_pairs
-from photo3d.train.run import TrainResult, checkpoints, train
+from photo3d.train.run import TrainResult, train
+from photo3d.train.run_folder import checkpoints
 from photo3d.train.samples import Sample, make_batch, make_sample
 from photo3d.train.trainer import TrainConfig, Trainer, parameter_count, to_tensors
 
