@@ -354,13 +354,27 @@ def test_the_command_line_takes_threads_and_refuses_a_bad_budget(tmp_path, capsy
 
 
 def test_threads_on_the_command_line_set_the_budget(monkeypatch, tmp_path):
-    from photo3d.cli import main
+    """``--threads`` is the command's budget while it runs, and only its: the next
+    command in the same process (``main`` called from Python) has the process's."""
+    from photo3d.cli import main, view
 
     before = parallel.process_threads()
     monkeypatch.setattr(parallel, "_budget", None)
     monkeypatch.setenv("OMP_NUM_THREADS", os.environ.get("OMP_NUM_THREADS", "1"))
+    seen = []
+    real = view.run
+
+    def run(args):
+        seen.append(parallel.process_threads())
+        return real(args)
+
+    monkeypatch.setattr(view, "run", run)
     try:  # the folder does not exist: view fails after the budget is set
         assert main(["view", str(tmp_path / "none"), "--threads", "3"]) == 2
-        assert parallel.process_threads() == 3
+        assert seen == [3]
+        assert parallel.process_threads() == before
+        monkeypatch.setenv(parallel.ENV, "two")  # read again: no budget left behind
+        assert main(["view", str(tmp_path / "none")]) == 2
+        assert seen == [3]
     finally:
         parallel.set_threads(before)  # numba's and torch's threads as they were

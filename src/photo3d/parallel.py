@@ -254,6 +254,40 @@ def set_threads(count: int) -> None:
     _numba_threads(count)
 
 
+@contextmanager
+def command_threads(count: int | None) -> Iterator[int]:
+    """One command's budget: ``count`` threads (``--threads``; :func:`set_threads`)
+    while the block runs, the process's earlier budget again after it (a program that
+    runs several commands in one process, ``photo3d.cli.main`` from Python, gets each
+    its own); ``None``: the process's budget, ``PHOTO3D_THREADS`` checked first.
+
+    Raises:
+        ConfigError: ``count`` or ``PHOTO3D_THREADS`` is not a whole number of at least 1.
+
+    Example:
+        >>> before = process_threads()
+        >>> with command_threads(3) as n:
+        ...     n, process_threads()
+        (3, 3)
+        >>> process_threads() == before
+        True
+    """
+    global _budget
+    if count is None:
+        yield process_threads()
+        return
+    before = _budget
+    set_threads(count)
+    try:
+        yield process_threads()
+    finally:
+        _budget = before
+        restored = process_threads()
+        _numba_threads(restored)
+        if "torch" in sys.modules:
+            sys.modules["torch"].set_num_threads(restored)
+
+
 def library_defaults() -> None:
     """Before numba or torch load: size their thread pools by this budget rather than
     by the host's core count (which ignores a cgroup quota), unless the user set

@@ -27,7 +27,7 @@ from photo3d.cli import batch, demo, depth, evaluate, export, make, render, trai
 from photo3d.errors import Photo3DError
 from photo3d.files.gate import reading
 from photo3d.files.signals import handle_signals
-from photo3d.parallel import ENV, process_threads, set_threads
+from photo3d.parallel import ENV, command_threads
 
 COMMANDS = (make, batch, depth, demo, render, export, view, ui, evaluate, train)
 """Subcommand modules, in the order ``photo3d --help`` lists them."""
@@ -69,13 +69,12 @@ def main(argv: list[str] | None = None) -> int:
     with handle_signals() as guard:  # from the start: building the parser imports a lot
         try:
             args = build_parser().parse_args(argv)
-            if args.threads is not None:  # before numba or torch load
-                set_threads(args.threads)
-            else:
-                process_threads()  # a bad PHOTO3D_THREADS is told before any work
-            warnings.showwarning = show
-            with reading(*command_inputs(args)):  # no write may reach them
-                return args.run(args)
+            # --threads before numba or torch load; a bad PHOTO3D_THREADS is told before
+            # any work; the budget is this command's only (main may run again)
+            with command_threads(args.threads):
+                warnings.showwarning = show
+                with reading(*command_inputs(args)):  # no write may reach them
+                    return args.run(args)
         except Photo3DError as err:  # also MissingExtra: an optional package is missing
             print(f"photo3d: error: {err}", file=sys.stderr)
             return 2
