@@ -89,7 +89,6 @@ VARIANTS: dict[str, dict] = {
     "thin7": {"preprocess": {"filter_thin_width": 7}},
     "len0": {"preprocess": {"filter_thin_length": 0}},
     "len16": {"preprocess": {"filter_thin_length": 16}},
-    "cover0": {"preprocess": {"coverage_passes": 0}},
     "len64": {"preprocess": {"filter_thin_length": 64}},
 }
 """Settings of this tree's variants (nested ``Config.to_dict`` keys)."""

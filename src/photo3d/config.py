@@ -78,11 +78,6 @@ class PreprocessConfig:
     stereo depth) into steps at their middle before the bilateral median
     (:func:`photo3d.stages.steps.sharpen_ramps`; ramps up to about twice as many
     working pixels wide; 0 = off)."""
-    coverage_passes: int = 4
-    """``edges="align"``: passes that, after the alignment, hand the near-side pixels
-    along depth steps that the foreground covers less than half to the far side
-    (:func:`photo3d.stages.coverage.snap_to_coverage`; the coverage from the soft
-    silhouettes' matting in a window of :attr:`SilhouetteConfig.radius`; 0 = off)."""
 
 
 @dataclass(frozen=True)

@@ -10,7 +10,6 @@ from PIL import Image
 from photo3d.config import Config, working_shape
 from photo3d.depth.normalize import normalize
 from photo3d.stages.align import align_edges
-from photo3d.stages.coverage import snap_to_coverage
 from photo3d.stages.edges import DepthEdges, link_edges
 from photo3d.stages.filters import bilateral_median, keep_thin
 from photo3d.stages.steps import sharpen_ramps
@@ -96,10 +95,10 @@ def grow_foreground(disparity: np.ndarray, steps: int, threshold: float) -> np.n
 
 def preprocess(image: np.ndarray, disparity: np.ndarray, *, config: Config) -> Preprocessed:
     """Resize, normalise, sharpen, align the depth steps with the photo's colour edges
-    (``config.edges`` ``align`` or ``soft``: :func:`~photo3d.stages.align.align_edges`,
-    then :func:`~photo3d.stages.coverage.snap_to_coverage`) and find linked depth
-    edges. With ``align`` or ``soft`` the bilateral median keeps the long thin
-    structures a colour-guided run of it keeps (:func:`~photo3d.stages.filters.keep_thin`).
+    (``config.edges`` ``align`` or ``soft``: :func:`~photo3d.stages.align.align_edges`) and find
+    linked depth edges. With ``align`` or ``soft`` the bilateral median keeps the long
+    thin structures a colour-guided run of it keeps
+    (:func:`~photo3d.stages.filters.keep_thin`).
 
     Args:
         image: ``(H, W, 3) float32`` in [0, 1].
@@ -139,10 +138,6 @@ def preprocess(image: np.ndarray, disparity: np.ndarray, *, config: Config) -> P
         filtered = align_edges(img, filtered, radius=pre.align_radius,
                                iterations=pre.align_iterations,
                                sigma_color=pre.align_sigma_color, threshold=pre.discontinuity)
-    if config.edges in ("align", "soft") and pre.coverage_passes > 0:
-        filtered = snap_to_coverage(img, filtered, threshold=pre.discontinuity,
-                                    radius=config.spatial(config.silhouettes.radius, working),
-                                    passes=pre.coverage_passes)
     if pre.grow_foreground > 0:
         scale = working / max(disparity.shape)  # working px per photo px
         filtered = grow_foreground(filtered, max(1, round(pre.grow_foreground * scale)),
