@@ -376,5 +376,7 @@ def test_threads_on_the_command_line_set_the_budget(monkeypatch, tmp_path):
         monkeypatch.setenv(parallel.ENV, "two")  # read again: no budget left behind
         assert main(["view", str(tmp_path / "none")]) == 2
         assert seen == [3]
+        with parallel.command_threads(2):  # --threads beside a bad variable: no error after
+            assert parallel.process_threads() == 2
     finally:
         parallel.set_threads(before)  # numba's and torch's threads as they were

@@ -282,7 +282,10 @@ def command_threads(count: int | None) -> Iterator[int]:
         yield process_threads()
     finally:
         _budget = before
-        restored = process_threads()
+        try:
+            restored = process_threads()
+        except ConfigError:  # a bad PHOTO3D_THREADS beside --threads: the next command says so
+            restored = cores()
         _numba_threads(restored)
         if "torch" in sys.modules:
             sys.modules["torch"].set_num_threads(restored)
