@@ -47,7 +47,6 @@ ALLOWED = {
     ("ui/server.py", "*"): "the UI's per-job folders inside its workspace",
     ("viewer/serve.py", "*"): "opens files for reading only (O_RDONLY)",
     ("train/run.py", "_checkpoint"): "prunes only checkpoints checkpoints.json recorded",
-    ("train/run_folder.py", "_remove_made"): "removes only empty folders this call created",
     ("train/dataset.py", "_clear_cache"): "removes a data cache only after checking it "
                                           "holds nothing but what preparation writes",
     ("cli/evaluate.py", "*"): "removes only the results folder this run created",

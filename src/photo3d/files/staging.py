@@ -253,14 +253,14 @@ def _stage(out: Path, *, overwrite, inputs, owned, need_bytes) -> Staging:
     except (OSError, ValueError):
         name_max = 255
     if len(os.fsencode(final.name)) > name_max:
-        _remove_empty(made)
+        remove_made_folders(made)
         raise OutputError(f"output name {final.name[:40]}... is {len(os.fsencode(final.name))} "
                           f"bytes long; this file system allows {name_max}")
     remove_orphans(final)  # what killed writers of this output left
     try:
         tmp = _make_temp(parent, final.name)
     except OSError as err:
-        _remove_empty(made)
+        remove_made_folders(made)
         raise OutputError(f"cannot write in {parent}: {err.strerror or err}") from None
     free = shutil.disk_usage(parent).free if need_bytes else 0
     if free < need_bytes:
@@ -268,7 +268,7 @@ def _stage(out: Path, *, overwrite, inputs, owned, need_bytes) -> Staging:
         _LIVE.discard(tmp)
         release(tmp)
         release_folder(tmp)
-        _remove_empty(made)
+        remove_made_folders(made)
         raise OutputError(f"only {_mb(free)} free in {parent}; this output needs about "
                           f"{_mb(need_bytes)}")
     return Staging(tmp, final, out, seen=seen, owned=owned, made=made, overwrite=overwrite)
@@ -314,7 +314,7 @@ def _make_parents(parent: Path, out: Path) -> list[Path]:
             p.mkdir()
             made.append(p)
     except OSError as err:
-        _remove_empty(made)
+        remove_made_folders(made)
         raise OutputError(f"cannot create the folder {p} for {out}: "
                           f"{err.strerror or err}") from None
     if not parent.is_dir():
@@ -322,7 +322,19 @@ def _make_parents(parent: Path, out: Path) -> list[Path]:
     return made
 
 
-def _remove_empty(made: list[Path]) -> None:
+def remove_made_folders(made: list[Path]) -> None:
+    """Remove the folders of ``made`` (as :func:`_make_parents` lists them, outermost
+    first), innermost first, while they are empty: the first that is not (someone
+    wrote into it) and every folder around it stay.
+
+    Example:
+        >>> import tempfile
+        >>> root = Path(tempfile.mkdtemp())
+        >>> made = [root / "a", root / "a" / "b"]
+        >>> for folder in made: folder.mkdir()
+        >>> remove_made_folders(made); (root / "a").exists()
+        False
+    """
     for p in reversed(made):
         try:
             p.rmdir()

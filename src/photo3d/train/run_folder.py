@@ -35,6 +35,7 @@ from pathlib import Path
 from photo3d.errors import ConfigError, InputError, OutputError
 from photo3d.files.atomic import refuse_symlink, write_json
 from photo3d.files.gate import try_lock, unlock
+from photo3d.files.staging import remove_made_folders
 from photo3d.io.bounded import read_json
 from photo3d.train.dataset import KINDS
 from photo3d.train.trainer import ARCHITECTURE, TrainConfig
@@ -204,11 +205,11 @@ def open_run(run_dir: str | Path, config: TrainConfig) -> Path:
         if not (run_dir / MARKER).is_file():
             write_json(run_dir / MARKER, config.to_dict())
     except OSError as err:  # a read-only or full disk: one line, no empty folder left
-        _remove_made(made)
+        remove_made_folders(made)
         raise OutputError(f"cannot create the run folder {run_dir}: "
                           f"{err.strerror or err}") from None
     except OutputError:
-        _remove_made(made)
+        remove_made_folders(made)
         raise
     return run_dir
 
@@ -264,10 +265,3 @@ def _check_architecture(run_dir: Path, old: dict, config: TrainConfig) -> None:
                               "same options or use a new --out folder")
 
 
-def _remove_made(made: list[Path]) -> None:
-    """Remove the folders of ``made`` (innermost last in the list) that are still empty."""
-    for path in reversed(made):
-        try:
-            path.rmdir()
-        except OSError:
-            return
