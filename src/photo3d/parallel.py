@@ -245,6 +245,16 @@ def set_threads(count: int) -> None:
     count = _count(count, "--threads")
     _budget = count
     _local.__dict__.pop("threads", None)
+    _library_threads(count)
+
+
+_LIBRARY_ENV = ("NUMBA_NUM_THREADS", "OMP_NUM_THREADS")
+"""The variables numba and torch size their pools by when they load."""
+
+
+def _library_threads(count: int) -> None:
+    """numba's and torch's threads to ``count``: set if loaded, else through
+    :data:`_LIBRARY_ENV`, which they read when they load."""
     if "numba" not in sys.modules:
         os.environ["NUMBA_NUM_THREADS"] = str(count)
     if "torch" in sys.modules:
@@ -276,7 +286,7 @@ def command_threads(count: int | None) -> Iterator[int]:
     if count is None:
         yield process_threads()
         return
-    before = _budget
+    before, env = _budget, {name: os.environ.get(name) for name in _LIBRARY_ENV}
     set_threads(count)
     try:
         yield process_threads()
@@ -286,9 +296,12 @@ def command_threads(count: int | None) -> Iterator[int]:
             restored = process_threads()
         except ConfigError:  # a bad PHOTO3D_THREADS beside --threads: the next command says so
             restored = cores()
-        _numba_threads(restored)
-        if "torch" in sys.modules:
-            sys.modules["torch"].set_num_threads(restored)
+        _library_threads(restored)
+        for name, value in env.items():  # a library not loaded yet: as it was
+            if value is None:
+                os.environ.pop(name, None)
+            else:
+                os.environ[name] = value
 
 
 def library_defaults() -> None:
