@@ -78,6 +78,13 @@ def test_find_photos_refuses_ambiguous_or_missing_input(tmp_path):
     (tmp_path / "a.png").unlink()
     with pytest.raises(InputError, match="two maps for 'x'"):
         find_photos(tmp_path, depth=tmp_path / "d")
+    (tmp_path / "trip" / "x").mkdir(parents=True)
+    (tmp_path / "trip" / "x" / "c.jpg").touch()
+    (tmp_path / "trip.png").touch()  # OUT/trip would hold OUT/trip/x/c
+    assert [j.name for j in find_photos(tmp_path)] == ["a", "trip"]  # not recursive: fine
+    with pytest.raises(InputError, match=r"nest .* 'trip/x/c' of trip/x/c.jpg inside 'trip' "
+                                         r"of trip.png \(rename one\)"):
+        find_photos(tmp_path, recursive=True)
 
 
 def test_batch_makes_what_make_makes_records_failures_and_resumes(photos, capsys, monkeypatch):

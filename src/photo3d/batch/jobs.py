@@ -76,7 +76,8 @@ def find_photos(folder: str | Path, *, depth: str | Path | None = None,
 
     Raises:
         InputError: a folder is missing, there is no photo, or two photos would
-            share an output folder (``a.jpg`` and ``a.png``).
+            share an output folder (``a.jpg`` and ``a.png``) or nest theirs
+            (``trip.jpg`` and ``trip/a.jpg``, with ``recursive``).
 
     Example:
         >>> import tempfile
@@ -101,4 +102,12 @@ def find_photos(folder: str | Path, *, depth: str | Path | None = None,
             raise InputError(f"two photos would write the same output folder {name!r}: "
                              f"{jobs[name].image.name} and {path.name} (rename one)")
         jobs[name] = PhotoJob(name, path, depths.get(name))
+    for job in jobs.values():  # trip.jpg and trip/a.jpg: OUT/trip/a inside OUT/trip
+        parts = job.name.split("/")
+        outer = next((jobs[o] for i in range(1, len(parts))
+                      if (o := "/".join(parts[:i])) in jobs), None)
+        if outer is not None:
+            raise InputError(f"two photos would nest their output folders: {job.name!r} of "
+                             f"{job.image.relative_to(folder)} inside {outer.name!r} of "
+                             f"{outer.image.name} (rename one)")
     return list(jobs.values())
