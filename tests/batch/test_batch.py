@@ -61,6 +61,10 @@ def test_find_photos_matches_depth_by_name_and_walks_subfolders(tmp_path):
     # the output folder inside the input folder is never taken as input
     assert [j.name for j in find_photos(tmp_path / "in", recursive=True,
                                         skip=tmp_path / "in" / "trip")] == ["a", "b"]
+    # nor, with --recursive, the input folder itself (its 3D photo folders are entered)
+    assert [j.name for j in find_photos(tmp_path / "in", skip=tmp_path / "in")] == ["a", "b"]
+    with pytest.raises(InputError, match="the output folder cannot be the input folder"):
+        find_photos(tmp_path / "in", recursive=True, skip=tmp_path / "in" / ".." / "in")
 
 
 def test_find_photos_refuses_ambiguous_or_missing_input(tmp_path):
