@@ -160,6 +160,12 @@ def test_metric_depth_and_intrinsics_are_kept():
         photo3d.Config(metric=True)
     with pytest.raises(InputError, match="intrinsics are for"):
         photo3d.make(img, depth=z, intrinsics=Intrinsics.default(10, 10))
+    for bad in (Intrinsics(0.0, 0.0, 0.0, 0.0, 60, 40),  # ZeroDivisionError before
+                Intrinsics(np.nan, 70.0, 28.0, 21.0, 60, 40),  # NaN vertices before
+                Intrinsics(-70.0, -70.0, 28.0, 21.0, 60, 40),  # a mirrored mesh before
+                Intrinsics(70.0, 70.0, np.inf, 21.0, 60, 40)):
+        with pytest.raises(InputError, match="intrinsics need finite fx, fy > 0"):
+            photo3d.make(img, depth=z, intrinsics=bad, config=exact_config())
 
 
 def test_config_json_records_the_inpainter_the_depth_source_and_the_save_options(tmp_path):
