@@ -16,7 +16,7 @@ from photo3d.camera import DepthMapping, Intrinsics
 from photo3d.config import Config
 from photo3d.depth.normalize import DepthInput, prepare_depth
 from photo3d.depth.sources import describe_depth, read_photo
-from photo3d.errors import InputError
+from photo3d.errors import ConfigError, InputError
 from photo3d.inpaint import get_inpainter
 from photo3d.inpaint.base import Inpainter
 from photo3d.inpaint.frame import fill_frame
@@ -89,7 +89,9 @@ def make(
     """
     from photo3d.kernel_cache import adopt
 
-    config = config or Config()
+    config = Config() if config is None else config
+    if not isinstance(config, Config):
+        raise ConfigError(f"config must be a photo3d.Config, got a {type(config).__name__}")
     backend = inpainter or get_inpainter(config.inpainter)
     report = progress or (lambda stage, fraction: None)
     adopt()  # the wheel's compiled kernels, if they fit (once per process)
