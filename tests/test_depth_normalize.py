@@ -1,3 +1,5 @@
+import re
+
 import numpy as np
 import pytest
 
@@ -72,3 +74,12 @@ def test_values_float32_cannot_hold_are_unknown_not_nan():
     out = prepare_depth(huge, (1, 3), kind="disparity")
     assert out.unknown.tolist() == [[True, False, False]]
     assert out.disparity.tolist() == [[2.0, 2.0, 4.0]]
+
+
+@pytest.mark.parametrize("dtype", [bool, np.complex64, "m8[s]", object])
+def test_depth_of_no_real_number_dtype_is_refused(dtype):
+    """Before, a complex map lost its imaginary part with only NumPy's ComplexWarning,
+    and a timedelta map was taken as numbers (read_depth refuses both)."""
+    message = re.escape(f"depth has dtype {np.dtype(dtype)}; expected real numbers")
+    with pytest.raises(InputError, match=message):
+        prepare_depth(np.ones((4, 4)).astype(dtype), (4, 4), kind="disparity")

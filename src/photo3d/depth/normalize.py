@@ -56,8 +56,8 @@ def prepare_depth(depth: np.ndarray, image_shape: tuple[int, int], *, kind: str)
         depth = depth[..., 0]
     if depth.ndim != 2:
         raise InputError(f"depth has shape {depth.shape}; expected a single-channel (H, W) map")
-    if not np.issubdtype(depth.dtype, np.number):
-        raise InputError(f"depth has dtype {depth.dtype}; expected numbers")
+    if depth.dtype.kind not in "iuf":  # not complex (its imaginary part), nor times
+        raise InputError(f"depth has dtype {depth.dtype}; expected real numbers")
     with np.errstate(over="ignore"):  # beyond float32: inf, unknown as below
         depth = depth.astype(np.float32)
     depth, note = match_shape(depth, image_shape)
