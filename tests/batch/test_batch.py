@@ -257,3 +257,22 @@ def test_a_photo_without_a_depth_map_keeps_its_model_kind(tmp_path, monkeypatch)
                 PhotoJob("b", tmp_path / "b.png")):
         assert maker(job, tmp_path / "out").error == "stop here"
     assert seen == [("a.png", "depth", True), ("b.png", None, False)]
+
+
+def test_a_photos_reader_warnings_go_into_its_record_not_onto_stderr(tmp_path, capfd):
+    """A multi-page TIFF's warning was printed raw by the worker (file, line and the
+    source line: two lines, not photo3d's) and left out of the manifest."""
+    from PIL import Image
+
+    from photo3d.batch import PhotoMaker
+
+    img, d = two_planes(48, 64, 24)
+    page = Image.fromarray((img * 255).astype(np.uint8))
+    page.save(tmp_path / "a.tif", save_all=True, append_images=[page])
+    np.save(tmp_path / "a.npy", d)
+    maker = PhotoMaker(MakeOptions(config=Config(size=64),
+                                   save=SaveOptions(glb=False, ply=None, viewer=False)))
+    result = maker(PhotoJob("a", tmp_path / "a.tif", tmp_path / "a.npy"), tmp_path / "out")
+    assert result.status == "ok", result.error
+    assert result.warnings == ("a.tif has 2 pages; photo3d uses the first",)
+    assert capfd.readouterr().err == ""
