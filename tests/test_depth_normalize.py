@@ -1,3 +1,5 @@
+import re
+
 import numpy as np
 import pytest
 
@@ -57,3 +59,27 @@ def test_normalize_and_check_depth_agree_on_flat():
         flat = bool(check_depth(np.repeat(d, 3, axis=0)))
         assert flat == (relative < FLAT_RANGE) and (lo, hi) == (float(d.min()), 10.0)
         assert n.tolist() == ([[0.0, 0.0]] if flat else [[0.0, 1.0]])
+
+
+def test_values_float32_cannot_hold_are_unknown_not_nan():
+    """A depth so small that its inverse overflows float32, and a float64 value beyond
+    float32, are unknown pixels (filled), with no NumPy warning. Before, a depth of
+    1e-40 became an infinite disparity, and normalising it wrote NaN into the LDI."""
+    tiny = np.array([[1e-40, 2.0, 4.0]], np.float32)
+    out = prepare_depth(tiny, (1, 3), kind="depth")
+    assert out.unknown.tolist() == [[True, False, False]]
+    np.testing.assert_allclose(out.disparity, [[0.5, 0.5, 0.25]])
+    assert np.isfinite(normalize(out.disparity)[0]).all()
+    huge = np.array([[1e300, 2.0, 4.0]])
+    out = prepare_depth(huge, (1, 3), kind="disparity")
+    assert out.unknown.tolist() == [[True, False, False]]
+    assert out.disparity.tolist() == [[2.0, 2.0, 4.0]]
+
+
+@pytest.mark.parametrize("dtype", [bool, np.complex64, "m8[s]", object])
+def test_depth_of_no_real_number_dtype_is_refused(dtype):
+    """Before, a complex map lost its imaginary part with only NumPy's ComplexWarning,
+    and a timedelta map was taken as numbers (read_depth refuses both)."""
+    message = re.escape(f"depth has dtype {np.dtype(dtype)}; expected real numbers")
+    with pytest.raises(InputError, match=message):
+        prepare_depth(np.ones((4, 4)).astype(dtype), (4, 4), kind="disparity")

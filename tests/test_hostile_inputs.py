@@ -89,6 +89,8 @@ def test_ldi_pixel_count_is_bounded_by_the_image_size(tmp_path, capsys, monkeypa
     ({"config": 5}, "saved configuration is a int"),
     ({"config": ["size", 3]}, "saved configuration is a list"),
     ({"config": {"size": 3, "no_such_option": 1}}, "no_such_option"),
+    ({"config": {"size": "512"}}, "size must be between 16 and 16384 (a whole number)"),
+    ({"config": {"spatial_scale": "x"}}, "spatial_scale must be a number > 0 or None"),
 ])
 def test_a_damaged_saved_config_is_one_line(tmp_path, capsys, meta, message):
     path = _ldi_npz(tmp_path / "photo", 4, size=2, meta=meta)

@@ -160,6 +160,26 @@ def test_metric_depth_and_intrinsics_are_kept():
         photo3d.Config(metric=True)
     with pytest.raises(InputError, match="intrinsics are for"):
         photo3d.make(img, depth=z, intrinsics=Intrinsics.default(10, 10))
+    for bad in (Intrinsics(0.0, 0.0, 0.0, 0.0, 60, 40),  # ZeroDivisionError before
+                Intrinsics(np.nan, 70.0, 28.0, 21.0, 60, 40),  # NaN vertices before
+                Intrinsics(-70.0, -70.0, 28.0, 21.0, 60, 40),  # a mirrored mesh before
+                Intrinsics(70.0, 70.0, np.inf, 21.0, 60, 40)):
+        with pytest.raises(InputError, match="intrinsics need finite fx, fy > 0"):
+            photo3d.make(img, depth=z, intrinsics=bad, config=exact_config())
+
+
+def test_a_config_of_the_wrong_type_or_value_is_one_config_error():
+    """Before, size="512" and spatial_scale=NaN raised TypeError and ValueError deep in
+    the pipeline, size=100.5 and spatial_scale=-1 were taken, a dict for config raised
+    AttributeError."""
+    for changes in ({"size": "512"}, {"size": 100.5}, {"spatial_scale": np.nan},
+                    {"spatial_scale": -1.0}, {"spatial_scale": 0.0}, {"spatial_scale": "2"}):
+        with pytest.raises(photo3d.ConfigError, match=f"{next(iter(changes))} must be"):
+            photo3d.Config(**changes)
+    assert photo3d.Config(size=np.int64(512)).size == 512  # a NumPy integer is whole
+    img, d = two_planes(32, 48, 24)
+    with pytest.raises(photo3d.ConfigError, match="config must be a photo3d.Config, got a dict"):
+        photo3d.make(img, depth=d, config={"size": None})
 
 
 def test_config_json_records_the_inpainter_the_depth_source_and_the_save_options(tmp_path):

@@ -14,6 +14,8 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import math
+import numbers
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -171,8 +173,13 @@ class Config:
     silhouettes: SilhouetteConfig = field(default_factory=SilhouetteConfig)
 
     def __post_init__(self) -> None:
-        if self.size is not None and not 16 <= self.size <= 16384:
-            raise ConfigError(f"size must be between 16 and 16384 or None, got {self.size}")
+        whole = isinstance(self.size, numbers.Integral) and not isinstance(self.size, bool)
+        if self.size is not None and not (whole and 16 <= self.size <= 16384):
+            raise ConfigError(f"size must be between 16 and 16384 (a whole number) or None, "
+                              f"got {self.size!r}")
+        scale = self.spatial_scale
+        if scale is not None and not (isinstance(scale, numbers.Real) and 0 < scale < math.inf):
+            raise ConfigError(f"spatial_scale must be a number > 0 or None, got {scale!r}")
         if self.depth_kind not in ("disparity", "depth"):
             raise ConfigError(f"depth_kind must be 'disparity' or 'depth', got {self.depth_kind!r}")
         if self.edges not in EDGES:

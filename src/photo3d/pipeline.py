@@ -16,7 +16,7 @@ from photo3d.camera import DepthMapping, Intrinsics
 from photo3d.config import Config
 from photo3d.depth.normalize import DepthInput, prepare_depth
 from photo3d.depth.sources import describe_depth, read_photo
-from photo3d.errors import InputError
+from photo3d.errors import ConfigError, InputError
 from photo3d.inpaint import get_inpainter
 from photo3d.inpaint.base import Inpainter
 from photo3d.inpaint.frame import fill_frame
@@ -70,7 +70,8 @@ def make(
             ``config.metric`` (and ``depth_kind="depth"``) the geometry keeps the
             depth's own units instead of the authors' [1/3, 20] range.
         intrinsics: the camera of the input image (at the input's resolution; it is
-            scaled to the working size). Default: focal ``max(H, W)``, centred.
+            scaled to the working size; finite, ``fx, fy > 0``). Default: focal
+            ``max(H, W)``, centred.
         inpainter: a backend instance overriding ``config.inpainter``.
         progress: optional ``progress(stage, fraction)`` callback.
 
@@ -88,7 +89,9 @@ def make(
     """
     from photo3d.kernel_cache import adopt
 
-    config = config or Config()
+    config = Config() if config is None else config
+    if not isinstance(config, Config):
+        raise ConfigError(f"config must be a photo3d.Config, got a {type(config).__name__}")
     backend = inpainter or get_inpainter(config.inpainter)
     report = progress or (lambda stage, fraction: None)
     adopt()  # the wheel's compiled kernels, if they fit (once per process)
@@ -103,6 +106,8 @@ def make(
         report(stage, 1.0)
 
     img, dep = _load(image, depth, config)
+    if intrinsics is not None:
+        _check_intrinsics(intrinsics, img.shape[:2])
     done("load")
     pre = preprocess(img, dep.disparity, config=config)
     done("preprocess")
@@ -182,15 +187,25 @@ def _load(image: np.ndarray | str | Path, depth: np.ndarray | str | Path | Depth
     return img, prepare_depth(raw, img.shape[:2], kind=config.depth_kind)
 
 
+def _check_intrinsics(intrinsics: Intrinsics, shape: tuple[int, int]) -> None:
+    """Refuse a camera that is not the ``(H, W)`` image's, or is no camera (a focal
+    length that is not finite and positive, a principal point that is not finite)."""
+    if (intrinsics.width, intrinsics.height) != (shape[1], shape[0]):
+        raise InputError(f"intrinsics are for {intrinsics.width}x{intrinsics.height} but "
+                         f"the image is {shape[1]}x{shape[0]}")
+    fx, fy, cx, cy = (float(v) for v in (intrinsics.fx, intrinsics.fy, intrinsics.cx,
+                                         intrinsics.cy))
+    if not (fx > 0 and fy > 0 and np.isfinite([fx, fy, cx, cy]).all()):
+        raise InputError(f"intrinsics need finite fx, fy > 0 and a finite principal point, "
+                         f"got fx={fx:g}, fy={fy:g}, cx={cx:g}, cy={cy:g}")
+
+
 def _first_pass_input(pre: Preprocessed, shape: tuple[int, int], config: Config,
                       intrinsics: Intrinsics | None) -> PassInput:
     """The first pass's input (:func:`~photo3d.stages.passes.start`) with the input
     camera scaled to the working size and, for metric depth, its depth mapping."""
     h, w = pre.image.shape[:2]
     if intrinsics is not None:
-        if (intrinsics.width, intrinsics.height) != (shape[1], shape[0]):
-            raise InputError(f"intrinsics are for {intrinsics.width}x{intrinsics.height} but "
-                             f"the image is {shape[1]}x{shape[0]}")
         intrinsics = intrinsics.scaled(w, h)
     mapping = None
     if config.metric:

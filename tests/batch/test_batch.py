@@ -61,6 +61,10 @@ def test_find_photos_matches_depth_by_name_and_walks_subfolders(tmp_path):
     # the output folder inside the input folder is never taken as input
     assert [j.name for j in find_photos(tmp_path / "in", recursive=True,
                                         skip=tmp_path / "in" / "trip")] == ["a", "b"]
+    # nor, with --recursive, the input folder itself (its 3D photo folders are entered)
+    assert [j.name for j in find_photos(tmp_path / "in", skip=tmp_path / "in")] == ["a", "b"]
+    with pytest.raises(InputError, match="the output folder cannot be the input folder"):
+        find_photos(tmp_path / "in", recursive=True, skip=tmp_path / "in" / ".." / "in")
 
 
 def test_find_photos_refuses_ambiguous_or_missing_input(tmp_path):
@@ -78,6 +82,13 @@ def test_find_photos_refuses_ambiguous_or_missing_input(tmp_path):
     (tmp_path / "a.png").unlink()
     with pytest.raises(InputError, match="two maps for 'x'"):
         find_photos(tmp_path, depth=tmp_path / "d")
+    (tmp_path / "trip" / "x").mkdir(parents=True)
+    (tmp_path / "trip" / "x" / "c.jpg").touch()
+    (tmp_path / "trip.png").touch()  # OUT/trip would hold OUT/trip/x/c
+    assert [j.name for j in find_photos(tmp_path)] == ["a", "trip"]  # not recursive: fine
+    with pytest.raises(InputError, match=r"nest .* 'trip/x/c' of trip/x/c.jpg inside 'trip' "
+                                         r"of trip.png \(rename one\)"):
+        find_photos(tmp_path, recursive=True)
 
 
 def test_batch_makes_what_make_makes_records_failures_and_resumes(photos, capsys, monkeypatch):
@@ -246,3 +257,22 @@ def test_a_photo_without_a_depth_map_keeps_its_model_kind(tmp_path, monkeypatch)
                 PhotoJob("b", tmp_path / "b.png")):
         assert maker(job, tmp_path / "out").error == "stop here"
     assert seen == [("a.png", "depth", True), ("b.png", None, False)]
+
+
+def test_a_photos_reader_warnings_go_into_its_record_not_onto_stderr(tmp_path, capfd):
+    """A multi-page TIFF's warning was printed raw by the worker (file, line and the
+    source line: two lines, not photo3d's) and left out of the manifest."""
+    from PIL import Image
+
+    from photo3d.batch import PhotoMaker
+
+    img, d = two_planes(48, 64, 24)
+    page = Image.fromarray((img * 255).astype(np.uint8))
+    page.save(tmp_path / "a.tif", save_all=True, append_images=[page])
+    np.save(tmp_path / "a.npy", d)
+    maker = PhotoMaker(MakeOptions(config=Config(size=64),
+                                   save=SaveOptions(glb=False, ply=None, viewer=False)))
+    result = maker(PhotoJob("a", tmp_path / "a.tif", tmp_path / "a.npy"), tmp_path / "out")
+    assert result.status == "ok", result.error
+    assert result.warnings == ("a.tif has 2 pages; photo3d uses the first",)
+    assert capfd.readouterr().err == ""

@@ -145,6 +145,19 @@ def test_heif_without_depth(tmp_path):
     assert read_heif_image(path).shape == (64, 96, 3)
 
 
+@pytest.mark.parametrize("keep", [0.5, 0.1])
+def test_a_truncated_heif_is_one_line(tmp_path, keep):
+    """libheif's message for a file cut in half ends in a newline, which printed a
+    second, empty error line."""
+    path = tmp_path / "cut.heic"
+    write_heif(path, with_depth=False)
+    data = path.read_bytes()
+    path.write_bytes(data[: int(len(data) * keep)])
+    with pytest.raises(InputError, match="cannot read HEIF") as err:
+        read_heif_image(path)
+    assert "\n" not in str(err.value) and str(err.value) == str(err.value).strip()
+
+
 def test_resolve_depth_uses_the_heif_depth_image(tmp_path):
     path = tmp_path / "portrait.heic"
     ramp = write_heif(path, with_depth=True)

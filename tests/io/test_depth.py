@@ -101,6 +101,14 @@ def test_npy_integer_array(tmp_path):
     np.testing.assert_array_equal(read_depth(path), values)
 
 
+def test_npy_float64_beyond_float32_reads_as_inf_without_a_warning(tmp_path):
+    """inf is an unknown pixel (the module's rule); before, NumPy's "overflow
+    encountered in cast" reached the user as a warning line."""
+    path = tmp_path / "d.npy"
+    np.save(path, np.array([[1e300, -1e300], [2.0, 3.0]]))
+    assert read_depth(path).tolist() == [[np.inf, -np.inf], [2.0, 3.0]]
+
+
 def test_npy_object_array_is_refused(tmp_path):
     path = tmp_path / "evil.npy"
     np.save(path, np.array([[1, "a"], [None, 2.0]], dtype=object), allow_pickle=True)

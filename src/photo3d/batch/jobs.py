@@ -72,11 +72,14 @@ def find_photos(folder: str | Path, *, depth: str | Path | None = None,
         depth: a folder of depth maps named like the photos (the rule of
             :mod:`photo3d.files.folders`, shared with ``photo3d train --depth``).
         recursive: also take the photos of subfolders (hidden ones are left out).
-        skip: a subfolder never entered (the batch's own output folder).
+        skip: a subfolder never entered (the batch's own output folder; with
+            ``recursive``, it may not be ``folder`` itself).
 
     Raises:
         InputError: a folder is missing, there is no photo, or two photos would
-            share an output folder (``a.jpg`` and ``a.png``).
+            share an output folder (``a.jpg`` and ``a.png``) or nest theirs
+            (``trip.jpg`` and ``trip/a.jpg``, with ``recursive``), or ``skip`` is
+            ``folder`` with ``recursive``.
 
     Example:
         >>> import tempfile
@@ -88,6 +91,10 @@ def find_photos(folder: str | Path, *, depth: str | Path | None = None,
     folder = Path(folder)
     if not folder.is_dir():
         raise InputError(f"input folder {folder} does not exist or is not a folder")
+    if recursive and skip is not None and Path(skip).is_dir() and folder.samefile(skip):
+        raise InputError(f"with --recursive the output folder cannot be the input folder "
+                         f"{folder}: the files of its 3D photo folders would be read as "
+                         "photos")
     photos = files_in(folder, PHOTO_SUFFIXES, recursive=recursive,
                       skip=Path(skip) if skip is not None else None)
     if not photos:
@@ -101,4 +108,12 @@ def find_photos(folder: str | Path, *, depth: str | Path | None = None,
             raise InputError(f"two photos would write the same output folder {name!r}: "
                              f"{jobs[name].image.name} and {path.name} (rename one)")
         jobs[name] = PhotoJob(name, path, depths.get(name))
+    for job in jobs.values():  # trip.jpg and trip/a.jpg: OUT/trip/a inside OUT/trip
+        parts = job.name.split("/")
+        outer = next((jobs[o] for i in range(1, len(parts))
+                      if (o := "/".join(parts[:i])) in jobs), None)
+        if outer is not None:
+            raise InputError(f"two photos would nest their output folders: {job.name!r} of "
+                             f"{job.image.relative_to(folder)} inside {outer.name!r} of "
+                             f"{outer.image.name} (rename one)")
     return list(jobs.values())

@@ -20,6 +20,7 @@ import dataclasses
 import os
 import socket
 import time
+import warnings
 from pathlib import Path
 
 from photo3d.batch.jobs import MakeOptions, PhotoJob
@@ -106,13 +107,20 @@ class PhotoMaker:
             options = dataclasses.replace(options, depth_kind=None)
         if job.redo:  # its manifest record was unreadable: made again
             options = dataclasses.replace(options, overwrite=True)
-        try:
-            if is_complete(out) and not options.overwrite:
-                return PhotoResult(job.name, "skipped", None, 0.0, str(out))
-            make_folder(job.image, out, options=options, depth=job.depth,
-                        inpainter=self.inpainter, on_depth=on_depth)
-        except Exception as err:  # recorded in the manifest, the batch goes on
-            return PhotoResult(job.name, "failed", one_line(err), time.perf_counter() - start,
-                               str(out), seen["depth"], seen["warnings"], self.worker)
-        return PhotoResult(job.name, "ok", None, time.perf_counter() - start, str(out),
-                           seen["depth"], seen["warnings"], self.worker)
+        # other warnings (a multi-page TIFF's, ...) go into the manifest too, not raw
+        # onto the worker's stderr
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            try:
+                if is_complete(out) and not options.overwrite:
+                    return PhotoResult(job.name, "skipped", None, 0.0, str(out))
+                make_folder(job.image, out, options=options, depth=job.depth,
+                            inpainter=self.inpainter, on_depth=on_depth)
+            except Exception as err:  # recorded in the manifest, the batch goes on
+                error = one_line(err)
+            else:
+                error = None
+        notes = (*seen["warnings"], *(" ".join(str(w.message).split()) for w in caught))
+        return PhotoResult(job.name, "failed" if error else "ok", error,
+                           time.perf_counter() - start, str(out), seen["depth"], notes,
+                           self.worker)

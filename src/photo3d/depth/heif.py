@@ -42,7 +42,7 @@ def read_heif_depth(path: PathLike) -> EmbeddedDepth | None:
     try:
         primary = file[file.primary_index]
     except (ValueError, RuntimeError, OSError) as err:
-        raise InputError(f"cannot read HEIF {path}: {err}") from err
+        raise _unreadable(path, err) from err
     images = primary.info.get("depth_images") or []
     if not images:
         return None
@@ -85,7 +85,7 @@ def read_heif_image(path: PathLike) -> np.ndarray:
     try:
         im = file.to_pillow()  # the primary image
     except (ValueError, RuntimeError, OSError) as err:
-        raise InputError(f"cannot read HEIF {path}: {err}") from err
+        raise _unreadable(path, err) from err
     return to_float_image(np.asarray(im.convert("RGB")))
 
 
@@ -98,7 +98,12 @@ def _open(path: PathLike, **options):
     try:
         return pillow_heif.open_heif(path, **options)
     except (ValueError, RuntimeError, OSError) as err:
-        raise InputError(f"cannot read HEIF {path}: {err}") from err
+        raise _unreadable(path, err) from err
+
+
+def _unreadable(path: PathLike, err: Exception) -> InputError:
+    """One line for a HEIF libheif cannot read (its messages may end in a newline)."""
+    return InputError(f"cannot read HEIF {path}: {' '.join(str(err).split())}")
 
 
 def _pillow_heif(path: Path):

@@ -1,6 +1,7 @@
 """Raw depth or disparity -> validated, filled, normalised disparity.
 
-Unknown values (NaN, +-inf, and depth <= 0 / disparity < 0) are filled along each
+Unknown values (NaN, +-inf, and depth <= 0 / disparity < 0, and values float32 cannot
+hold: beyond its largest, or a depth so small that its inverse is) are filled along each
 image row with the *farther* of the nearest known values to the left and right.
 Unknown pixels in stereo ground truth and depth sensors are almost always
 occlusions or shadows next to a foreground object, i.e. background, so the farther
@@ -55,16 +56,20 @@ def prepare_depth(depth: np.ndarray, image_shape: tuple[int, int], *, kind: str)
         depth = depth[..., 0]
     if depth.ndim != 2:
         raise InputError(f"depth has shape {depth.shape}; expected a single-channel (H, W) map")
-    if not np.issubdtype(depth.dtype, np.number):
-        raise InputError(f"depth has dtype {depth.dtype}; expected numbers")
-    depth = depth.astype(np.float32)
+    if depth.dtype.kind not in "iuf":  # not complex (its imaginary part), nor times
+        raise InputError(f"depth has dtype {depth.dtype}; expected real numbers")
+    with np.errstate(over="ignore"):  # beyond float32: inf, unknown as below
+        depth = depth.astype(np.float32)
     depth, note = match_shape(depth, image_shape)
     if note:
         warnings.warn(note, UserWarning, stacklevel=2)
 
     if kind == "depth":
         valid = np.isfinite(depth) & (depth > 0)
-        disparity = np.where(valid, 1.0 / np.where(valid, depth, 1.0), 0.0)
+        with np.errstate(over="ignore"):  # a depth this tiny: inf, unknown
+            inverse = 1.0 / np.where(valid, depth, 1.0)
+        valid &= np.isfinite(inverse)
+        disparity = np.where(valid, inverse, 0.0)
     elif kind == "disparity":
         valid = np.isfinite(depth) & (depth >= 0)
         disparity = np.where(valid, depth, 0.0)

@@ -96,7 +96,8 @@ def read_depth(path: PathLike, *, working_size: int | None = None) -> np.ndarray
     try:
         values = _checked_map(reader(path, working_size))
         values = _nearest(values, decoded_shape(values.shape, working_size))
-        depth = np.array(values, dtype=np.float32, order="C")  # always a fresh copy
+        with np.errstate(over="ignore"):  # beyond float32: inf, an unknown value
+            depth = np.array(values, dtype=np.float32, order="C")  # always a fresh copy
     except InputError as err:
         raise InputError(f"cannot read depth {path}: {err}; photo3d reads {SUPPORTED}") from err
     return depth
