@@ -179,9 +179,12 @@ def test_discard_partial_removes_only_what_a_killed_writer_staged(tmp_path):
     for name in (".a.old", ".ab.1a2b3c4d.tmp", ".a.1a2b3c4d", ".a.notahex!.tmp", "a"):
         (tmp_path / name).mkdir()
     (tmp_path / ".a.0f0f0f0f.tmp").write_text("a file, not a staged folder")
+    (tmp_path / ".a.0123abcd.tmp").mkdir()  # a user's folder named like one: no writer mark
+    (tmp_path / ".a.0123abcd.tmp" / "keep.txt").write_text("the user's")
     discard_partial(out)
     assert sorted(p.name for p in tmp_path.iterdir()) == [
-        ".a.0f0f0f0f.tmp", ".a.1a2b3c4d", ".a.notahex!.tmp", ".a.old", ".ab.1a2b3c4d.tmp", "a"]
+        ".a.0123abcd.tmp", ".a.0f0f0f0f.tmp", ".a.1a2b3c4d", ".a.notahex!.tmp", ".a.old",
+        ".ab.1a2b3c4d.tmp", "a"]
 
 
 def test_ctrl_c_stops_cleanly_and_a_rerun_resumes(tmp_path):

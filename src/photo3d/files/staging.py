@@ -43,6 +43,7 @@ import errno
 import fnmatch
 import os
 import shutil
+import stat
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from pathlib import Path
 
@@ -51,6 +52,7 @@ from photo3d.files.atomic import Pending
 from photo3d.files.gate import issue_folder, release_folder
 from photo3d.files.rename import claim, identity, swap
 from photo3d.files.temps import (
+    WRITER_MARK,
     hold,
     release,
     remove_orphans,
@@ -361,8 +363,10 @@ def remove_leftovers(out: PathLike) -> list[Path]:
     """Remove the temporary folders a killed writer of ``out`` left beside it.
 
     Only folders named as :func:`stage_output` names them (``.NAME.XXXXXXXX.tmp``,
-    eight hex digits) are removed; call this only when no other process is writing
-    ``out``. Returns what was removed.
+    eight hex digits) and holding its writer's mark (:data:`~photo3d.files.temps.WRITER_MARK`;
+    a folder of that name without it is not photo3d's, or was being moved into place)
+    are removed; call this only when no other process is writing ``out``. Returns
+    what was removed.
 
     Example:
         >>> import pathlib, tempfile
@@ -373,12 +377,21 @@ def remove_leftovers(out: PathLike) -> list[Path]:
     """
     removed = []
     for tmp in temp_entries(out, suffixed=False):
-        if tmp.is_dir() and not tmp.is_symlink():
+        if tmp.is_dir() and not tmp.is_symlink() and _marked(tmp):
             shutil.rmtree(tmp, ignore_errors=True)
             _LIVE.discard(tmp)
             release_folder(tmp)
             removed.append(tmp)
     return removed
+
+
+def _marked(folder: Path) -> bool:
+    """True if ``folder`` holds a writer's mark (a file, not a link): a folder
+    :func:`_make_temp` made."""
+    try:
+        return stat.S_ISREG(os.lstat(folder / WRITER_MARK).st_mode)
+    except OSError:
+        return False
 
 
 @atexit.register
