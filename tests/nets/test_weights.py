@@ -156,3 +156,16 @@ def test_mask_kernels_must_be_ones(tmp_path):
     state["dec_1A.conv.mask_conv.weight"][0, 0, 0, 0] = 0.5
     with pytest.raises(InputError, match="key dec_1A.conv.mask_conv.weight must be all ones"):
         W.check_state_dict(state, build_net("color", **SMALL["color"]), "color.safetensors")
+
+
+@pytest.mark.parametrize("value", [float("nan"), float("inf")])
+def test_non_finite_weights_are_refused(tmp_path, value):
+    """A NaN weight would fill every hole with NaN colours: a 3D photo photo3d's own
+    reader then refuses."""
+    net = build_net("depth", **SMALL["depth"])
+    with torch.no_grad():
+        net.dec_1.conv.input_conv.weight[0, 0, 0, 0] = value
+    save_safetensors(net, tmp_path / "depth.safetensors")
+    with pytest.raises(InputError, match=r"^depth.safetensors: key dec_1.conv.input_conv.weight "
+                                         r"holds NaN or infinite values$"):
+        load_net("depth", tmp_path)

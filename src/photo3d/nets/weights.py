@@ -138,7 +138,8 @@ def _fmt(shape) -> str:
 
 def check_state_dict(state: dict[str, Tensor], module: nn.Module, filename: str) -> None:
     """Raise :class:`InputError` unless ``state`` has exactly ``module``'s keys and shapes
-    (and all-ones partial-conv mask kernels).
+    (and all-ones partial-conv mask kernels, and only finite values: a NaN weight makes
+    every fill NaN).
 
     The message names ``filename``, the first offending key, and expected vs actual
     shape (with a count of further problems).
@@ -154,6 +155,9 @@ def check_state_dict(state: dict[str, Tensor], module: nn.Module, filename: str)
                  for k in expected if k.endswith("mask_conv.weight") and k in state
                  and tuple(state[k].shape) == tuple(expected[k].shape)
                  and not bool((state[k] == 1).all())]
+    problems += [f"{filename}: key {k} holds NaN or infinite values" for k in expected
+                 if k in state and state[k].is_floating_point()
+                 and not bool(torch.isfinite(state[k]).all())]
     if problems:
         more = f" (and {len(problems) - 1} more problems)" if len(problems) > 1 else ""
         raise InputError(problems[0] + more)
