@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import hashlib
+import json
 import logging
 import os
 from pathlib import Path
@@ -169,3 +170,22 @@ def test_non_finite_weights_are_refused(tmp_path, value):
     with pytest.raises(InputError, match=r"^depth.safetensors: key dec_1.conv.input_conv.weight "
                                          r"holds NaN or infinite values$"):
         load_net("depth", tmp_path)
+
+
+@pytest.mark.parametrize("config, message", [
+    ({"width": 1e6}, r"^edge.safetensors: missing key middle.1.conv_block.1.weight_orig "
+                     r"\(expected shape \(256000000, 256000000, 3, 3\)\) \(and \d+ more"),
+    ({"width": 1e12}, r"^edge.safetensors: bad architecture metadata \(Storage size"),
+    ({"width": 0.125, "blocks": 2000}, r"^edge.safetensors: bad architecture metadata "
+                                       r"\(blocks 2000, but the file holds \d+ tensors\)$"),
+])
+def test_metadata_cannot_ask_for_a_huge_net(tmp_path, config, message):
+    """The architecture in a file's metadata is checked against the file's tensors
+    before any memory is taken: a few bytes of JSON asked for terabytes (or hours)."""
+    from safetensors.torch import save_file
+
+    state = build_net("edge", **SMALL["edge"]).state_dict()
+    save_file(state, str(tmp_path / "edge.safetensors"),
+              metadata={"photo3d_net": "edge", "config": json.dumps(config)})
+    with pytest.raises(InputError, match=message):
+        load_net("edge", tmp_path)

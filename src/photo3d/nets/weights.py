@@ -163,6 +163,16 @@ def check_state_dict(state: dict[str, Tensor], module: nn.Module, filename: str)
         raise InputError(problems[0] + more)
 
 
+def _check_counts(config: object, tensors: int) -> None:
+    """Raise ValueError if ``config`` asks for more blocks or levels than a file of
+    ``tensors`` tensors can hold (each holds at least one): such a net takes hours to
+    build, even without memory."""
+    for name in ("blocks", "levels"):
+        value = config.get(name) if isinstance(config, dict) else None
+        if isinstance(value, (int, float)) and value > tensors:
+            raise ValueError(f"{name} {value}, but the file holds {tensors} tensors")
+
+
 def load_net(kind: str, folder: str | Path) -> tuple[nn.Module, str]:
     """Load one net from ``folder``; returns ``(module in eval mode on CPU, source)``."""
     folder = Path(folder)
@@ -179,12 +189,15 @@ def load_net(kind: str, folder: str | Path) -> tuple[nn.Module, str]:
         state, meta = read_safetensors(st)
         if meta.get("photo3d_net", kind) != kind:
             raise InputError(f"{st.name} holds the {meta['photo3d_net']} net, not {kind}")
-        try:
-            module = build_net(kind, **loads_json(meta.get("config", "{}"),
-                                                  what=f"{st.name}'s metadata"))
-        except (TypeError, ValueError) as err:
+        try:  # shapes only, no memory: the metadata may ask for a net of any size
+            config = loads_json(meta.get("config", "{}"), what=f"{st.name}'s metadata")
+            _check_counts(config, len(state))
+            with torch.device("meta"):
+                shaped = build_net(kind, **config)
+        except (TypeError, ValueError, RuntimeError) as err:  # RuntimeError: sizes overflow
             raise InputError(f"{st.name}: bad architecture metadata ({err})") from err
-        check_state_dict(state, module, st.name)
+        check_state_dict(state, shaped, st.name)
+        module = build_net(kind, **config)  # as big as the file's tensors
         source, name = "safetensors", st.name
     else:
         raise InputError(f"{folder}: missing {pth.name} (or {st.name})")
