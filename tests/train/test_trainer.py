@@ -10,7 +10,7 @@ from trainkit import CROP, REGION_SIZE, SMALL, write_fake_vgg, write_folder
 
 torch = pytest.importorskip("torch")
 
-from photo3d.errors import ConfigError  # noqa: E402
+from photo3d.errors import ConfigError, InputError  # noqa: E402
 from photo3d.nets import load_inpainting_nets  # noqa: E402
 from photo3d.nets.weights import load_net  # noqa: E402
 from photo3d.train import (  # noqa: E402
@@ -91,6 +91,44 @@ def test_checkpoint_save_load_gives_identical_outputs(data, kind, tmp_path):
         torch.testing.assert_close(loaded(batch["inputs"]), a.net(batch["inputs"]),
                                    rtol=0, atol=0)
     assert source == "safetensors"
+
+
+def _tampered(state: dict, how: str) -> dict:
+    first = state["generator"]["state"][0]
+    if how == "shape":
+        first["exp_avg"] = torch.zeros(7)
+    elif how == "nan":
+        first["exp_avg_sq"] = torch.full_like(first["exp_avg_sq"], float("nan"))
+    elif how == "negative step":
+        first["step"] = torch.tensor(-5.0)
+    elif how == "no state":
+        state["generator"] = {"param_groups": state["generator"]["param_groups"]}
+    else:
+        state["generator"] = 5
+    return state
+
+
+@pytest.mark.parametrize("how", ["shape", "nan", "negative step", "no state", "not a dict"])
+def test_a_tampered_optimizer_state_is_one_line(data, tmp_path, how):
+    """A torch file of the right form but wrong contents failed with a traceback (at
+    load, or at the first step)."""
+    a = Trainer(config("depth"), device="cpu")
+    batch = to_tensors(make_batch(data, "depth", size=CROP, batch=4, seed=0, step=1), a.device)
+    a.step(batch)
+    a.save(tmp_path / "ckpt", step=1)
+    path = tmp_path / "ckpt" / "optimizer.pt"
+    torch.save(_tampered(torch.load(path, weights_only=True), how), path)
+    b = Trainer(config("depth"), device="cpu")
+    with pytest.raises(InputError, match=r"^cannot read .*optimizer.pt: not a checkpoint "
+                                         r"photo3d train wrote"):
+        b.load(tmp_path / "ckpt")
+
+
+def test_a_resumed_run_uses_its_own_learning_rate(tmp_path):
+    Trainer(config("depth", lr=1e-4), device="cpu").save(tmp_path / "ckpt", step=1)
+    b = Trainer(config("depth", lr=1e-3), device="cpu")
+    b.load(tmp_path / "ckpt")
+    assert b.optimizer.param_groups[0]["lr"] == 1e-3  # as config.json says
 
 
 def test_a_run_resumes_where_it_stopped_and_exports_loadable_weights(data, tmp_path):
