@@ -12,6 +12,10 @@ the web framework that checks the ``Host:`` header and serves the requests' resu
   ``/gradio_api/file=`` route for the URL it was given: that form is answered here
   too. Any other ``/photo3d/`` address is 404. (Gradio itself serves only the
   server's upload folder.)
+* An upload, a call or a websocket sent by a page of another site (its ``Origin:``
+  names a host the server does not answer to) gets ``403``: a browser sends a
+  cross-site upload without asking first (it only hides the answer), so any page the
+  user visits could otherwise fill the server's disk with uploads.
 * With a login, results need it as the rest of the server does (the session cookie
   Gradio's login sets), and so does the web framework's own description of its API
   (:data:`DESCRIPTIONS`: ``/openapi.json``, ``/docs``, ``/redoc``), which Gradio
@@ -37,6 +41,7 @@ import mimetypes
 import re
 from collections.abc import Callable
 from http.cookies import CookieError, SimpleCookie
+from urllib.parse import urlsplit
 
 from photo3d.ui.workspace import Workspace
 
@@ -97,6 +102,10 @@ class Gate:
                           "Misdirected Request: this server does not answer to that host name"
                           if hosts else "Bad Request: exactly one Host header is required")
             return
+        if not self._same_site(scope):
+            await _refuse(scope, receive, send, 403, "Forbidden: a page of another site "
+                                                     "cannot send requests to this server")
+            return
         path = scope.get("path", "")
         if path.rstrip("/") in DESCRIPTIONS and not _logged_in(scope):
             await _refuse(scope, receive, send, 401, "Not authenticated")
@@ -109,6 +118,21 @@ class Gate:
             await _refuse(scope, receive, send, 404, "Not Found")
             return
         await self._serve(scope, receive, send, found)
+
+    def _same_site(self, scope) -> bool:
+        """False for an upload, a call or a websocket sent by a page of another site
+        (its ``Origin:`` names a host this server does not answer to, or is
+        ``null``): a browser sends such a request without asking, and only hides the
+        answer. Requests that change nothing (GET, HEAD, OPTIONS) and clients that are
+        not browsers (no ``Origin:``) pass."""
+        if scope["type"] == "http" and scope["method"] in ("GET", "HEAD", "OPTIONS"):
+            return True
+        origins = [v.decode("latin-1") for k, v in scope.get("headers", ()) if k == b"origin"]
+        if not origins:
+            return True
+        parts = urlsplit(origins[0]) if len(origins) == 1 else None
+        return parts is not None and parts.scheme in ("http", "https") and self.allows(
+            parts.netloc)
 
     async def _pass(self, scope, receive, send) -> None:
         """The application's answer; a client gone meanwhile ends it quietly, and a
