@@ -155,6 +155,15 @@ def test_malformed_requests_get_one_line_and_leave_no_traceback(server, tmp_path
     assert "Traceback" not in capfd.readouterr().err
 
 
+def test_the_events_of_an_unknown_session_leave_no_traceback(server, capfd):
+    capfd.readouterr()
+    with httpx.Client(base_url=server.url, timeout=60) as http:
+        reply = http.get("gradio_api/queue/data", params={"session_hash": "nobody"})
+        assert reply.status_code == 200  # Gradio's stream had started: it just ends
+        assert http.get("config").status_code == 200  # and the server serves on
+    assert "Traceback" not in capfd.readouterr().err
+
+
 def test_results_are_addresses_and_only_they_are_served(server, sample, tmp_path):
     photo, depth = sample
     data = [uploaded(server, photo), uploaded(server, depth), None, 256, "diffusion", "auto",

@@ -20,8 +20,9 @@ the web framework that checks the ``Host:`` header and serves the requests' resu
   Gradio's login sets), and so does the web framework's own description of its API
   (:data:`DESCRIPTIONS`: ``/openapi.json``, ``/docs``, ``/redoc``), which Gradio
   serves to anyone.
-* A client that hangs up mid-request (an aborted upload) ends it quietly, and an
-  upload Gradio fails on gets ``400`` with the one-line reason: neither leaves a
+* A client that hangs up mid-request (an aborted upload) ends it quietly, an
+  upload Gradio fails on gets ``400`` with the one-line reason, and a stream Gradio
+  refuses once started (the events of an unknown session) ends: none leaves a
   traceback in the server's log.
 
 Example:
@@ -135,8 +136,11 @@ class Gate:
             parts.netloc)
 
     async def _pass(self, scope, receive, send) -> None:
-        """The application's answer; a client gone meanwhile ends it quietly, and a
-        failed upload is a one-line 400 (no traceback in the log)."""
+        """The application's answer; a client gone meanwhile ends it quietly, a
+        failed upload is a one-line 400, and a refusal of a stream already started
+        (Gradio's ``queue/data`` of an unknown session) ends it with one line in the
+        log (no traceback)."""
+        from starlette.exceptions import HTTPException
         from starlette.requests import ClientDisconnect
 
         started = []
@@ -151,6 +155,12 @@ class Gate:
         except ClientDisconnect:
             return  # nobody to answer
         except Exception as err:
+            refusal = err if isinstance(err, HTTPException) else err.__cause__
+            if started and isinstance(refusal, HTTPException):  # a stream refusing late
+                log.warning("photo3d ui: %s refused: %s %s", scope["path"],
+                            refusal.status_code, refusal.detail)
+                await send({"type": "http.response.body", "body": b"", "more_body": False})
+                return
             if started or scope["type"] != "http" or not scope["path"].endswith("/upload"):
                 raise
             line = f"{type(err).__name__}: {err}".splitlines()[0]
