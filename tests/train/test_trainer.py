@@ -195,4 +195,7 @@ def test_config_is_checked():
         TrainConfig("normals")
     with pytest.raises(ConfigError, match="gan must be"):
         TrainConfig("edge", gan="wgan")
+    for changes in ({"width": float("inf")}, {"lr": float("inf")}, {"width": float("nan")}):
+        with pytest.raises(ConfigError, match="width and lr must be positive and finite"):
+            TrainConfig("edge", **changes)  # an infinite width was an OverflowError
     assert TrainConfig("edge", size=100).working_size == 400

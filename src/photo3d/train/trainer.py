@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import dataclasses
 import io
+import math
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -140,8 +141,9 @@ class TrainConfig:
                 raise ConfigError(f"{name} must be positive, got {getattr(self, name)}")
         if self.blocks < (0 if refine else 1):
             raise ConfigError(f"blocks must be positive, got {self.blocks}")
-        if not self.width > 0 or not self.lr > 0:
-            raise ConfigError(f"width and lr must be positive, got {self.width} and {self.lr}")
+        if not 0 < self.width < math.inf or not 0 < self.lr < math.inf:
+            raise ConfigError(f"width and lr must be positive and finite, got {self.width} "
+                              f"and {self.lr}")
         if self.gan not in losses.GANS:
             raise ConfigError(f"gan must be one of {', '.join(losses.GANS)}, got {self.gan!r}")
         if self.depth_kind not in ("disparity", "depth"):
