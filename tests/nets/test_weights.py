@@ -189,3 +189,24 @@ def test_metadata_cannot_ask_for_a_huge_net(tmp_path, config, message):
               metadata={"photo3d_net": "edge", "config": json.dumps(config)})
     with pytest.raises(InputError, match=message):
         load_net("edge", tmp_path)
+
+
+def _deflated(path: Path) -> None:
+    """Rewrite the zip ``path`` with every record compressed (a zip bomb's form)."""
+    import zipfile
+
+    with zipfile.ZipFile(path) as zin:
+        records = [(info.filename, zin.read(info)) for info in zin.infolist()]
+    with zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED) as zout:
+        for name, data in records:
+            zout.writestr(name, data)
+
+
+def test_compressed_records_are_refused_before_torch_inflates_them(tmp_path, edge_state):
+    """torch.load inflates a compressed record: 256 KB of zeros became 256 MB."""
+    torch.save(edge_state, tmp_path / "edge-model.pth")
+    _deflated(tmp_path / "edge-model.pth")
+    with pytest.raises(InputError, match=r"^cannot read edge-model.pth: not a PyTorch state "
+                                         r"dict \(its records are compressed, which "
+                                         r"torch.save never does\)$"):
+        load_net("edge", tmp_path)

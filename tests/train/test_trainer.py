@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import zipfile
 
 import numpy as np
 import pytest
@@ -101,6 +102,8 @@ def _tampered(state: dict, how: str) -> dict:
         first["exp_avg_sq"] = torch.full_like(first["exp_avg_sq"], float("nan"))
     elif how == "negative step":
         first["step"] = torch.tensor(-5.0)
+    elif how == "compressed":
+        return state
     elif how == "no state":
         state["generator"] = {"param_groups": state["generator"]["param_groups"]}
     else:
@@ -108,7 +111,8 @@ def _tampered(state: dict, how: str) -> dict:
     return state
 
 
-@pytest.mark.parametrize("how", ["shape", "nan", "negative step", "no state", "not a dict"])
+@pytest.mark.parametrize("how", ["shape", "nan", "negative step", "no state", "not a dict",
+                                 "compressed"])
 def test_a_tampered_optimizer_state_is_one_line(data, tmp_path, how):
     """A torch file of the right form but wrong contents failed with a traceback (at
     load, or at the first step)."""
@@ -118,6 +122,12 @@ def test_a_tampered_optimizer_state_is_one_line(data, tmp_path, how):
     a.save(tmp_path / "ckpt", step=1)
     path = tmp_path / "ckpt" / "optimizer.pt"
     torch.save(_tampered(torch.load(path, weights_only=True), how), path)
+    if how == "compressed":  # torch.load would inflate it: a zip bomb's form
+        with zipfile.ZipFile(path) as zin:
+            records = [(info.filename, zin.read(info)) for info in zin.infolist()]
+        with zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED) as zout:
+            for name, data in records:
+                zout.writestr(name, data)
     b = Trainer(config("depth"), device="cpu")
     with pytest.raises(InputError, match=r"^cannot read .*optimizer.pt: not a checkpoint "
                                          r"photo3d train wrote"):

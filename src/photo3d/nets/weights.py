@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import json
 import logging
+import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -102,16 +103,44 @@ def _kind_of(module: nn.Module) -> str:
     raise TypeError(f"cannot save {type(module).__name__}: not one of the inpainting nets")
 
 
-def read_pth(path: Path) -> dict[str, Tensor]:
-    """A plain state dict from a ``.pth`` file (``weights_only`` unpickling only)."""
+def compressed_records(file) -> bool:
+    """True if ``file`` (a path or a binary file) is a zip with a compressed record.
+    ``torch.load`` inflates those, so a file of a few MB could take many GB;
+    ``torch.save`` never compresses (a file that is not a zip: False).
+
+    Example:
+        >>> import io
+        >>> buffer = io.BytesIO()
+        >>> torch.save({"w": torch.zeros(4)}, buffer)
+        >>> compressed_records(buffer)
+        False
+    """
+    if not zipfile.is_zipfile(file):
+        return False
     try:
-        state = torch.load(path, map_location="cpu", weights_only=True)
+        with zipfile.ZipFile(file) as archive:
+            return any(info.compress_type != zipfile.ZIP_STORED
+                       for info in archive.infolist())
+    except zipfile.BadZipFile:
+        return False  # a damaged zip: torch.load says so
+
+
+def read_pth(path: Path) -> dict[str, Tensor]:
+    """A plain state dict from a ``.pth`` file (``weights_only`` unpickling only, and
+    no compressed records: see :func:`compressed_records`)."""
+    try:
+        compressed = compressed_records(path)
+        state = None if compressed else torch.load(path, map_location="cpu",
+                                                   weights_only=True)
     except OSError as err:
         raise InputError(f"cannot read {path}: {err.strerror or err}") from err
     except Exception as err:  # torch.load raises many types on malformed input
         reason = ("refused: it needs unpickling beyond tensors (weights_only)"
                   if "Weights only load failed" in str(err) else type(err).__name__)
         raise InputError(f"cannot read {path.name}: not a PyTorch state dict ({reason})") from err
+    if compressed:
+        raise InputError(f"cannot read {path.name}: not a PyTorch state dict (its records "
+                         "are compressed, which torch.save never does)")
     if not isinstance(state, dict) or not all(
             isinstance(k, str) and isinstance(v, Tensor) for k, v in state.items()):
         raise InputError(f"cannot read {path.name}: not a PyTorch state dict "

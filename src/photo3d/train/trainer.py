@@ -31,6 +31,7 @@ from photo3d.nets.edge import EdgeDiscriminator
 from photo3d.nets.weights import (
     build_net,
     check_state_dict,
+    compressed_records,
     read_safetensors,
     resolve_device,
     save_safetensors,
@@ -331,6 +332,9 @@ class Trainer:
         limit = (16 << 20) + 4 * sum(p.numel() * p.element_size()
                                      for net in nets for p in net.parameters())
         data = read_bytes(path, max_bytes=limit)
+        if compressed_records(io.BytesIO(data)):
+            raise InputError(f"cannot read {path}: not a checkpoint photo3d train wrote (its "
+                             "records are compressed, which torch.save never does)")
         try:
             optim = torch.load(io.BytesIO(data), map_location=self.device, weights_only=True)
         except Exception as err:  # noqa: BLE001 - torch.load raises many types on bad input
