@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import hashlib
+import json
 import logging
 import os
 from pathlib import Path
@@ -156,3 +157,56 @@ def test_mask_kernels_must_be_ones(tmp_path):
     state["dec_1A.conv.mask_conv.weight"][0, 0, 0, 0] = 0.5
     with pytest.raises(InputError, match="key dec_1A.conv.mask_conv.weight must be all ones"):
         W.check_state_dict(state, build_net("color", **SMALL["color"]), "color.safetensors")
+
+
+@pytest.mark.parametrize("value", [float("nan"), float("inf")])
+def test_non_finite_weights_are_refused(tmp_path, value):
+    """A NaN weight would fill every hole with NaN colours: a 3D photo photo3d's own
+    reader then refuses."""
+    net = build_net("depth", **SMALL["depth"])
+    with torch.no_grad():
+        net.dec_1.conv.input_conv.weight[0, 0, 0, 0] = value
+    save_safetensors(net, tmp_path / "depth.safetensors")
+    with pytest.raises(InputError, match=r"^depth.safetensors: key dec_1.conv.input_conv.weight "
+                                         r"holds NaN or infinite values$"):
+        load_net("depth", tmp_path)
+
+
+@pytest.mark.parametrize("config, message", [
+    ({"width": 1e6}, r"^edge.safetensors: missing key middle.1.conv_block.1.weight_orig "
+                     r"\(expected shape \(256000000, 256000000, 3, 3\)\) \(and \d+ more"),
+    ({"width": 1e12}, r"^edge.safetensors: bad architecture metadata \(Storage size"),
+    ({"width": 0.125, "blocks": 2000}, r"^edge.safetensors: bad architecture metadata "
+                                       r"\(blocks 2000, but the file holds \d+ tensors\)$"),
+])
+def test_metadata_cannot_ask_for_a_huge_net(tmp_path, config, message):
+    """The architecture in a file's metadata is checked against the file's tensors
+    before any memory is taken: a few bytes of JSON asked for terabytes (or hours)."""
+    from safetensors.torch import save_file
+
+    state = build_net("edge", **SMALL["edge"]).state_dict()
+    save_file(state, str(tmp_path / "edge.safetensors"),
+              metadata={"photo3d_net": "edge", "config": json.dumps(config)})
+    with pytest.raises(InputError, match=message):
+        load_net("edge", tmp_path)
+
+
+def _deflated(path: Path) -> None:
+    """Rewrite the zip ``path`` with every record compressed (a zip bomb's form)."""
+    import zipfile
+
+    with zipfile.ZipFile(path) as zin:
+        records = [(info.filename, zin.read(info)) for info in zin.infolist()]
+    with zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED) as zout:
+        for name, data in records:
+            zout.writestr(name, data)
+
+
+def test_compressed_records_are_refused_before_torch_inflates_them(tmp_path, edge_state):
+    """torch.load inflates a compressed record: 256 KB of zeros became 256 MB."""
+    torch.save(edge_state, tmp_path / "edge-model.pth")
+    _deflated(tmp_path / "edge-model.pth")
+    with pytest.raises(InputError, match=r"^cannot read edge-model.pth: not a PyTorch state "
+                                         r"dict \(its records are compressed, which "
+                                         r"torch.save never does\)$"):
+        load_net("edge", tmp_path)

@@ -151,6 +151,25 @@ def test_a_damaged_checkpoint_state_is_one_line(folder, tmp_path, capsys):
         refused(capsys, train(folder, run, "--steps", "2"), tmp_path, "is damaged")
 
 
+def test_a_diverging_run_stops_in_one_line_and_saves_nothing_of_that_step(folder, tmp_path,
+                                                                          capsys):
+    run = tmp_path / "run"
+    assert main(train(folder, run, "--steps", "1")) == 0
+    first = (run / "depth.safetensors").read_bytes()
+    capsys.readouterr()
+    # step 2 makes the weights about 1e30; step 3 overflows (it said "image holds NaN
+    # values", from the sample grid, or saved NaN weights when a checkpoint came first)
+    assert main(train(folder, run, "--steps", "4", "--lr", "1e30", "--checkpoint-every",
+                      "1", "--sample-every", "100")) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("photo3d: error: training diverged at step 3 (the ") and (
+        "--lr 1e+30); nothing of that step was saved: lower --lr" in err), err
+    assert err.count("\n") == 1
+    assert sorted(p.name for p in (run / "checkpoints").iterdir()) == [
+        "step_0000001", "step_0000002"]
+    assert (run / "depth.safetensors").read_bytes() == first  # the first run's export
+
+
 def test_an_interrupted_data_preparation_is_resumed(folder, tmp_path, capsys, monkeypatch):
     import photo3d.train.dataset as dataset
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import zipfile
 
 import numpy as np
 import pytest
@@ -10,7 +11,7 @@ from trainkit import CROP, REGION_SIZE, SMALL, write_fake_vgg, write_folder
 
 torch = pytest.importorskip("torch")
 
-from photo3d.errors import ConfigError  # noqa: E402
+from photo3d.errors import ConfigError, InputError  # noqa: E402
 from photo3d.nets import load_inpainting_nets  # noqa: E402
 from photo3d.nets.weights import load_net  # noqa: E402
 from photo3d.train import (  # noqa: E402
@@ -93,6 +94,53 @@ def test_checkpoint_save_load_gives_identical_outputs(data, kind, tmp_path):
     assert source == "safetensors"
 
 
+def _tampered(state: dict, how: str) -> dict:
+    first = state["generator"]["state"][0]
+    if how == "shape":
+        first["exp_avg"] = torch.zeros(7)
+    elif how == "nan":
+        first["exp_avg_sq"] = torch.full_like(first["exp_avg_sq"], float("nan"))
+    elif how == "negative step":
+        first["step"] = torch.tensor(-5.0)
+    elif how == "compressed":
+        return state
+    elif how == "no state":
+        state["generator"] = {"param_groups": state["generator"]["param_groups"]}
+    else:
+        state["generator"] = 5
+    return state
+
+
+@pytest.mark.parametrize("how", ["shape", "nan", "negative step", "no state", "not a dict",
+                                 "compressed"])
+def test_a_tampered_optimizer_state_is_one_line(data, tmp_path, how):
+    """A torch file of the right form but wrong contents failed with a traceback (at
+    load, or at the first step)."""
+    a = Trainer(config("depth"), device="cpu")
+    batch = to_tensors(make_batch(data, "depth", size=CROP, batch=4, seed=0, step=1), a.device)
+    a.step(batch)
+    a.save(tmp_path / "ckpt", step=1)
+    path = tmp_path / "ckpt" / "optimizer.pt"
+    torch.save(_tampered(torch.load(path, weights_only=True), how), path)
+    if how == "compressed":  # torch.load would inflate it: a zip bomb's form
+        with zipfile.ZipFile(path) as zin:
+            records = [(info.filename, zin.read(info)) for info in zin.infolist()]
+        with zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED) as zout:
+            for name, data in records:
+                zout.writestr(name, data)
+    b = Trainer(config("depth"), device="cpu")
+    with pytest.raises(InputError, match=r"^cannot read .*optimizer.pt: not a checkpoint "
+                                         r"photo3d train wrote"):
+        b.load(tmp_path / "ckpt")
+
+
+def test_a_resumed_run_uses_its_own_learning_rate(tmp_path):
+    Trainer(config("depth", lr=1e-4), device="cpu").save(tmp_path / "ckpt", step=1)
+    b = Trainer(config("depth", lr=1e-3), device="cpu")
+    b.load(tmp_path / "ckpt")
+    assert b.optimizer.param_groups[0]["lr"] == 1e-3  # as config.json says
+
+
 def test_a_run_resumes_where_it_stopped_and_exports_loadable_weights(data, tmp_path):
     run = tmp_path / "run"
     first = train(data, run, config("depth", steps=2, checkpoint_every=1), device="cpu")
@@ -157,4 +205,7 @@ def test_config_is_checked():
         TrainConfig("normals")
     with pytest.raises(ConfigError, match="gan must be"):
         TrainConfig("edge", gan="wgan")
+    for changes in ({"width": float("inf")}, {"lr": float("inf")}, {"width": float("nan")}):
+        with pytest.raises(ConfigError, match="width and lr must be positive and finite"):
+            TrainConfig("edge", **changes)  # an infinite width was an OverflowError
     assert TrainConfig("edge", size=100).working_size == 400

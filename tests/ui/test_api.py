@@ -155,6 +155,15 @@ def test_malformed_requests_get_one_line_and_leave_no_traceback(server, tmp_path
     assert "Traceback" not in capfd.readouterr().err
 
 
+def test_the_events_of_an_unknown_session_leave_no_traceback(server, capfd):
+    capfd.readouterr()
+    with httpx.Client(base_url=server.url, timeout=60) as http:
+        reply = http.get("gradio_api/queue/data", params={"session_hash": "nobody"})
+        assert reply.status_code == 200  # Gradio's stream had started: it just ends
+        assert http.get("config").status_code == 200  # and the server serves on
+    assert "Traceback" not in capfd.readouterr().err
+
+
 def test_results_are_addresses_and_only_they_are_served(server, sample, tmp_path):
     photo, depth = sample
     data = [uploaded(server, photo), uploaded(server, depth), None, 256, "diffusion", "auto",
@@ -227,6 +236,27 @@ def test_uploads_beyond_the_byte_limit_are_refused(server):
         reply = http.post("gradio_api/upload",
                           files={"files": ("big.png", b"\0" * (MAX_UPLOAD + 1), "image/png")})
     assert reply.status_code == 413
+
+
+def test_a_page_of_another_site_cannot_upload_or_call(server):
+    """A browser sends a cross-site multipart upload without asking first (it only
+    hides the answer): any page the user visited could fill the server's disk."""
+    port = server.options.port
+    uploads = server.workspace.uploads
+    before = sorted(uploads.rglob("*"))
+    with httpx.Client(base_url=server.url, timeout=60) as http:
+        for origin in ("https://evil.example", f"http://evil.example:{port}", "null"):
+            for route in ("gradio_api/upload", "gradio_api/call/make", "gradio_api/queue/join"):
+                reply = http.post(route, headers={"Origin": origin},
+                                  files={"files": ("cross.png", b"cross-site")})
+                assert reply.status_code == 403, (origin, route)
+                assert reply.text.startswith("Forbidden: a page of another site")
+        assert sorted(uploads.rglob("*")) == before
+        for origin in (f"http://127.0.0.1:{port}", f"http://localhost:{port}", None):
+            headers = {} if origin is None else {"Origin": origin}
+            reply = http.post("gradio_api/upload", headers=headers,
+                              files={"files": ("same.png", b"same-site")})
+            assert reply.status_code == 200, origin
 
 
 def test_two_clients_at_once_each_get_their_own_result_in_queue_order(server, sample,

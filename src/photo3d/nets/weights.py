@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import json
 import logging
+import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -102,16 +103,44 @@ def _kind_of(module: nn.Module) -> str:
     raise TypeError(f"cannot save {type(module).__name__}: not one of the inpainting nets")
 
 
-def read_pth(path: Path) -> dict[str, Tensor]:
-    """A plain state dict from a ``.pth`` file (``weights_only`` unpickling only)."""
+def compressed_records(file) -> bool:
+    """True if ``file`` (a path or a binary file) is a zip with a compressed record.
+    ``torch.load`` inflates those, so a file of a few MB could take many GB;
+    ``torch.save`` never compresses (a file that is not a zip: False).
+
+    Example:
+        >>> import io
+        >>> buffer = io.BytesIO()
+        >>> torch.save({"w": torch.zeros(4)}, buffer)
+        >>> compressed_records(buffer)
+        False
+    """
+    if not zipfile.is_zipfile(file):
+        return False
     try:
-        state = torch.load(path, map_location="cpu", weights_only=True)
+        with zipfile.ZipFile(file) as archive:
+            return any(info.compress_type != zipfile.ZIP_STORED
+                       for info in archive.infolist())
+    except zipfile.BadZipFile:
+        return False  # a damaged zip: torch.load says so
+
+
+def read_pth(path: Path) -> dict[str, Tensor]:
+    """A plain state dict from a ``.pth`` file (``weights_only`` unpickling only, and
+    no compressed records: see :func:`compressed_records`)."""
+    try:
+        compressed = compressed_records(path)
+        state = None if compressed else torch.load(path, map_location="cpu",
+                                                   weights_only=True)
     except OSError as err:
         raise InputError(f"cannot read {path}: {err.strerror or err}") from err
     except Exception as err:  # torch.load raises many types on malformed input
         reason = ("refused: it needs unpickling beyond tensors (weights_only)"
                   if "Weights only load failed" in str(err) else type(err).__name__)
         raise InputError(f"cannot read {path.name}: not a PyTorch state dict ({reason})") from err
+    if compressed:
+        raise InputError(f"cannot read {path.name}: not a PyTorch state dict (its records "
+                         "are compressed, which torch.save never does)")
     if not isinstance(state, dict) or not all(
             isinstance(k, str) and isinstance(v, Tensor) for k, v in state.items()):
         raise InputError(f"cannot read {path.name}: not a PyTorch state dict "
@@ -138,7 +167,8 @@ def _fmt(shape) -> str:
 
 def check_state_dict(state: dict[str, Tensor], module: nn.Module, filename: str) -> None:
     """Raise :class:`InputError` unless ``state`` has exactly ``module``'s keys and shapes
-    (and all-ones partial-conv mask kernels).
+    (and all-ones partial-conv mask kernels, and only finite values: a NaN weight makes
+    every fill NaN).
 
     The message names ``filename``, the first offending key, and expected vs actual
     shape (with a count of further problems).
@@ -154,9 +184,22 @@ def check_state_dict(state: dict[str, Tensor], module: nn.Module, filename: str)
                  for k in expected if k.endswith("mask_conv.weight") and k in state
                  and tuple(state[k].shape) == tuple(expected[k].shape)
                  and not bool((state[k] == 1).all())]
+    problems += [f"{filename}: key {k} holds NaN or infinite values" for k in expected
+                 if k in state and state[k].is_floating_point()
+                 and not bool(torch.isfinite(state[k]).all())]
     if problems:
         more = f" (and {len(problems) - 1} more problems)" if len(problems) > 1 else ""
         raise InputError(problems[0] + more)
+
+
+def _check_counts(config: object, tensors: int) -> None:
+    """Raise ValueError if ``config`` asks for more blocks or levels than a file of
+    ``tensors`` tensors can hold (each holds at least one): such a net takes hours to
+    build, even without memory."""
+    for name in ("blocks", "levels"):
+        value = config.get(name) if isinstance(config, dict) else None
+        if isinstance(value, (int, float)) and value > tensors:
+            raise ValueError(f"{name} {value}, but the file holds {tensors} tensors")
 
 
 def load_net(kind: str, folder: str | Path) -> tuple[nn.Module, str]:
@@ -175,12 +218,15 @@ def load_net(kind: str, folder: str | Path) -> tuple[nn.Module, str]:
         state, meta = read_safetensors(st)
         if meta.get("photo3d_net", kind) != kind:
             raise InputError(f"{st.name} holds the {meta['photo3d_net']} net, not {kind}")
-        try:
-            module = build_net(kind, **loads_json(meta.get("config", "{}"),
-                                                  what=f"{st.name}'s metadata"))
-        except (TypeError, ValueError) as err:
+        try:  # shapes only, no memory: the metadata may ask for a net of any size
+            config = loads_json(meta.get("config", "{}"), what=f"{st.name}'s metadata")
+            _check_counts(config, len(state))
+            with torch.device("meta"):
+                shaped = build_net(kind, **config)
+        except (TypeError, ValueError, RuntimeError) as err:  # RuntimeError: sizes overflow
             raise InputError(f"{st.name}: bad architecture metadata ({err})") from err
-        check_state_dict(state, module, st.name)
+        check_state_dict(state, shaped, st.name)
+        module = build_net(kind, **config)  # as big as the file's tensors
         source, name = "safetensors", st.name
     else:
         raise InputError(f"{folder}: missing {pth.name} (or {st.name})")

@@ -15,13 +15,14 @@ from __future__ import annotations
 
 import csv
 import io
+import math
 import shutil
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
-from photo3d.errors import InputError
+from photo3d.errors import ConfigError, InputError
 from photo3d.files.atomic import atomic_path, open_append, write_bytes, write_json
 from photo3d.files.staging import remove_leftovers, stage_output
 from photo3d.io.bounded import read_json
@@ -183,6 +184,7 @@ def _train(data: TrainingData, run_dir: Path, config: TrainConfig, *, device, fe
                              seed=config.seed, step=step, refine=refine, swap=config.swap)
         batch = to_tensors(samples, trainer.device)
         terms, output = trainer.step(batch)
+        _check_finite(terms, step, config)
         log.write(step, time.perf_counter() - t, terms)
         last = step == config.steps
         if step % config.sample_every == 0 or last:
@@ -200,6 +202,17 @@ def _train(data: TrainingData, run_dir: Path, config: TrainConfig, *, device, fe
     with atomic_path(weights) as tmp:
         trainer.export(tmp)
     return TrainResult(run_dir, start, max(step, start), weights, terms, seconds)
+
+
+def _check_finite(terms: dict[str, float], step: int, config: TrainConfig) -> None:
+    """Raise ConfigError if a loss of ``step`` is NaN or infinite: the net's weights
+    are then NaN too, and nothing of the step may be saved."""
+    bad = [name for name, value in terms.items() if not math.isfinite(value)]
+    if bad:
+        raise ConfigError(f"training diverged at step {step} (the {bad[0]} loss is "
+                          f"{terms[bad[0]]}, --lr {config.lr:g}); nothing of that step was "
+                          "saved: lower --lr (a run resumes from its last checkpoint; a "
+                          "new --out folder starts over)")
 
 
 def _resume(trainer: Trainer, checkpoint: tuple[int, Path]) -> int:

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import dataclasses
 import io
+import math
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -30,6 +31,7 @@ from photo3d.nets.edge import EdgeDiscriminator
 from photo3d.nets.weights import (
     build_net,
     check_state_dict,
+    compressed_records,
     read_safetensors,
     resolve_device,
     save_safetensors,
@@ -140,8 +142,9 @@ class TrainConfig:
                 raise ConfigError(f"{name} must be positive, got {getattr(self, name)}")
         if self.blocks < (0 if refine else 1):
             raise ConfigError(f"blocks must be positive, got {self.blocks}")
-        if not self.width > 0 or not self.lr > 0:
-            raise ConfigError(f"width and lr must be positive, got {self.width} and {self.lr}")
+        if not 0 < self.width < math.inf or not 0 < self.lr < math.inf:
+            raise ConfigError(f"width and lr must be positive and finite, got {self.width} "
+                              f"and {self.lr}")
         if self.gan not in losses.GANS:
             raise ConfigError(f"gan must be one of {', '.join(losses.GANS)}, got {self.gan!r}")
         if self.depth_kind not in ("disparity", "depth"):
@@ -311,13 +314,14 @@ class Trainer:
         folder = Path(folder)
         state = read_json(folder / "state.json")
         _load_module(self.net, folder / f"{self.config.kind}.safetensors")
-        optim = self._read_optimizer(folder / "optimizer.pt")
-        self.optimizer.load_state_dict(optim["generator"])
+        path = folder / "optimizer.pt"
+        optim = self._read_optimizer(path)
+        _load_optimizer(self.optimizer, optim["generator"], path)
         if self.discriminator is not None:
             if self.config.kind != "edge" and "discriminator" not in optim:
                 return int(state["step"])  # the adversarial term starts with this run
             _load_module(self.discriminator, folder / "discriminator.safetensors")
-            self.d_optimizer.load_state_dict(optim["discriminator"])
+            _load_optimizer(self.d_optimizer, optim.get("discriminator"), path)
         return int(state["step"])
 
     def _read_optimizer(self, path: Path) -> dict:
@@ -328,6 +332,9 @@ class Trainer:
         limit = (16 << 20) + 4 * sum(p.numel() * p.element_size()
                                      for net in nets for p in net.parameters())
         data = read_bytes(path, max_bytes=limit)
+        if compressed_records(io.BytesIO(data)):
+            raise InputError(f"cannot read {path}: not a checkpoint photo3d train wrote (its "
+                             "records are compressed, which torch.save never does)")
         try:
             optim = torch.load(io.BytesIO(data), map_location=self.device, weights_only=True)
         except Exception as err:  # noqa: BLE001 - torch.load raises many types on bad input
@@ -349,6 +356,37 @@ def _load_module(module: nn.Module, path: Path) -> None:
     state, _ = read_safetensors(path)
     check_state_dict(state, module, path.name)
     module.load_state_dict(state, strict=True)
+
+
+def _load_optimizer(optimizer: torch.optim.Optimizer, saved: object, path: Path) -> None:
+    """Restore Adam's per-parameter state ``saved`` (one of ``optimizer.pt``'s) into
+    ``optimizer``, each tensor checked against its parameter (shape, finite values: a
+    tampered file is one line, not a traceback at the first step); the learning rate
+    and betas stay this run's (``--lr`` of a resumed run is the one used)."""
+    groups = optimizer.state_dict()["param_groups"]
+    params = [p for group in optimizer.param_groups for p in group["params"]]
+    state = saved.get("state") if isinstance(saved, dict) else None
+    if not isinstance(state, dict):
+        raise InputError(f"cannot read {path}: not a checkpoint photo3d train wrote")
+    for index, entry in state.items():
+        param = params[index] if isinstance(index, int) and 0 <= index < len(params) else None
+        if param is None or not _adam_entry(entry, param):
+            raise InputError(f"cannot read {path}: not a checkpoint photo3d train wrote "
+                             f"(bad optimiser state of parameter {index!r})")
+    optimizer.load_state_dict({"state": state, "param_groups": groups})
+
+
+def _adam_entry(entry: object, param: Tensor) -> bool:
+    """True if ``entry`` is Adam's state of ``param``: its moments (finite, of its
+    shape; the second >= 0) and a step count >= 0."""
+    if not isinstance(entry, dict) or set(entry) != {"step", "exp_avg", "exp_avg_sq"}:
+        return False
+    step, moments = entry["step"], (entry["exp_avg"], entry["exp_avg_sq"])
+    return (all(isinstance(m, Tensor) and m.is_floating_point() and m.shape == param.shape
+                and bool(torch.isfinite(m).all()) for m in moments)
+            and bool((moments[1] >= 0).all())
+            and isinstance(step, Tensor) and step.numel() == 1 and not step.is_complex()
+            and bool(torch.isfinite(step).all()) and float(step) >= 0)
 
 
 def parameter_count(module: nn.Module) -> int:

@@ -12,12 +12,17 @@ the web framework that checks the ``Host:`` header and serves the requests' resu
   ``/gradio_api/file=`` route for the URL it was given: that form is answered here
   too. Any other ``/photo3d/`` address is 404. (Gradio itself serves only the
   server's upload folder.)
+* An upload, a call or a websocket sent by a page of another site (its ``Origin:``
+  names a host the server does not answer to) gets ``403``: a browser sends a
+  cross-site upload without asking first (it only hides the answer), so any page the
+  user visits could otherwise fill the server's disk with uploads.
 * With a login, results need it as the rest of the server does (the session cookie
   Gradio's login sets), and so does the web framework's own description of its API
   (:data:`DESCRIPTIONS`: ``/openapi.json``, ``/docs``, ``/redoc``), which Gradio
   serves to anyone.
-* A client that hangs up mid-request (an aborted upload) ends it quietly, and an
-  upload Gradio fails on gets ``400`` with the one-line reason: neither leaves a
+* A client that hangs up mid-request (an aborted upload) ends it quietly, an
+  upload Gradio fails on gets ``400`` with the one-line reason, and a stream Gradio
+  refuses once started (the events of an unknown session) ends: none leaves a
   traceback in the server's log.
 
 Example:
@@ -37,6 +42,7 @@ import mimetypes
 import re
 from collections.abc import Callable
 from http.cookies import CookieError, SimpleCookie
+from urllib.parse import urlsplit
 
 from photo3d.ui.workspace import Workspace
 
@@ -97,6 +103,10 @@ class Gate:
                           "Misdirected Request: this server does not answer to that host name"
                           if hosts else "Bad Request: exactly one Host header is required")
             return
+        if not self._same_site(scope):
+            await _refuse(scope, receive, send, 403, "Forbidden: a page of another site "
+                                                     "cannot send requests to this server")
+            return
         path = scope.get("path", "")
         if path.rstrip("/") in DESCRIPTIONS and not _logged_in(scope):
             await _refuse(scope, receive, send, 401, "Not authenticated")
@@ -110,9 +120,27 @@ class Gate:
             return
         await self._serve(scope, receive, send, found)
 
+    def _same_site(self, scope) -> bool:
+        """False for an upload, a call or a websocket sent by a page of another site
+        (its ``Origin:`` names a host this server does not answer to, or is
+        ``null``): a browser sends such a request without asking, and only hides the
+        answer. Requests that change nothing (GET, HEAD, OPTIONS) and clients that are
+        not browsers (no ``Origin:``) pass."""
+        if scope["type"] == "http" and scope["method"] in ("GET", "HEAD", "OPTIONS"):
+            return True
+        origins = [v.decode("latin-1") for k, v in scope.get("headers", ()) if k == b"origin"]
+        if not origins:
+            return True
+        parts = urlsplit(origins[0]) if len(origins) == 1 else None
+        return parts is not None and parts.scheme in ("http", "https") and self.allows(
+            parts.netloc)
+
     async def _pass(self, scope, receive, send) -> None:
-        """The application's answer; a client gone meanwhile ends it quietly, and a
-        failed upload is a one-line 400 (no traceback in the log)."""
+        """The application's answer; a client gone meanwhile ends it quietly, a
+        failed upload is a one-line 400, and a refusal of a stream already started
+        (Gradio's ``queue/data`` of an unknown session) ends it with one line in the
+        log (no traceback)."""
+        from starlette.exceptions import HTTPException
         from starlette.requests import ClientDisconnect
 
         started = []
@@ -127,6 +155,12 @@ class Gate:
         except ClientDisconnect:
             return  # nobody to answer
         except Exception as err:
+            refusal = err if isinstance(err, HTTPException) else err.__cause__
+            if started and isinstance(refusal, HTTPException):  # a stream refusing late
+                log.warning("photo3d ui: %s refused: %s %s", scope["path"],
+                            refusal.status_code, refusal.detail)
+                await send({"type": "http.response.body", "body": b"", "more_body": False})
+                return
             if started or scope["type"] != "http" or not scope["path"].endswith("/upload"):
                 raise
             line = f"{type(err).__name__}: {err}".splitlines()[0]
