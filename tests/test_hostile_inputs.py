@@ -32,10 +32,11 @@ def no_work(monkeypatch) -> None:
 
 
 def _ldi_npz(path: Path, n: int, *, size: int = 1, border: int = 0,
-             meta: dict | None = None, declared: int | None = None) -> Path:
+             meta: dict | None = None, declared: int | None = None,
+             header: dict | None = None) -> Path:
     """A folder ``path`` holding a ``photo3d.npz`` of ``n`` unlinked pixels on a
     ``size x size`` image; the ``y`` array's header declares ``declared`` values
-    (default ``n``)."""
+    (default ``n``); ``header`` replaces fields of the JSON header."""
     import io
     import zipfile
 
@@ -48,7 +49,8 @@ def _ldi_npz(path: Path, n: int, *, size: int = 1, border: int = 0,
     arrays["x"][: size * size] = np.arange(size * size) % size
     header = {"format": "photo3d-ldi", "version": 1,
               "intrinsics": [size, size, size / 2, size / 2, size, size],
-              "mapping": [1.0, 0.0, 0.0], "border": border, "meta": meta or {}}
+              "mapping": [1.0, 0.0, 0.0], "border": border, "meta": meta or {},
+              **(header or {})}
     arrays["header"] = np.frombuffer(json.dumps(header).encode(), np.uint8)
     path.mkdir()
     with zipfile.ZipFile(path / "photo3d.npz", "w", zipfile.ZIP_DEFLATED) as zf:
@@ -83,6 +85,16 @@ def test_ldi_pixel_count_is_bounded_by_the_image_size(tmp_path, capsys, monkeypa
     run(capsys, "render", path, "--still", "-q", status=2, root=tmp_path,
         message="pixels declared for a 1x1 image")
     assert sizes == [1 << 24]  # only the JSON header was read
+
+
+@pytest.mark.parametrize("header", [
+    {"intrinsics": [10**400, 2, 1, 1, 2, 2]},  # json reads it; float() overflows
+    {"mapping": [1, 0, -(10**400)]},
+])
+def test_a_header_number_too_large_for_a_float_is_one_line(tmp_path, capsys, header):
+    path = _ldi_npz(tmp_path / "photo", 4, size=2, header=header)
+    run(capsys, "render", path, "--still", "-q", status=2, root=tmp_path,
+        message="not a valid photo3d file")
 
 
 @pytest.mark.parametrize(("meta", "message"), [

@@ -104,7 +104,8 @@ def load_npz(path: str | Path) -> tuple[LDI, dict]:
         ldi = _checked_ldi(arrays, header)
         meta = header.get("meta", {})
     except (OSError, ValueError, KeyError, TypeError, EOFError, RuntimeError,
-            NotImplementedError, zipfile.BadZipFile, zlib.error) as err:
+            NotImplementedError, OverflowError, zipfile.BadZipFile, zlib.error) as err:
+        # OverflowError: a header number of hundreds of digits, which float() refuses
         raise InputError(f"cannot read 3D photo {path}: {_reason(err)}") from None
     return ldi, meta if isinstance(meta, dict) else {}
 
