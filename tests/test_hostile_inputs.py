@@ -97,6 +97,21 @@ def test_a_header_number_too_large_for_a_float_is_one_line(tmp_path, capsys, hea
         message="not a valid photo3d file")
 
 
+@pytest.mark.parametrize("quiet", [[], ["-q"]])  # without -q it states the memory first
+def test_export_of_a_damaged_pixel_count_member_is_one_line(tmp_path, capsys, quiet):
+    import zipfile
+
+    path = _ldi_npz(tmp_path / "photo", 4, size=2)
+    npz = path / "photo3d.npz"
+    with zipfile.ZipFile(npz) as zf:
+        y = zf.getinfo("y.npy")
+    data = bytearray(npz.read_bytes())
+    data[y.header_offset + 30 + len(y.filename) + len(y.extra)] = 0x07  # deflate type 3
+    npz.write_bytes(bytes(data))
+    run(capsys, "export", path, "splats.ply", *quiet, status=2, root=tmp_path,
+        message="damaged or truncated file")
+
+
 @pytest.mark.parametrize(("meta", "message"), [
     ({"config": 5}, "saved configuration is a int"),
     ({"config": ["size", 3]}, "saved configuration is a list"),

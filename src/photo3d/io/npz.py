@@ -103,13 +103,17 @@ def load_npz(path: str | Path) -> tuple[LDI, dict]:
         arrays, header = _read_arrays(path)
         ldi = _checked_ldi(arrays, header)
         meta = header.get("meta", {})
-    except (OSError, ValueError, KeyError, TypeError, EOFError, RuntimeError,
-            NotImplementedError, OverflowError, zipfile.BadZipFile, zlib.error) as err:
-        # OverflowError: a header number of hundreds of digits, which float() refuses
+    except _READ_ERRORS as err:
         raise InputError(f"cannot read 3D photo {path}: {_reason(err)}") from None
     return ldi, meta if isinstance(meta, dict) else {}
 
 
+_READ_ERRORS = (OSError, ValueError, KeyError, TypeError, EOFError, RuntimeError,
+                NotImplementedError, OverflowError, zipfile.BadZipFile, zlib.error)
+"""What reading a hostile zip raises besides InputError: damaged deflate data
+(``zlib.error``), an unknown compression method (``NotImplementedError``), an
+encrypted member (``RuntimeError``), a header number of hundreds of digits that
+``float()`` refuses (``OverflowError``), ..."""
 _ARRAYS = ("y", "x", "color", "disparity", "links", "label")
 _COLUMNS = {"y": (), "x": (), "color": (3,), "disparity": (), "links": (4,), "label": (),
             "alpha": ()}
@@ -181,7 +185,7 @@ def ldi_pixels(path: str | Path) -> int:
     try:
         with zipfile.ZipFile(path) as zf, zf.open("y.npy") as f:
             shape, _, _ = read_npy_header(f)
-    except (OSError, KeyError, zipfile.BadZipFile) as err:
+    except _READ_ERRORS as err:
         raise InputError(f"cannot read {path}: {_reason(err)}") from None
     if len(shape) != 1:
         raise InputError(f"{path}: y has shape {shape}, expected one dimension")
