@@ -76,7 +76,7 @@ def load_npz(path: str | Path) -> tuple[LDI, dict]:
     the available memory:
     :func:`photo3d.io.limits.check_available`), dtypes and shapes, link indices in
     range and symmetric, lattice positions inside the image plus border, finite and
-    plausible intrinsics.
+    plausible intrinsics, finite positive depths.
 
     Raises:
         InputError: one line; the file is missing, not a photo3d file (any other zip,
@@ -281,6 +281,11 @@ def _checked_ldi(arrays: dict[str, np.ndarray], header: dict) -> LDI:
         raise InputError(f"links point outside the {n} pixels")
     if not (np.isfinite(arrays["color"]).all() and np.isfinite(arrays["disparity"]).all()):
         raise InputError("colours or disparities are not finite")
+    with np.errstate(over="ignore", divide="ignore", invalid="ignore"):
+        z = DepthMapping(*mapping).depth(arrays["disparity"])
+    if n and not (np.isfinite(z).all() and z.min() > 0):  # every mesh and view divides by z
+        raise InputError(f"disparities and depth mapping {mapping} do not give finite "
+                         "positive depths")
     alpha = arrays.get("alpha")
     if alpha is not None:
         alpha = alpha.astype(np.float32, copy=False)
