@@ -32,23 +32,25 @@ def no_work(monkeypatch) -> None:
 
 
 def _ldi_npz(path: Path, n: int, *, size: int = 1, border: int = 0,
-             meta: dict | None = None, declared: int | None = None) -> Path:
-    """A folder ``path`` holding a ``photo3d.npz`` of ``n`` unlinked pixels on a
-    ``size x size`` image; the ``y`` array's header declares ``declared`` values
-    (default ``n``)."""
+             meta: dict | None = None, declared: int | None = None,
+             header: dict | None = None, disparity: float = 1.0) -> Path:
+    """A folder ``path`` holding a ``photo3d.npz`` of ``n`` unlinked pixels of
+    ``disparity`` on a ``size x size`` image; the ``y`` array's header declares
+    ``declared`` values (default ``n``); ``header`` replaces fields of the JSON header."""
     import io
     import zipfile
 
     arrays = {
         "y": np.zeros(n, np.int32), "x": np.zeros(n, np.int32),
-        "color": np.zeros((n, 3), np.float32), "disparity": np.ones(n, np.float32),
+        "color": np.zeros((n, 3), np.float32), "disparity": np.full(n, disparity, np.float32),
         "links": np.full((n, 4), -1, np.int32), "label": np.zeros(n, np.uint8),
     }
     arrays["y"][: size * size] = np.arange(size * size) // size
     arrays["x"][: size * size] = np.arange(size * size) % size
     header = {"format": "photo3d-ldi", "version": 1,
               "intrinsics": [size, size, size / 2, size / 2, size, size],
-              "mapping": [1.0, 0.0, 0.0], "border": border, "meta": meta or {}}
+              "mapping": [1.0, 0.0, 0.0], "border": border, "meta": meta or {},
+              **(header or {})}
     arrays["header"] = np.frombuffer(json.dumps(header).encode(), np.uint8)
     path.mkdir()
     with zipfile.ZipFile(path / "photo3d.npz", "w", zipfile.ZIP_DEFLATED) as zf:
@@ -83,6 +85,44 @@ def test_ldi_pixel_count_is_bounded_by_the_image_size(tmp_path, capsys, monkeypa
     run(capsys, "render", path, "--still", "-q", status=2, root=tmp_path,
         message="pixels declared for a 1x1 image")
     assert sizes == [1 << 24]  # only the JSON header was read
+
+
+@pytest.mark.parametrize("header", [
+    {"intrinsics": [10**400, 2, 1, 1, 2, 2]},  # json reads it; float() overflows
+    {"mapping": [1, 0, -(10**400)]},
+])
+def test_a_header_number_too_large_for_a_float_is_one_line(tmp_path, capsys, header):
+    path = _ldi_npz(tmp_path / "photo", 4, size=2, header=header)
+    run(capsys, "render", path, "--still", "-q", status=2, root=tmp_path,
+        message="not a valid photo3d file")
+
+
+@pytest.mark.parametrize(("disparity", "mapping"), [
+    (3e38, [3.0, 0.0, 0.05]),  # finite, but scale d overflows: z = 1 / inf = 0
+    (1.0, [1.0, -5.0, -1.0]),  # a negative floor: z = -1
+    (1.0, [0.0, 0.0, 0.0]),  # z = 1 / 0
+])
+def test_disparities_that_give_no_positive_depth_are_one_line(tmp_path, capsys, disparity,
+                                                             mapping):
+    path = _ldi_npz(tmp_path / "photo", 4, size=2, disparity=disparity,
+                    header={"mapping": mapping})
+    run(capsys, "render", path, "--still", "-q", status=2, root=tmp_path,
+        message="do not give finite positive depths")
+
+
+@pytest.mark.parametrize("quiet", [[], ["-q"]])  # without -q it states the memory first
+def test_export_of_a_damaged_pixel_count_member_is_one_line(tmp_path, capsys, quiet):
+    import zipfile
+
+    path = _ldi_npz(tmp_path / "photo", 4, size=2)
+    npz = path / "photo3d.npz"
+    with zipfile.ZipFile(npz) as zf:
+        y = zf.getinfo("y.npy")
+    data = bytearray(npz.read_bytes())
+    data[y.header_offset + 30 + len(y.filename) + len(y.extra)] = 0x07  # deflate type 3
+    npz.write_bytes(bytes(data))
+    run(capsys, "export", path, "splats.ply", *quiet, status=2, root=tmp_path,
+        message="damaged or truncated file")
 
 
 @pytest.mark.parametrize(("meta", "message"), [

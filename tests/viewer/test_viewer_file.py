@@ -117,6 +117,55 @@ def test_unwritable_path_and_foreign_files(tmp_path):
         read_viewer(tmp_path / "nothing.html")
 
 
+def _damaged_page(path, change) -> None:
+    """Rewrite the page ``path`` with ``change(header, raw) -> (header, payload)``
+    applied to its header and its decompressed payload."""
+    import zlib
+
+    text = path.read_text()
+    parts = [re.search(f'id="{name}">(.*?)</script>', text, re.S)
+             for name in ("photo3d-header", "photo3d-data")]
+    header, payload = change(json.loads(parts[0].group(1)),
+                             zlib.decompress(base64.b64decode(parts[1].group(1))))
+    text = text.replace(parts[1].group(1), base64.b64encode(payload).decode())
+    path.write_text(text.replace(parts[0].group(1), json.dumps(header)))
+
+
+def _zlib(raw: bytes) -> bytes:
+    import zlib
+
+    return zlib.compress(raw)
+
+
+@pytest.mark.parametrize(("change", "message"), [
+    (lambda h, raw: ({k: v for k, v in h.items() if k != "vertices"}, _zlib(raw)),
+     "the header has no vertices"),
+    (lambda h, raw: ({**h, "vertices": "x"}, _zlib(raw)), "invalid literal"),
+    (lambda h, raw: ({**h, "vertices": 10**9}, _zlib(raw)), "cannot reshape"),
+    (lambda h, raw: ({**h, "sections": {}}, _zlib(raw)), "has no position"),
+    (lambda h, raw: ({**h, "sections": {**h["sections"], "faces": "ab"}}, _zlib(raw)),
+     "slice indices"),
+    (lambda h, raw: ([h], _zlib(raw)), "not a photo3d viewer payload"),
+    (lambda h, raw: (h, b"not deflate"), "damaged viewer data: error: Error -3"),
+    (lambda h, raw: (h, _zlib(raw + bytes(64 << 20))), "bytes its header declares"),
+    (lambda h, raw: (h, _zlib(raw[:-12] + b"\xff" * 12)), "faces has indices outside"),
+])
+def test_a_damaged_viewer_page_is_one_line(tmp_path, change, message):
+    path = write_viewer(grid_mesh(), tmp_path / "viewer.html")
+    _damaged_page(path, change)
+    with pytest.raises(InputError, match=message) as err:
+        read_viewer(path)
+    assert "\n" not in str(err.value)
+
+
+def test_a_viewer_fifo_is_refused_without_blocking(tmp_path):
+    import os
+
+    os.mkfifo(tmp_path / "viewer.html")
+    with pytest.raises(InputError, match="not a regular file"):
+        read_viewer(tmp_path / "viewer.html")
+
+
 def test_textured_mesh_round_trip(tmp_path):
     """A light textured mesh: uv within 1/65535, texture as JPEG, faces and labels exact."""
     from photo3d.structures.mesh import TexturedMesh

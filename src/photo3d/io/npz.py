@@ -76,7 +76,7 @@ def load_npz(path: str | Path) -> tuple[LDI, dict]:
     the available memory:
     :func:`photo3d.io.limits.check_available`), dtypes and shapes, link indices in
     range and symmetric, lattice positions inside the image plus border, finite and
-    plausible intrinsics.
+    plausible intrinsics, finite positive depths.
 
     Raises:
         InputError: one line; the file is missing, not a photo3d file (any other zip,
@@ -103,12 +103,17 @@ def load_npz(path: str | Path) -> tuple[LDI, dict]:
         arrays, header = _read_arrays(path)
         ldi = _checked_ldi(arrays, header)
         meta = header.get("meta", {})
-    except (OSError, ValueError, KeyError, TypeError, EOFError, RuntimeError,
-            NotImplementedError, zipfile.BadZipFile, zlib.error) as err:
+    except _READ_ERRORS as err:
         raise InputError(f"cannot read 3D photo {path}: {_reason(err)}") from None
     return ldi, meta if isinstance(meta, dict) else {}
 
 
+_READ_ERRORS = (OSError, ValueError, KeyError, TypeError, EOFError, RuntimeError,
+                NotImplementedError, OverflowError, zipfile.BadZipFile, zlib.error)
+"""What reading a hostile zip raises besides InputError: damaged deflate data
+(``zlib.error``), an unknown compression method (``NotImplementedError``), an
+encrypted member (``RuntimeError``), a header number of hundreds of digits that
+``float()`` refuses (``OverflowError``), ..."""
 _ARRAYS = ("y", "x", "color", "disparity", "links", "label")
 _COLUMNS = {"y": (), "x": (), "color": (3,), "disparity": (), "links": (4,), "label": (),
             "alpha": ()}
@@ -180,7 +185,7 @@ def ldi_pixels(path: str | Path) -> int:
     try:
         with zipfile.ZipFile(path) as zf, zf.open("y.npy") as f:
             shape, _, _ = read_npy_header(f)
-    except (OSError, KeyError, zipfile.BadZipFile) as err:
+    except _READ_ERRORS as err:
         raise InputError(f"cannot read {path}: {_reason(err)}") from None
     if len(shape) != 1:
         raise InputError(f"{path}: y has shape {shape}, expected one dimension")
@@ -276,6 +281,11 @@ def _checked_ldi(arrays: dict[str, np.ndarray], header: dict) -> LDI:
         raise InputError(f"links point outside the {n} pixels")
     if not (np.isfinite(arrays["color"]).all() and np.isfinite(arrays["disparity"]).all()):
         raise InputError("colours or disparities are not finite")
+    with np.errstate(over="ignore", divide="ignore", invalid="ignore"):
+        z = DepthMapping(*mapping).depth(arrays["disparity"])
+    if n and not (np.isfinite(z).all() and z.min() > 0):  # every mesh and view divides by z
+        raise InputError(f"disparities and depth mapping {mapping} do not give finite "
+                         "positive depths")
     alpha = arrays.get("alpha")
     if alpha is not None:
         alpha = alpha.astype(np.float32, copy=False)

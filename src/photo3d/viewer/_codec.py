@@ -45,6 +45,7 @@ import numpy as np
 
 from photo3d.errors import InputError
 from photo3d.io.gltf_textured import decode_jpeg, encode_jpeg
+from photo3d.io.limits import check_available
 from photo3d.structures.mesh import Mesh, TexturedMesh
 
 VERSION = 3
@@ -158,6 +159,12 @@ def decode_mesh(header: dict, payload: bytes) -> Mesh | TexturedMesh:
 
     Faces come back rotated so that their largest index is last (same winding).
 
+    Raises:
+        InputError: one line; ``header`` or ``payload`` is not photo3d's or is damaged
+            (a missing or mistyped field, a section of the wrong size, a payload that
+            is not deflate or not the size the header declares, which bounds the
+            decompression; positions that are not finite, faces outside the vertices).
+
     Example:
         >>> m = Mesh(np.array([[0, 0, 1], [1, 0, 2], [0, 1, 4]], np.float32),
         ...          np.zeros((3, 3), np.uint8), np.ones(3, np.uint8),
@@ -166,9 +173,44 @@ def decode_mesh(header: dict, payload: bytes) -> Mesh | TexturedMesh:
         >>> back.faces.tolist(), bool(np.abs(back.vertices - m.vertices).max() < 1e-4)
         ([[1, 0, 2]], True)
     """
-    if header.get("format") != "photo3d-viewer" or header.get("version") not in (2, VERSION):
+    if not isinstance(header, dict) or header.get("format") != "photo3d-viewer" or (
+            header.get("version") not in (2, VERSION)):
         raise InputError(f"not a photo3d viewer payload of version 2 to {VERSION}")
-    raw = zlib.decompress(payload)
+    try:
+        mesh = _decode(header, _inflate(payload, header["size"]))
+        mesh.checked()  # faces within the vertices (the overlay's: merged, or below)
+        if getattr(mesh, "overlay", None) is not None:
+            mesh.overlay.checked()
+    except InputError:
+        raise
+    except _DAMAGED as err:
+        raise InputError(f"the header has no {err.args[0]}" if isinstance(err, KeyError)
+                         else f"{type(err).__name__}: {err}") from None
+    return mesh
+
+
+_DAMAGED = (KeyError, TypeError, ValueError, AttributeError, IndexError, OverflowError,
+            zlib.error)
+"""What a hostile header or payload raises in :func:`_decode` (a missing or mistyped
+field, a section of the wrong size, data that is not deflate)."""
+
+
+def _inflate(payload: bytes, size: int) -> bytes:
+    """``payload`` decompressed, refused unless it is the ``size`` bytes the header
+    declares (a deflate bomb stops at ``size + 1`` bytes)."""
+    size = int(size)
+    if size < 0:  # a max_length of 0 would mean no limit
+        raise InputError(f"the header declares a payload of {size} bytes")
+    check_available(size, f"a viewer payload of {size:,} bytes")
+    inflate = zlib.decompressobj()
+    raw = inflate.decompress(payload, size + 1)
+    if len(raw) != size or not inflate.eof:
+        raise InputError(f"the payload is not the {size:,} bytes its header declares")
+    return raw
+
+
+def _decode(header: dict, raw: bytes) -> Mesh | TexturedMesh:
+    """The mesh of a checked header and its decompressed payload (:func:`decode_mesh`)."""
     n, count = int(header["vertices"]), int(header["faces"])
 
     def section(name: str) -> bytes:
@@ -181,7 +223,11 @@ def decode_mesh(header: dict, payload: bytes) -> Mesh | TexturedMesh:
     def positions(name: str, count: int) -> np.ndarray:
         q = np.frombuffer(section(name), "<u2").reshape(3, count).astype(np.float64)
         a, b, d = lo + q / _LEVELS * (hi - lo)
-        return np.stack([a / d, b / d, 1.0 / d], axis=1).astype(np.float32)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            points = np.stack([a / d, b / d, 1.0 / d], axis=1).astype(np.float32)
+        if not np.isfinite(points).all():
+            raise InputError("positions are not finite numbers")
+        return points
 
     vertices = positions("position", n)
     overlay = None

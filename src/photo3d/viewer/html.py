@@ -35,13 +35,16 @@ from pathlib import Path
 
 from photo3d.errors import InputError, OutputError
 from photo3d.files.atomic import open_write
-from photo3d.io.bounded import loads_json
+from photo3d.io.bounded import loads_json, read_bytes
 from photo3d.structures.mesh import Mesh, TexturedMesh
 from photo3d.viewer._codec import decode_mesh, encode_mesh
 
 PathLike = str | os.PathLike[str]
 
 VIEWER_FILE = "viewer.html"
+MAX_VIEWER_BYTES = 2 << 30
+"""The largest page :func:`read_viewer` reads (the bound of ``mesh.glb``,
+:data:`photo3d.io.glb.MAX_GLB_BYTES`; the 1024 px sample's page is 1.8 MB)."""
 _SCRIPT_RE = r'<script type="{kind}" id="{id}">(.*?)</script>'
 
 
@@ -103,14 +106,18 @@ def read_viewer(path: PathLike) -> Mesh | TexturedMesh:
     that their largest index is last (same winding).
 
     Raises:
-        InputError: the file is missing or is not a photo3d viewer page.
+        InputError: one line; the file is missing, not a regular file, larger than
+            :data:`MAX_VIEWER_BYTES`, not a photo3d viewer page, or its header or
+            data are damaged (every field is checked; the payload is decompressed
+            only up to the size its header declares, faces must index its vertices).
     """
     path = Path(path)
+    if not os.path.lexists(path):
+        raise InputError(f"viewer file not found: {path}")
+    data = read_bytes(path, max_bytes=MAX_VIEWER_BYTES, what=f"viewer {path}")  # no FIFO
     try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise InputError(f"viewer file not found: {path}") from None
-    except (OSError, UnicodeDecodeError) as err:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as err:
         raise InputError(f"cannot read viewer {path}: {err}") from None
     parts = [
         re.search(_SCRIPT_RE.format(kind=kind, id=name), text, re.DOTALL)
@@ -122,9 +129,9 @@ def read_viewer(path: PathLike) -> Mesh | TexturedMesh:
     try:
         header = loads_json(parts[0].group(1), what=f"{path}'s header")
         payload = base64.b64decode(parts[1].group(1), validate=True)
-    except ValueError as err:
+        return decode_mesh(header, payload)
+    except ValueError as err:  # InputError too: one line naming the file
         raise InputError(f"{path}: damaged viewer data: {err}") from None
-    return decode_mesh(header, payload)
 
 
 def _template() -> str:
