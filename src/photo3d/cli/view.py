@@ -21,7 +21,9 @@ def run(args: argparse.Namespace) -> int:
     from photo3d.files.atomic import atomic_path, refuse_symlink
     from photo3d.photo import load
     from photo3d.viewer import VIEWER_FILE, serve, write_viewer
+    from photo3d.viewer.serve import check_port
 
+    check_port(args.port)  # before viewer.html is written
     page = refuse_symlink(args.photo / VIEWER_FILE)  # never written through, never served
     if not page.is_file():  # made with --no-viewer: write it now
         photo = load(args.photo)
