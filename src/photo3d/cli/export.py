@@ -25,7 +25,8 @@ def add_parser(sub) -> None:
     ex.add_argument("formats", nargs="+", metavar="FORMAT", choices=EXPORT_FORMATS,
                     help="one or more of: " + ", ".join(EXPORT_FORMATS))
     ex.add_argument("-o", "--output", type=Path, metavar="FILE",
-                    help="write the one FORMAT given to FILE instead of into the folder")
+                    help="write the one FORMAT given to FILE instead of into the folder "
+                         "(a suffix, if any, the format's: .ply, .spz, .glb, .usdz, quilt .png)")
     ex.add_argument("--overwrite", action="store_true",
                     help="with -o: replace FILE if it exists")
     add_splat_options(ex)
