@@ -97,6 +97,20 @@ def test_a_header_number_too_large_for_a_float_is_one_line(tmp_path, capsys, hea
         message="not a valid photo3d file")
 
 
+@pytest.mark.parametrize(("header", "message"), [
+    ({"border": True}, "border True is not an integer"),  # bool is an int in Python
+    ({"border": 1.0}, "border 1.0 is not an integer"),
+    ({"version": True}, "format version True is not an integer"),
+    ({"intrinsics": [2, 2, 1, 1, True, 2]}, "intrinsics is not a list of numbers"),
+    ({"intrinsics": [2, 2, 1, 1, "2", 2]}, "intrinsics is not a list of numbers"),
+    ({"mapping": [1, 0, False]}, "mapping is not a list of numbers"),
+])
+def test_header_booleans_and_strings_are_not_numbers(tmp_path, capsys, header, message):
+    # hostile round: "border": true passed as 1, then "pixel positions lie outside"
+    path = _ldi_npz(tmp_path / "photo", 4, size=2, header=header)
+    run(capsys, "render", path, "--still", "-q", status=2, root=tmp_path, message=message)
+
+
 @pytest.mark.parametrize(("disparity", "mapping"), [
     (3e38, [3.0, 0.0, 0.05]),  # finite, but scale d overflows: z = 1 / inf = 0
     (1.0, [1.0, -5.0, -1.0]),  # a negative floor: z = -1
