@@ -463,3 +463,12 @@ def test_a_broken_gimage_is_left_out_with_a_warning(tmp_path, image_data):
                                              image_data=image_data))
     assert found.image is None and found.depth.shape == (24, 32)
     assert len(found.warnings) == 1 and "GImage" in found.warnings[0], found.warnings
+
+
+@pytest.mark.parametrize("argv", [["render", "--still", "-q"], ["export", "splats.ply", "-q"],
+                                  ["view", "--no-browser"]])
+def test_a_3d_photos_npz_given_as_its_folder_is_one_helpful_line(tmp_path, capsys, argv):
+    # hostile round: "the folder .../photo3d.npz does not exist"
+    npz = _ldi_npz(tmp_path / "photo", 4, size=2) / "photo3d.npz"
+    run(capsys, argv[0], npz, *argv[1:], status=2, root=tmp_path,
+        message=f"{npz} is a file: give the 3D photo's folder ({npz.parent})")

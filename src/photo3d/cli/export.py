@@ -7,7 +7,7 @@ import argparse
 import time
 from pathlib import Path
 
-from photo3d.cli.options import add_splat_options
+from photo3d.cli.options import add_splat_options, check_photo_folder
 from photo3d.cli.progress import count_bar
 from photo3d.save_options import EXPORT_FORMATS
 
@@ -39,6 +39,7 @@ def run(args: argparse.Namespace) -> int:
     from photo3d.export import export_folder
     from photo3d.export.splats import splat_count
 
+    check_photo_folder(args.photo)
     if not args.quiet:
         _say_memory(args)
     bar = count_bar(len(set(args.formats)), "export", quiet=args.quiet)
