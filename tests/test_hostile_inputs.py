@@ -472,3 +472,15 @@ def test_a_3d_photos_npz_given_as_its_folder_is_one_helpful_line(tmp_path, capsy
     npz = _ldi_npz(tmp_path / "photo", 4, size=2) / "photo3d.npz"
     run(capsys, argv[0], npz, *argv[1:], status=2, root=tmp_path,
         message=f"{npz} is a file: give the 3D photo's folder ({npz.parent})")
+
+
+@pytest.mark.parametrize(("size", "message"), [
+    ("99999999x48", "video size 99999999x48 is too large: at most 65536 pixels a side"),
+    ("0x0", "video size must be positive, got 0x0"),
+])
+@pytest.mark.parametrize("still", [[], ["--still"]])
+def test_a_render_size_names_its_real_problem(tmp_path, capsys, size, message, still):
+    # hostile round: both said "video size must be even numbers"
+    path = _ldi_npz(tmp_path / "photo", 4, size=2)
+    run(capsys, "render", path, "--size", size, *still, "-q", status=2, root=tmp_path,
+        message=message)
