@@ -97,6 +97,20 @@ def test_a_header_number_too_large_for_a_float_is_one_line(tmp_path, capsys, hea
         message="not a valid photo3d file")
 
 
+@pytest.mark.parametrize(("header", "message"), [
+    ({"border": True}, "border True is not an integer"),  # bool is an int in Python
+    ({"border": 1.0}, "border 1.0 is not an integer"),
+    ({"version": True}, "format version True is not an integer"),
+    ({"intrinsics": [2, 2, 1, 1, True, 2]}, "intrinsics is not a list of numbers"),
+    ({"intrinsics": [2, 2, 1, 1, "2", 2]}, "intrinsics is not a list of numbers"),
+    ({"mapping": [1, 0, False]}, "mapping is not a list of numbers"),
+])
+def test_header_booleans_and_strings_are_not_numbers(tmp_path, capsys, header, message):
+    # hostile round: "border": true passed as 1, then "pixel positions lie outside"
+    path = _ldi_npz(tmp_path / "photo", 4, size=2, header=header)
+    run(capsys, "render", path, "--still", "-q", status=2, root=tmp_path, message=message)
+
+
 @pytest.mark.parametrize(("disparity", "mapping"), [
     (3e38, [3.0, 0.0, 0.05]),  # finite, but scale d overflows: z = 1 / inf = 0
     (1.0, [1.0, -5.0, -1.0]),  # a negative floor: z = -1
@@ -449,3 +463,24 @@ def test_a_broken_gimage_is_left_out_with_a_warning(tmp_path, image_data):
                                              image_data=image_data))
     assert found.image is None and found.depth.shape == (24, 32)
     assert len(found.warnings) == 1 and "GImage" in found.warnings[0], found.warnings
+
+
+@pytest.mark.parametrize("argv", [["render", "--still", "-q"], ["export", "splats.ply", "-q"],
+                                  ["view", "--no-browser"]])
+def test_a_3d_photos_npz_given_as_its_folder_is_one_helpful_line(tmp_path, capsys, argv):
+    # hostile round: "the folder .../photo3d.npz does not exist"
+    npz = _ldi_npz(tmp_path / "photo", 4, size=2) / "photo3d.npz"
+    run(capsys, argv[0], npz, *argv[1:], status=2, root=tmp_path,
+        message=f"{npz} is a file: give the 3D photo's folder ({npz.parent})")
+
+
+@pytest.mark.parametrize(("size", "message"), [
+    ("99999999x48", "video size 99999999x48 is too large: at most 65536 pixels a side"),
+    ("0x0", "video size must be positive, got 0x0"),
+])
+@pytest.mark.parametrize("still", [[], ["--still"]])
+def test_a_render_size_names_its_real_problem(tmp_path, capsys, size, message, still):
+    # hostile round: both said "video size must be even numbers"
+    path = _ldi_npz(tmp_path / "photo", 4, size=2)
+    run(capsys, "render", path, "--size", size, *still, "-q", status=2, root=tmp_path,
+        message=message)

@@ -105,6 +105,18 @@ def test_an_export_into_a_photo_folder_is_recorded_there(o1, tmp_path):
     assert main(["export", str(o1), "splats.spz", "-q", "-o", str(other)]) == 0
 
 
+
+@pytest.mark.parametrize(("fmt", "name"), [
+    ("splats.ply", "splats.spz"),  # the hostile round: PLY data recorded as photo3d's SPZ
+    ("splats.spz", "splats.glb"), ("quilt", "mesh.usdz"),
+    ("splats.glb", "../elsewhere.ply"), ("mesh.usdz", "../quilt.png"),
+])
+def test_export_refuses_an_output_whose_suffix_is_another_formats(o1, tmp_path, capsys, fmt,
+                                                                   name):
+    err = refused(capsys, ["export", o1, fmt, "-o", o1 / name], tmp_path, f"but {fmt} is")
+    assert Path(name).suffix in err
+    assert recorded_files(o1) == set()
+
 # --- issue 45, 11: processes recording into one config.json at once lose entries --------
 
 _RECORD = """

@@ -431,7 +431,9 @@ def test_bad_keyframe_files_are_refused_before_the_work(photos, capsys, no_work,
     (["--frames", "0"], "frames"),
     (["--ssaa", "0"], "ssaa"),
     (["--eye-separation", "nan"], "eye separation"),
-    (["--video-size", "0x0"], "even"),
+    (["--video-size", "0x0"], "video size must be positive, got 0x0"),  # said "even"
+    (["--video-size", "99999999x48"], "too large: at most 65536 pixels a side"),  # "even"
+    (["--video-size", "3x4"], "video size must be even numbers, got 3x4"),
     (["--video-size", "abc"], "must look like"),
     (["--inpainter", "magic"], "unknown inpainter"),
     (["--weights", "nowhere"], "only apply to --inpainter learned"),

@@ -62,6 +62,16 @@ def test_calib_and_pair_loading_give_consistent_cameras(tmp_path):
         read_calib(tmp_path / "bad.txt")
 
 
+def test_read_calib_refuses_a_file_too_large_before_reading_it(tmp_path):
+    # hostile round: read_calib read a calib.txt of any size whole (this one parses)
+    calib = tmp_path / "calib.txt"
+    calib.write_text("cam0=[50 0 32; 0 50 24; 0 0 1]\ncam1=[50 0 34; 0 50 24; 0 0 1]\n"
+                     "baseline=100\nwidth=64\nheight=48\n" + "#\n" * (1 << 20))
+    with pytest.raises(InputError, match="calibration .*calib.txt: it has 2097[0-9]* bytes, "
+                                         "more than the 1048576 expected"):
+        read_calib(calib)
+
+
 def test_motorcycle_pair_geometry():
     pair = motorcycle_pair()
     assert pair.left.shape == (500, 741, 3) and np.isnan(pair.disparity).any()

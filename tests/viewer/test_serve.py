@@ -240,3 +240,26 @@ def test_a_download_the_browser_aborts_ends_quietly(folder, capfd):
             thread.join()
     err = capfd.readouterr().err
     assert "Traceback" not in err and "BrokenPipe" not in err and "ConnectionReset" not in err
+
+
+@pytest.mark.parametrize("port", [99999, "taken"])
+def test_view_refuses_a_bad_port_before_writing_the_viewer(tmp_path, capsys, port):
+    # hostile round: view wrote viewer.html into a folder made without it, then refused
+    import numpy as np
+    from test_robustness import run
+
+    import photo3d
+
+    depth = np.ones((16, 16), np.float32)
+    depth[4:12, 4:12] = 0.5
+    photo = photo3d.make(np.full((16, 16, 3), 0.5, np.float32), depth=depth,
+                         config=photo3d.Config(size=None)).save(
+        tmp_path / "photo", viewer=False, ply=None, glb=False)
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        if port == "taken":
+            port = taken.getsockname()[1]
+        run(capsys, "view", photo, "--port", port, "--no-browser", status=2, root=tmp_path,
+            message=f"{port}")
+    assert not (photo / "viewer.html").exists()

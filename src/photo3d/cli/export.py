@@ -7,7 +7,7 @@ import argparse
 import time
 from pathlib import Path
 
-from photo3d.cli.options import add_splat_options
+from photo3d.cli.options import add_splat_options, check_photo_folder
 from photo3d.cli.progress import count_bar
 from photo3d.save_options import EXPORT_FORMATS
 
@@ -25,7 +25,8 @@ def add_parser(sub) -> None:
     ex.add_argument("formats", nargs="+", metavar="FORMAT", choices=EXPORT_FORMATS,
                     help="one or more of: " + ", ".join(EXPORT_FORMATS))
     ex.add_argument("-o", "--output", type=Path, metavar="FILE",
-                    help="write the one FORMAT given to FILE instead of into the folder")
+                    help="write the one FORMAT given to FILE instead of into the folder "
+                         "(a suffix, if any, the format's: .ply, .spz, .glb, .usdz, quilt .png)")
     ex.add_argument("--overwrite", action="store_true",
                     help="with -o: replace FILE if it exists")
     add_splat_options(ex)
@@ -38,6 +39,7 @@ def run(args: argparse.Namespace) -> int:
     from photo3d.export import export_folder
     from photo3d.export.splats import splat_count
 
+    check_photo_folder(args.photo)
     if not args.quiet:
         _say_memory(args)
     bar = count_bar(len(set(args.formats)), "export", quiet=args.quiet)

@@ -10,12 +10,13 @@ video specs, render settings, inpainter options, and all of them together: the
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from pathlib import Path
 
 from photo3d.cli.progress import download_bar
 from photo3d.config import EDGES, PRESETS, Config
-from photo3d.errors import ConfigError
+from photo3d.errors import ConfigError, InputError
 from photo3d.save_options import EXPORT_FORMATS, SPLAT_DENSITIES, SPZ_VERSIONS
 
 
@@ -178,6 +179,31 @@ def add_splat_options(p: argparse.ArgumentParser) -> None:
                         "through a splat renderer's blend (Spark's), so that splat "
                         "viewers show the photo sharper (the default; --no-splat-fit: "
                         "each splat keeps its pixels' colour, about a second less)")
+
+
+def check_photo_folder(photo: Path) -> None:
+    """Refuse a file given where ``render``, ``export`` and ``view`` take a 3D photo
+    folder (most often its ``photo3d.npz``), before anything is read or written; a
+    missing folder is left to the command, which says there is no 3D photo there.
+
+    Raises:
+        InputError: ``photo`` is a file (or anything else that exists and is not a
+            folder).
+
+    Example:
+        >>> import tempfile
+        >>> npz = Path(tempfile.mkdtemp()) / "photo3d.npz"
+        >>> _ = npz.write_bytes(b"")
+        >>> check_photo_folder(npz)
+        Traceback (most recent call last):
+        ...
+        photo3d.errors.InputError: .../photo3d.npz is a file: give the 3D photo's folder (...)
+    """
+    from photo3d.owned import LDI_FILE
+
+    if os.path.exists(photo) and not os.path.isdir(photo):
+        advice = f" ({photo.parent})" if photo.name == LDI_FILE else ", written by make"
+        raise InputError(f"{photo} is a file: give the 3D photo's folder{advice}")
 
 
 def video_size(text: str) -> tuple[int, int]:

@@ -10,6 +10,7 @@ from pathlib import Path
 
 from photo3d.cli.options import (
     add_video_options,
+    check_photo_folder,
     check_video_sizes,
     render_settings_from,
     videos_from,
@@ -34,6 +35,7 @@ def run(args: argparse.Namespace) -> int:
     from photo3d.output import write_videos
     from photo3d.photo import load
 
+    check_photo_folder(args.photo)
     videos = videos_from(args)  # checks the videos with a size against their encoder
     photo = load(args.photo)
     _check_resources(args, photo, videos[:1] if args.still else videos)

@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from photo3d.cli.options import check_photo_folder
+
 
 def add_parser(sub) -> None:
     """Register ``view`` on the subparsers ``sub``."""
@@ -21,7 +23,10 @@ def run(args: argparse.Namespace) -> int:
     from photo3d.files.atomic import atomic_path, refuse_symlink
     from photo3d.photo import load
     from photo3d.viewer import VIEWER_FILE, serve, write_viewer
+    from photo3d.viewer.serve import check_port
 
+    check_photo_folder(args.photo)
+    check_port(args.port)  # before viewer.html is written
     page = refuse_symlink(args.photo / VIEWER_FILE)  # never written through, never served
     if not page.is_file():  # made with --no-viewer: write it now
         photo = load(args.photo)

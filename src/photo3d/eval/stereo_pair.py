@@ -16,6 +16,10 @@ import numpy as np
 
 from photo3d.camera import Camera, Intrinsics
 from photo3d.errors import InputError
+from photo3d.io.bounded import read_bytes
+
+MAX_CALIB_BYTES = 1 << 20
+"""The largest ``calib.txt`` :func:`read_calib` reads (Middlebury's are under 1 kB)."""
 
 
 @dataclass(frozen=True)
@@ -48,9 +52,10 @@ def read_calib(path: str | Path) -> dict:
     """Parse a Middlebury ``calib.txt`` (``cam0=[f 0 cx; 0 f cy; 0 0 1]``, ``doffs=``, ...).
 
     Raises:
-        InputError: one line; the file is missing or unreadable, a camera matrix is
-            not 3x3 numbers, a required key is missing, or a value is out of range
-            (focal lengths and baseline > 0, all finite, width and height 1 to 65536).
+        InputError: one line; the file is missing, unreadable, not UTF-8 or larger
+            than :data:`MAX_CALIB_BYTES`, a camera matrix is not 3x3 numbers, a
+            required key is missing, or a value is out of range (focal lengths and
+            baseline > 0, all finite, width and height 1 to 65536).
 
     Example:
         >>> import tempfile, pathlib
@@ -65,9 +70,10 @@ def read_calib(path: str | Path) -> dict:
     path = Path(path)
     if not path.is_file():
         raise InputError(f"calibration file not found: {path}")
+    data = read_bytes(path, max_bytes=MAX_CALIB_BYTES, what=f"calibration {path}")
     try:
-        text = path.read_text()
-    except (OSError, UnicodeDecodeError) as err:
+        text = data.decode()
+    except UnicodeDecodeError as err:
         raise InputError(f"cannot read calibration {path}: {err}") from None
     out: dict = {}
     for line in text.splitlines():

@@ -54,8 +54,10 @@ def export_folder(folder: str | Path, formats: Sequence[str], *,
         folder: a 3D photo folder (``photo3d make``'s output).
         formats: names from :data:`FORMATS` (repeats are written once).
         output: write the one format asked for to this file instead of into the
-            folder. Inside a 3D photo folder (this one or another) it must be an
-            export file's name, new or recorded there, and it is recorded there;
+            folder; a suffix, if any, must be the format's (``.ply`` for
+            ``splats.ply``, ``.png`` for ``quilt``). Inside a 3D photo folder (this
+            one or another) it must be an export file's name, new or recorded there,
+            and it is recorded there;
             never the photo's own files (``photo3d.npz``, ``config.json``, ...).
         overwrite: replace ``output`` if it exists (files in the folder are
             replaced when photo3d wrote them, whatever this says).
@@ -86,7 +88,9 @@ def export_folder(folder: str | Path, formats: Sequence[str], *,
             before any file is written).
         InputError: no 3D photo in ``folder`` (or a damaged one).
         MissingExtra: a package a format needs is missing (:func:`require_extras`).
-        OutputError: less free disk space than the files need (a low estimate,
+        OutputError: ``output`` ends with a suffix other than the format's
+            (``.ply``, ``.spz``, ``.glb``, ``.usdz``, quilt ``.png``); less free disk
+            space than the files need (a low estimate,
             :func:`photo3d.resources.outputs.export_bytes`); a file to write is a
             symbolic link (dangling too), not a
             regular file, the 3D photo being read, a file of a 3D photo folder that
@@ -119,7 +123,8 @@ def export_folder(folder: str | Path, formats: Sequence[str], *,
     if not (folder / LDI_FILE).is_file():
         raise InputError(f"no 3D photo in {folder} (it has no {LDI_FILE})")
     with reading(folder / LDI_FILE):  # no write may reach it (the gate refuses)
-        record_in = None if output is None else _check_output(Path(output), overwrite)
+        record_in = (None if output is None
+                     else _check_output(Path(output), chosen[0], overwrite))
         pixels = ldi_pixels(folder / LDI_FILE)
         names = [f.name for f in chosen]
         check_export_memory(pixels, names, splat_fit=splat_fit)
@@ -141,22 +146,28 @@ def _check_spz(splats: int, *, dense: bool) -> None:
                            + (", or --splats adaptive (fewer splats)" if dense else ""))
 
 
-def _check_output(output: Path, overwrite: bool) -> Path | None:
-    """Refuse an ``-o`` photo3d must not write, before the work; returns the 3D photo
-    folder it lies in (where it is recorded), or None.
+def _check_output(output: Path, fmt: Format, overwrite: bool) -> Path | None:
+    """Refuse an ``-o`` photo3d must not write as ``fmt``, before the work; returns the
+    3D photo folder it lies in (where it is recorded), or None.
 
     In a 3D photo folder (one holding ``photo3d.npz``) ``-o`` may name only an
     export file (:data:`~photo3d.owned.EXPORT_FILES`), one that is new or that the
     folder's record lists: never ``photo3d.npz``, ``config.json`` or the meshes.
-    Elsewhere an existing file needs ``overwrite``. Links and inputs are the gate's
-    (:func:`photo3d.files.gate.check_target`)."""
+    Elsewhere an existing file needs ``overwrite``. A suffix other than the
+    format's (:attr:`Format.suffix`, case aside) is refused everywhere: ``splats.ply``
+    data under ``splats.spz`` would be recorded as photo3d's SPZ. Links and inputs
+    are the gate's (:func:`photo3d.files.gate.check_target`)."""
     check_target(output)
     photo = output.parent
-    if (photo / LDI_FILE).is_file():
-        if not any(fnmatch.fnmatchcase(output.name, p) for p in EXPORT_FILES):
-            raise OutputError(f"{output} is a file of the 3D photo folder {photo}; export "
-                              "writes there only its own files (" + ", ".join(EXPORT_FILES[:4])
-                              + ", quilts): choose another name")
+    in_photo = (photo / LDI_FILE).is_file()
+    if in_photo and not any(fnmatch.fnmatchcase(output.name, p) for p in EXPORT_FILES):
+        raise OutputError(f"{output} is a file of the 3D photo folder {photo}; export "
+                          "writes there only its own files (" + ", ".join(EXPORT_FILES[:4])
+                          + ", quilts): choose another name")
+    if fmt.suffix and output.suffix and output.suffix.lower() != fmt.suffix:
+        raise OutputError(f"-o/output {output} ends with {output.suffix} but {fmt.name} is "
+                          f"written as {fmt.suffix}: choose a name ending with {fmt.suffix}")
+    if in_photo:
         claim_files(photo, [output.name])
         return photo
     if os.path.lexists(output) and not overwrite:

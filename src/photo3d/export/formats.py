@@ -27,10 +27,12 @@ class Format:
             written, and ``mesh``, the light textured mesh, built once).
         preload: modules the writer imports that must be imported before the
             writer threads start (:func:`photo3d.export.writers.preload`).
+        suffix: what a file of this format must end with (``".ply"``; a file named
+            with ``-o`` too, case aside); empty: any name.
 
     Example:
-        >>> FORMATS["splats.spz"].filename(None)
-        'splats.spz'
+        >>> FORMATS["splats.spz"].filename(None), FORMATS["quilt"].suffix
+        ('splats.spz', '.png')
     """
 
     name: str
@@ -39,6 +41,7 @@ class Format:
     filename: Callable[[LDI], str]
     options: tuple[str, ...] = ()
     preload: tuple[str, ...] = ()
+    suffix: str = ""
 
     def load(self) -> Callable[..., None]:
         """The writer function (imports its module)."""
@@ -66,15 +69,17 @@ _USD = ("pxr.Gf", "pxr.Kind", "pxr.Sdf", "pxr.Usd", "pxr.UsdGeom", "pxr.UsdShade
         "pxr.UsdUtils", "pxr.Vt")  # what write_usdz imports (usd-core)
 FORMATS: dict[str, Format] = {
     "splats.ply": Format("splats.ply", SPLATS_MODULE, "write_ply", _fixed("splats.ply"),
-                         _SPLAT_OPTIONS),
+                         _SPLAT_OPTIONS, suffix=".ply"),
     "splats.spz": Format("splats.spz", SPLATS_MODULE, "write_spz", _fixed("splats.spz"),
-                         (*_SPLAT_OPTIONS, "spz_version")),
+                         (*_SPLAT_OPTIONS, "spz_version"), suffix=".spz"),
     "splats.glb": Format("splats.glb", SPLATS_MODULE, "write_glb", _fixed("splats.glb"),
-                         _SPLAT_OPTIONS),
+                         _SPLAT_OPTIONS, suffix=".glb"),
     "mesh.usdz": Format("mesh.usdz", "photo3d.export.usdz", "write_usdz",
-                        _named_by("photo3d.export.usdz", "USDZ_NAME"), _MESH_OPTIONS, _USD),
+                        _named_by("photo3d.export.usdz", "USDZ_NAME"), _MESH_OPTIONS, _USD,
+                        suffix=".usdz"),
     "quilt": Format("quilt", "photo3d.export.quilt", "write_quilt",
-                    _named_by("photo3d.export.quilt", "quilt_filename"), _MESH_OPTIONS),
+                    _named_by("photo3d.export.quilt", "quilt_filename"), _MESH_OPTIONS,
+                    suffix=".png"),
 }
 """The export formats by name, in the order ``photo3d export --help`` lists them
 (:data:`photo3d.save_options.EXPORT_FORMATS` spells the same names)."""

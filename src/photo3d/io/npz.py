@@ -202,7 +202,9 @@ def _read_arrays(path: Path) -> tuple[dict[str, np.ndarray], dict]:
         if not isinstance(header, dict) or header.get("format") != "photo3d-ldi":
             raise InputError("not a photo3d file (its header is not a photo3d LDI header)")
         version = header.get("version", 1)
-        if version not in range(1, FORMAT_VERSION + 1) or isinstance(version, bool):
+        if not _is_int(version):
+            raise InputError(f"format version {version!r} is not an integer")
+        if version not in range(1, FORMAT_VERSION + 1):
             raise InputError(f"format version {version!r} is not one this photo3d reads "
                              f"(1 to {FORMAT_VERSION}); a newer photo3d wrote it")
         w, h, border = _checked_frame(header)
@@ -245,6 +247,10 @@ def _read_member(zf: zipfile.ZipFile, name: str, max_items: int) -> np.ndarray:
 def _checked_frame(header: dict) -> tuple[int, int, int]:
     """``(width, height, border)`` of an untrusted header, after checking its
     intrinsics, depth mapping and border."""
+    for name in ("intrinsics", "mapping"):  # float() would take true, "2" and ["2"]
+        if not (isinstance(header[name], list) and all(
+                isinstance(v, int | float) and not isinstance(v, bool) for v in header[name])):
+            raise InputError(f"{name} is not a list of numbers")
     values = [float(v) for v in header["intrinsics"]]
     mapping = [float(v) for v in header["mapping"]]
     if len(values) != 6 or len(mapping) != 3 or not np.all(np.isfinite(values + mapping)):
@@ -258,9 +264,20 @@ def _checked_frame(header: dict) -> tuple[int, int, int]:
         raise InputError(f"focal lengths fx={fx:g}, fy={fy:g} are not plausible")
     if not (abs(cx) < 100 * w and abs(cy) < 100 * h):
         raise InputError(f"principal point ({cx:g}, {cy:g}) lies far outside the image")
-    if not (isinstance(border, int) and 0 <= border <= max(w, h)):
-        raise InputError(f"border {border!r} is not between 0 and the image size")
+    if not (_is_int(border) and 0 <= border <= max(w, h)):
+        raise InputError(f"border {border!r} is not an integer between 0 and the image size")
     return w, h, border
+
+
+def _is_int(value: object) -> bool:
+    """True for a JSON integer; False for anything else, ``true`` and ``false`` too
+    (Python's bool is an int).
+
+    Example:
+        >>> _is_int(2), _is_int(True), _is_int(2.0)
+        (True, False, False)
+    """
+    return isinstance(value, int) and not isinstance(value, bool)
 
 
 def _checked_ldi(arrays: dict[str, np.ndarray], header: dict) -> LDI:

@@ -21,6 +21,31 @@ from photo3d.render.renderer import Renderer, output_intrinsics
 from photo3d.render.stereo import compose, eye_cameras, file_tag
 from photo3d.structures.ldi import LDI
 
+MAX_SIDE = 65536
+"""Longest width or height of a video or still (WebM's encoder's limit, the largest of
+:data:`photo3d.io.video.MAX_VIDEO_SIDE`; MP4's is 16384, checked against the format by
+:func:`photo3d.io.video.check_video_size`)."""
+
+
+def _check_size(size: tuple[int, int]) -> None:
+    """Refuse a ``(width, height)`` that is not positive, longer than :data:`MAX_SIDE`
+    or odd, in that order (a size that is too large is told so, even when odd).
+
+    Example:
+        >>> _check_size((64, 48))
+        >>> _check_size((99999999, 48))
+        Traceback (most recent call last):
+        photo3d.errors.ConfigError: video size 99999999x48 is too large: at most 65536 pixels a side
+    """
+    width, height = size
+    if min(width, height) < 1:
+        raise ConfigError(f"video size must be positive, got {width}x{height}")
+    if max(width, height) > MAX_SIDE:
+        raise ConfigError(f"video size {width}x{height} is too large: at most {MAX_SIDE} "
+                          "pixels a side")
+    if width % 2 or height % 2:
+        raise ConfigError(f"video size must be even numbers, got {width}x{height}")
+
 
 @dataclass(frozen=True)
 class VideoSpec:
@@ -29,8 +54,8 @@ class VideoSpec:
     Attributes:
         path: a preset name (``dolly-zoom-in``, ``zoom-in``, ``circle``, ``swing``)
             or a JSON/YAML keyframe file.
-        size: ``(width, height)`` in pixels (even numbers; None: the photo's size
-            rounded down to even numbers).
+        size: ``(width, height)`` in pixels (positive even numbers, at most
+            :data:`MAX_SIDE`; None: the photo's size rounded down to even numbers).
         fps: frames per second (the authors': 40).
         frames: number of frames (the authors': 240).
         format: ``mp4``, ``webm`` or ``gif``.
@@ -49,8 +74,8 @@ class VideoSpec:
     eye_order: str = "lr"
 
     def __post_init__(self) -> None:
-        if self.size is not None and (self.size[0] % 2 or self.size[1] % 2 or min(self.size) < 2):
-            raise ConfigError(f"video size must be even numbers, got {self.size[0]}x{self.size[1]}")
+        if self.size is not None:
+            _check_size(self.size)
         if not 1 <= self.frames <= 100_000 or not 0 < self.fps <= 1000:
             raise ConfigError(f"frames must be 1..100000 and fps in (0, 1000], got "
                               f"{self.frames} frames at {self.fps} fps")

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import socket
 import stat
 import sys
 import webbrowser
@@ -146,6 +147,33 @@ class _Server(ThreadingHTTPServer):
         super().handle_error(request, client_address)
 
 
+def check_port(port: int, *, bind: bool = True) -> None:
+    """Refuse a ``port`` outside [0, 65535] or, with ``bind``, one that cannot be
+    listened on at 127.0.0.1 now (in use, privileged), so a command can refuse it
+    before writing anything. 0 (any free port) always passes.
+
+    Raises:
+        InputError: the port is out of range or cannot be bound.
+
+    Example:
+        >>> check_port(0)
+        >>> check_port(70000)
+        Traceback (most recent call last):
+        ...
+        photo3d.errors.InputError: port must be in [0, 65535], got 70000
+    """
+    if not 0 <= port <= 65535:
+        raise InputError(f"port must be in [0, 65535], got {port}")
+    if not bind or port == 0:
+        return
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as probe:
+        probe.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)  # as the server does
+        try:
+            probe.bind((HOST, port))
+        except OSError as err:
+            raise InputError(f"cannot listen on {HOST}:{port}: {err.strerror or err}") from None
+
+
 class ViewerServer:
     """An HTTP server for one 3D photo folder on 127.0.0.1 (a context manager).
 
@@ -178,8 +206,7 @@ class ViewerServer:
         if not page.is_file():
             raise InputError(f"no {VIEWER_FILE} in {folder}: write it with "
                              f"photo3d.viewer.write_viewer (photo3d make does by default)")
-        if not 0 <= port <= 65535:
-            raise InputError(f"port must be in [0, 65535], got {port}")
+        check_port(port, bind=False)
         real = os.path.realpath(folder)  # a link given as the folder is followed once, here
         try:
             self._folder_fd = (os.open(real, os.O_RDONLY | os.O_DIRECTORY) if _DIR_FD
