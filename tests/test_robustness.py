@@ -382,7 +382,9 @@ def test_broken_saved_photos(photos, capsys):
     npz.write_bytes(os.urandom(4000))
     check("not a photo3d file", "view", saved, "--no-browser")
     (photos.parent / "text.npz").write_text("hello")
-    check("not a photo3d file", "view", photos.parent / "text.npz", "--no-browser")
+    # a file where the folder goes: said so (it was read as a photo3d.npz before)
+    check("is a file: give the 3D photo's folder", "view", photos.parent / "text.npz",
+          "--no-browser")
     from photo3d.io.npz import load_npz
 
     n = np.load(npz)["links"].shape[0]
