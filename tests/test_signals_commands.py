@@ -283,3 +283,51 @@ def test_view(made, tmp_path, sig, status):
     assert proc.stdout.readline().startswith("serving"), proc.stderr.read()
     check_stopped(stop(proc, sig), status)
     assert snapshot(folder) == before and not temporaries(tmp_path)
+
+
+LATE = """
+import contextlib, gc, os, signal, sys
+import photo3d.cli as cli
+from photo3d.files import signals
+
+def ctrl_c():
+    os.kill(os.getpid(), signal.SIGINT)
+
+where = sys.argv.pop(1)
+if where == "ending":  # while handle_signals' block ends
+    stop = signals.request_stop
+    signals.request_stop = lambda signum: (signum is None and ctrl_c(), stop(signum))
+elif where == "tail":  # in main's last step, after the command returned
+    freeze = gc.freeze
+    gc.freeze = lambda: (ctrl_c(), freeze())
+else:  # after handle_signals' block, as main returns
+    guard = cli.handle_signals
+
+    @contextlib.contextmanager
+    def late_guard(**options):
+        with guard(**options) as g:
+            yield g
+        ctrl_c()
+
+    cli.handle_signals = late_guard
+sys.argv[0] = "photo3d"
+sys.exit(cli.main())
+"""
+
+
+@pytest.mark.parametrize("where", ["ending", "tail", "after"])
+def test_a_ctrl_c_just_after_make_moved_its_folder_into_place(tmp_path, where):
+    """A SIGINT after the finished folder was moved into place died of the signal
+    (status -2, no line) when it landed after main's handlers were restored."""
+    img, depth = two_planes(32, 48)
+    Image.fromarray((img * 255).astype(np.uint8)).save(tmp_path / "p.png")
+    np.save(tmp_path / "p.npy", depth)
+    done = subprocess.run([sys.executable, "-c", LATE, where, "make", "p.png", "--depth",
+                           "p.npy", "-o", "o", "--no-video", "--no-viewer", "-q"],
+                          cwd=tmp_path, env={**os.environ, "PYTHONPATH": SRC},
+                          capture_output=True, text=True, timeout=300)
+    assert done.returncode == 130, done.stderr
+    assert done.stderr.splitlines()[-1] == "photo3d: interrupted", done.stderr
+    assert "Traceback" not in done.stderr and done.stderr.count("interrupted") == 1
+    assert (tmp_path / "o" / "photo3d.npz").is_file() and not temporaries(tmp_path)
+    check_record(tmp_path / "o")

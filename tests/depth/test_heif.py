@@ -172,3 +172,26 @@ def test_missing_pillow_heif_names_the_extra(tmp_path, monkeypatch):
     monkeypatch.setitem(sys.modules, "pillow_heif", None)
     with pytest.raises(InputError, match=r"pip install 'photo3d\[heif\]'"):
         read_embedded_depth(path)
+
+
+def test_the_photo_reader_is_chosen_by_content_not_extension(tmp_path):
+    """A JPEG named .heic was refused ("No 'ftyp' box"); a HEIF named .jpg is read."""
+    from photo3d.depth.sources import read_photo
+
+    rgb, _ = photo_and_ramp()
+    Image.fromarray(rgb).save(tmp_path / "jpeg.heic", format="JPEG", quality=95)
+    assert read_photo(tmp_path / "jpeg.heic").shape == (64, 96, 3)
+    write_heif(tmp_path / "heif.jpg", with_depth=False)
+    np.testing.assert_array_equal(read_photo(tmp_path / "heif.jpg"),
+                                  read_heif_image(tmp_path / "heif.jpg"))
+
+
+def test_a_tiny_heif_gets_the_minimum_size_error(tmp_path):
+    from photo3d.depth.sources import read_photo
+
+    path = tmp_path / "tiny.heic"
+    heif = pillow_heif.from_pillow(Image.fromarray(np.zeros((4, 4, 3), np.uint8)))
+    heif.save(path, quality=-1)
+    with pytest.raises(InputError, match=r"^image .*tiny.heic is 4x4 pixels; photo3d needs "
+                                         r"at least 8x8$"):
+        read_photo(path)

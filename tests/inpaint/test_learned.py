@@ -756,3 +756,30 @@ def test_make_with_a_refine_weights_folder(tmp_path):
 
     meta = json.loads((out / "config.json").read_text())
     assert meta["stats"]["pixels_added"][0] > 0
+
+
+def test_huge_weights_are_refused_before_anything_is_saved(tmp_path, capsys):
+    """Finite weights of 1e30 make the nets give NaN or infinity: every hole would be
+    NaN, in a photo3d.npz photo3d's own reader refuses."""
+    from photo3d.cli import main
+    from photo3d.io.images import write_image
+
+    weights = tmp_path / "weights"
+    weights.mkdir()
+    for kind, net in random_nets().__dict__.items():
+        if kind in SMALL:
+            with torch.no_grad():
+                for p in net.parameters():
+                    p.fill_(1e30)
+            save_safetensors(net, weights / f"{kind}.safetensors")
+    img, disp = two_planes(64, 96)
+    write_image(tmp_path / "photo.png", img)
+    np.save(tmp_path / "depth.npy", disp)
+    out = tmp_path / "out"
+    assert main(["make", str(tmp_path / "photo.png"), "--depth", str(tmp_path / "depth.npy"),
+                 "-o", str(out), "--size", "96", "--no-video", "--no-viewer",
+                 "--inpainter", "learned", "--weights", str(weights), "-q"]) != 0
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1
+    assert "net gave NaN or infinite values with weights " + str(weights) in err
+    assert err.endswith("the weights are not usable") and not out.exists()

@@ -290,6 +290,25 @@ def test_the_learned_fill_offline_is_one_line_without_the_servers_folders(
     assert str(upload[0].parent) not in message and "\n" not in message
 
 
+def test_a_cached_weights_file_that_is_not_the_authors_is_said_to_the_client(
+        runner, upload, tmp_path, monkeypatch):
+    pytest.importorskip("torch")
+    cache = tmp_path / "server cache"
+    (cache / "authors").mkdir(parents=True)
+    (cache / "authors" / "edge-model.pth").write_bytes(b"someone else's edge net")
+    monkeypatch.setenv("PHOTO3D_CACHE", str(cache))
+    monkeypatch.setenv("PHOTO3D_AUTHORS_URL", (tmp_path / "nowhere").as_uri())
+    photo, depth = upload
+    with pytest.raises(RequestError) as err:
+        list(runner.run(str(photo), options=JobOptions(fill="learned"), depth=str(depth)))
+    message = str(err.value)
+    assert message.startswith("the learned fill's weights file authors/edge-model.pth in "
+                              "this server's photo3d cache")
+    assert "SHA-256 checksum does not match" in message and "delete it" in message
+    assert "offline" not in message and str(cache) not in message and "\n" not in message
+    assert (cache / "authors" / "edge-model.pth").read_bytes() == b"someone else's edge net"
+
+
 def test_errors_are_one_line_without_the_servers_folders(runner, upload):
     photo, depth = upload
     depth.write_bytes(b"\x89PNG\r\n\x1a\n garbage")

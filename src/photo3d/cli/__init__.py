@@ -66,36 +66,59 @@ def main(argv: list[str] | None = None) -> int:
 
     if argv is None and not faulthandler.is_enabled():  # a crash in native code (numba,
         faulthandler.enable()  # torch) names the Python line that called it
-    with handle_signals() as guard:  # from the start: building the parser imports a lot
-        try:
-            args = build_parser().parse_args(argv)
-            # --threads before numba or torch load; a bad PHOTO3D_THREADS is told before
-            # any work; the budget is this command's only (main may run again)
-            with command_threads(args.threads):
-                warnings.showwarning = show
-                with reading(*command_inputs(args)):  # no write may reach them
-                    return args.run(args)
-        except Photo3DError as err:  # also MissingExtra: an optional package is missing
-            print(f"photo3d: error: {err}", file=sys.stderr)
-            return 2
-        except BaseException as err:  # noqa: B036 - only interruptions are turned into a line
-            signum = guard.signum or (signal.SIGINT if _interrupted(err) else None)
-            if signum is None:
-                if isinstance(err, MemoryError):
-                    print("photo3d: error: out of memory (try a smaller --size)", file=sys.stderr)
-                    return 1
-                raise
-            name = "" if signum == signal.SIGINT else f" ({signal.Signals(signum).name})"
-            print(f"photo3d: interrupted{name}", file=sys.stderr)
-            return 128 + signum
-        finally:
-            if argv is None:  # the photo3d command: the process ends next
-                # Python's last garbage collections at exit walk numba's and torch's
-                # object graphs and free what they find (0.2-0.4 s after a make, 2.4 s
-                # after an interrupted train); frozen objects are left to the
-                # operating system (the files are written and closed, the temporary
-                # ones removed)
-                gc.freeze()
+    # the photo3d command: a signal after the command (its outputs complete, the process
+    # about to end) is still one line and 128 + signal, not a traceback or death by it
+    after = _late if argv is None else None
+    try:
+        with handle_signals(after=after) as guard:  # from the start: the parser imports a lot
+            try:
+                args = build_parser().parse_args(argv)
+                # --threads before numba or torch load; a bad PHOTO3D_THREADS is told
+                # before any work; the budget is this command's only (main may run again)
+                with command_threads(args.threads):
+                    warnings.showwarning = show
+                    with reading(*command_inputs(args)):  # no write may reach them
+                        return args.run(args)
+            except Photo3DError as err:  # also MissingExtra: an optional package is missing
+                print(f"photo3d: error: {err}", file=sys.stderr)
+                return 2
+            except BaseException as err:  # noqa: B036 - only interruptions become a line
+                signum = guard.signum or (signal.SIGINT if _interrupted(err) else None)
+                if signum is None:
+                    if isinstance(err, MemoryError):
+                        print("photo3d: error: out of memory (try a smaller --size)",
+                              file=sys.stderr)
+                        return 1
+                    raise
+                return _say_interrupted(signum)
+            finally:
+                if argv is None:  # the photo3d command: the process ends next
+                    # Python's last garbage collections at exit walk numba's and torch's
+                    # object graphs and free what they find (0.2-0.4 s after a make, 2.4 s
+                    # after an interrupted train); frozen objects are left to the
+                    # operating system (the files are written and closed, the temporary
+                    # ones removed)
+                    gc.freeze()
+    except KeyboardInterrupt as err:  # also Interrupted: it landed as the command ended
+        return _say_interrupted(getattr(err, "signum", signal.SIGINT))
+
+
+def _say_interrupted(signum: int) -> int:
+    """Print ``photo3d: interrupted`` (naming a signal other than SIGINT); the exit
+    status, ``128 + signum``."""
+    name = "" if signum == signal.SIGINT else f" ({signal.Signals(signum).name})"
+    print(f"photo3d: interrupted{name}", file=sys.stderr)
+    return 128 + signum
+
+
+def _late(signum: int, frame) -> None:
+    """The photo3d command's handler of SIGINT, SIGTERM and SIGHUP once the command has
+    ended (its outputs are complete, or removed): the one line and ``128 + signum``,
+    at once (nothing is left to clean up)."""
+    _say_interrupted(signum)
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(128 + signum)
 
 
 def command_inputs(args: argparse.Namespace) -> list[Path]:

@@ -20,9 +20,43 @@ import numpy as np
 
 from photo3d.depth.embedded import EmbeddedDepth
 from photo3d.errors import InputError, require
-from photo3d.io.images import to_float_image
+from photo3d.io.images import check_size, to_float_image
 
 PathLike = str | os.PathLike[str]
+
+HEIF_BRANDS = frozenset({b"heic", b"heix", b"heim", b"heis", b"hevc", b"hevx", b"mif1",
+                         b"msf1"})
+"""``ftyp`` brands of HEIF (HEVC) files, which pillow-heif reads."""
+AVIF_BRANDS = frozenset({b"avif", b"avis"})
+"""``ftyp`` brands of AVIF files (also ``mif1``), which Pillow reads, not pillow-heif."""
+
+
+def is_heif(path: PathLike) -> bool:
+    """True if ``path`` is a HEIF file by its content, whatever its extension: it starts
+    with an ISO-BMFF ``ftyp`` box whose major or compatible brands include one of
+    :data:`HEIF_BRANDS` and none of :data:`AVIF_BRANDS`. Reads at most 256 bytes;
+    False for anything else, a missing file or a folder (the image reader says why).
+
+    Example:
+        >>> import pathlib, tempfile
+        >>> path = pathlib.Path(tempfile.mkdtemp()) / "photo.jpg"
+        >>> _ = path.write_bytes(b"\\x00\\x00\\x00\\x18ftypheic\\x00\\x00\\x00\\x00mif1heic")
+        >>> is_heif(path), is_heif(path.parent), is_heif(path.with_name("x.heic"))
+        (True, False, False)
+    """
+    path = Path(path)
+    try:
+        if not path.is_file():  # a FIFO would block
+            return False
+        with open(path, "rb") as f:
+            head = f.read(256)
+    except OSError:
+        return False
+    if head[4:8] != b"ftyp":
+        return False
+    end = min(len(head), max(16, int.from_bytes(head[:4], "big")))
+    brands = {head[8:12]} | {head[i:i + 4] for i in range(16, end - 3, 4)}
+    return bool(brands & HEIF_BRANDS) and not brands & AVIF_BRANDS
 
 
 def read_heif_depth(path: PathLike) -> EmbeddedDepth | None:
@@ -74,7 +108,8 @@ def read_heif_depth(path: PathLike) -> EmbeddedDepth | None:
 
 
 def read_heif_image(path: PathLike) -> np.ndarray:
-    """The primary image of a HEIF/HEIC file as ``(H, W, 3) float32`` in [0, 1].
+    """The primary image of a HEIF/HEIC file as ``(H, W, 3) float32`` in [0, 1], at
+    least ``MIN_SIDE`` pixels on each side (:func:`~photo3d.io.images.check_size`).
 
     Example:
         >>> read_heif_image("missing.heic")  # doctest: +IGNORE_EXCEPTION_DETAIL
@@ -86,7 +121,7 @@ def read_heif_image(path: PathLike) -> np.ndarray:
         im = file.to_pillow()  # the primary image
     except (ValueError, RuntimeError, OSError) as err:
         raise _unreadable(path, err) from err
-    return to_float_image(np.asarray(im.convert("RGB")))
+    return check_size(to_float_image(np.asarray(im.convert("RGB"))), path)
 
 
 def _open(path: PathLike, **options):

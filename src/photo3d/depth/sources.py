@@ -20,7 +20,6 @@ from PIL import Image
 from photo3d.depth.checks import check_depth
 from photo3d.depth.normalize import DepthInput, match_shape, prepare_depth
 from photo3d.errors import InputError
-from photo3d.files.folders import HEIF_SUFFIXES
 from photo3d.io.depth import read_depth
 from photo3d.io.images import decoded_shape, read_image, to_float_image
 
@@ -65,7 +64,8 @@ UNKNOWN_WARNING = 0.5
 
 def read_photo(image: np.ndarray | PathLike, *, working_size: int | None = None
                ) -> np.ndarray:
-    """A photo path (JPEG/PNG/TIFF/WebP, or HEIF/HEIC with pillow-heif) or array ->
+    """A photo path (JPEG/PNG/TIFF/WebP, or HEIF/HEIC with pillow-heif, told apart by
+    content, not extension: :func:`~photo3d.depth.heif.is_heif`) or array ->
     ``(H, W, 3) float32`` in [0, 1].
 
     The one photo reader of :func:`photo3d.make`, ``photo3d make`` and ``photo3d
@@ -83,9 +83,9 @@ def read_photo(image: np.ndarray | PathLike, *, working_size: int | None = None
         (8, 8, 3)
     """
     if isinstance(image, str | os.PathLike):
-        if Path(image).suffix.lower() in HEIF_SUFFIXES:
-            from photo3d.depth.heif import read_heif_image
+        from photo3d.depth.heif import is_heif, read_heif_image
 
+        if is_heif(image):  # by content: a JPEG named .heic is a JPEG
             return read_heif_image(image)
         return read_image(image, working_size=working_size)
     return to_float_image(image)

@@ -170,7 +170,7 @@ def _install(handler: Callable, signums: list[int]) -> dict[int, object]:
 
 
 @contextlib.contextmanager
-def handle_signals() -> Iterator[SignalGuard]:
+def handle_signals(*, after: Callable | None = None) -> Iterator[SignalGuard]:
     """Turn SIGINT, SIGTERM and SIGHUP into exceptions, so cleanup code runs.
 
     SIGINT raises :class:`KeyboardInterrupt` (as Python does), SIGTERM and SIGHUP
@@ -187,6 +187,11 @@ def handle_signals() -> Iterator[SignalGuard]:
     Signals ignored when the process started stay ignored (``nohup``, background
     jobs). Does nothing outside the main thread.
 
+    When the block ends, the signals get ``after`` (a handler; None: the handlers
+    they had before the block) with no moment in between; one that lands while the
+    block ends is not raised there but sent again, to those handlers, once they are set
+    (the command line's ``after`` turns a late Ctrl-C into its one line and exit 130).
+
     Example:
         >>> import os, signal
         >>> with handle_signals() as guard:
@@ -199,8 +204,13 @@ def handle_signals() -> Iterator[SignalGuard]:
     guard = SignalGuard()
 
     previous: dict = {}
+    ending = False  # the block is ending: a signal is for the handlers after it
+    late: list[int] = []
 
     def handler(signum, frame):
+        if ending:
+            late.append(signum)
+            return
         if guard.signum is not None:  # already unwinding: let the cleanup finish, and
             for number, old in previous.items():  # a further signal act as usual
                 signal.signal(number, old)
@@ -227,12 +237,15 @@ def handle_signals() -> Iterator[SignalGuard]:
     try:
         yield guard
     finally:
+        ending = True
         for signum, old in previous.items():
-            signal.signal(signum, old)
+            signal.signal(signum, old if after is None else after)
         if restore is not None:
             restore()
         if outer:
             request_stop(None)
+        for signum in late:  # to the handlers set now
+            signal.raise_signal(signum)
 
 
 def worker_signals(busy: Callable[[], bool]) -> SignalGuard:

@@ -70,7 +70,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from photo3d.camera import DepthMapping
-from photo3d.errors import ConfigError
+from photo3d.errors import ConfigError, InputError
 from photo3d.inpaint.canvas import edges_in, joint_patch, share_canvases, trim, window
 from photo3d.inpaint.crops import Box, cover, grow
 from photo3d.inpaint.edgepaths import reported_edges
@@ -321,6 +321,10 @@ class LearnedInpainter:
                           **self.batch)
         release_memory()
         self.timings[kind] += time.perf_counter() - t
+        if not all(np.isfinite(o).all() for o in out):  # e.g. finite but huge weights
+            source = "given in memory" if self.weights is None else str(self.weights)
+            raise InputError(f"the learned inpainter's {kind} net gave NaN or infinite "
+                             f"values with weights {source}; the weights are not usable")
         return out
 
     def _edges(self, items: list[NetInputs], *, run: bool) -> list[np.ndarray]:

@@ -167,6 +167,22 @@ def read_image(path: PathLike, *, working_size: int | None = None) -> np.ndarray
         image = to_float_image(array)
     except InputError as err:
         raise InputError(f"cannot read image {path}: {err}") from err
+    return check_size(image, path)
+
+
+def check_size(image: np.ndarray, path: PathLike) -> np.ndarray:
+    """``image`` (``(H, W, ...)``, read from ``path``) if it is at least ``MIN_SIDE``
+    pixels on each side; every photo reader ends with this check.
+
+    Raises:
+        InputError: a smaller image, naming ``path``, its size and the minimum.
+
+    Example:
+        >>> check_size(np.zeros((4, 4, 3), np.float32), "tiny.heic")
+        Traceback (most recent call last):
+        ...
+        photo3d.errors.InputError: image tiny.heic is 4x4 pixels; photo3d needs at least 8x8
+    """
     height, width = image.shape[:2]
     if height < MIN_SIDE or width < MIN_SIDE:
         raise InputError(

@@ -53,6 +53,19 @@ FileProgress = Callable[[str, int, int | None], None]
 """``progress(file name, bytes done, total bytes or None)`` of each download."""
 
 
+class NotTheAuthors(InputError):
+    """A file in :func:`authors_folder` has another SHA-256 than the authors' (photo3d
+    did not write it and leaves it alone).
+
+    Attributes:
+        path: that file.
+    """
+
+    def __init__(self, message: str, path: Path) -> None:
+        super().__init__(message)
+        self.path = path
+
+
 def authors_folder() -> Path:
     """The folder of the authors' weights: ``cache_dir() / "authors"`` (not created
     here).
@@ -101,8 +114,9 @@ def authors_weights(*, progress: FileProgress | None = None) -> Path:
         ``color-model.pth`` with the authors' SHA-256.
 
     Raises:
-        InputError: one line: a file in the folder is not the authors' (it is left
-            alone; the message says what to do), a download was refused (another
+        InputError: one line: a file in the folder is not the authors'
+            (:class:`NotTheAuthors`: it is left alone; the message says what to do), a
+            download was refused (another
             SHA-256: nothing is saved), or a download failed (offline: the message
             names the files, the URL and the folder to put them in, and that
             ``--weights compact`` runs the nets shipped with photo3d).
@@ -144,10 +158,10 @@ def _checked(path: Path) -> bool:
     except OSError as err:
         raise InputError(f"cannot read {path}: {err.strerror or err}") from err
     if digest != _expected(path.name):
-        raise InputError(f"{path} is not the authors' {path.name}: its SHA-256 is {digest}, "
-                         f"expected {_expected(path.name)}; photo3d did not write it and "
-                         "leaves it alone: move it elsewhere or delete it, then run again "
-                         "to download the authors' file")
+        raise NotTheAuthors(f"{path} is not the authors' {path.name}: its SHA-256 is "
+                            f"{digest}, expected {_expected(path.name)}; photo3d did not "
+                            "write it and leaves it alone: move it elsewhere or delete it, "
+                            "then run again to download the authors' file", path)
     return True
 
 

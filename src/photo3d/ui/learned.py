@@ -5,7 +5,8 @@ authors' published files, downloaded once into the cache and checked by SHA-256)
 A request that chooses ``learned`` first makes sure they are there, showing the
 download in its progress bar; requests at once download them once. Offline, the
 client gets one line without the server's folders (the server's log has the full
-reason). Nothing here imports Gradio or PyTorch.
+reason); a file in the cache that is not the authors' (another SHA-256) is one line
+naming it inside the cache and what to do. Nothing here imports Gradio or PyTorch.
 
 Example:
     >>> "460 MB" in NOTE
@@ -43,6 +44,7 @@ def learned_weights(say: Callable[[str], None] | None = None) -> Path:
         InputError: they cannot be downloaded (one line for the client).
     """
     from photo3d.inpaint.learned import default_weights
+    from photo3d.nets.authors import NotTheAuthors
 
     shown: list[object] = [None]
 
@@ -58,6 +60,15 @@ def learned_weights(say: Callable[[str], None] | None = None) -> Path:
             say("waiting for the learned fill's weights to download")
     try:
         return default_weights(progress=progress)
+    except NotTheAuthors as err:
+        log.warning("photo3d ui: the learned fill's weights: %s", err)
+        where = f"{err.path.parent.name}/{err.path.name}"
+        raise InputError(f"the learned fill's weights file {where} in this server's photo3d "
+                         "cache ($PHOTO3D_CACHE, default ~/.cache/photo3d) is not the "
+                         "authors': its SHA-256 checksum does not match; choose another "
+                         "fill, or ask whoever runs the server to move that file elsewhere "
+                         "or delete it (the next learned fill downloads the authors' "
+                         "file)") from None
     except InputError as err:
         log.warning("photo3d ui: the learned fill's weights: %s", err)
         raise InputError("the learned fill needs the authors' weights (about 460 MB), "
