@@ -735,36 +735,25 @@ def test_a_refine_net_adds_its_residual_to_the_diffusion_fill(size):
     np.testing.assert_allclose(alone[p.synthesis], r.color[p.synthesis], atol=1e-6)
 
 
-def test_make_with_a_refine_weights_folder(tmp_path):
-    from photo3d.cli import main
-    from photo3d.io.images import write_image
-
-    weights = tmp_path / "weights"
+def test_make_with_a_refine_weights_folder(files):
+    weights = files / "weights"
     weights.mkdir()
     nets = refine_nets(seed=2)
     for kind in ("edge", "depth", "color"):
         save_safetensors(getattr(nets, kind), weights / f"{kind}.safetensors",
                          dtype=torch.float16 if kind == "color" else None)
-    img, disp = two_planes(64, 96)
-    write_image(tmp_path / "photo.png", img)
-    np.save(tmp_path / "depth.npy", disp)
-    out = tmp_path / "out"
-    assert main(["make", str(tmp_path / "photo.png"), "--depth", str(tmp_path / "depth.npy"),
-                 "-o", str(out), "--size", "96", "--no-video", "--no-viewer",
-                 "--inpainter", "learned", "--weights", str(weights), "-q"]) == 0
+    out = files / "out"
+    assert make_learned(files, "--weights", str(weights), "-q") == 0
     import json
 
     meta = json.loads((out / "config.json").read_text())
     assert meta["stats"]["pixels_added"][0] > 0
 
 
-def test_huge_weights_are_refused_before_anything_is_saved(tmp_path, capsys):
+def test_huge_weights_are_refused_before_anything_is_saved(files, capsys):
     """Finite weights of 1e30 make the nets give NaN or infinity: every hole would be
     NaN, in a photo3d.npz photo3d's own reader refuses."""
-    from photo3d.cli import main
-    from photo3d.io.images import write_image
-
-    weights = tmp_path / "weights"
+    weights = files / "weights"
     weights.mkdir()
     for kind, net in random_nets().__dict__.items():
         if kind in SMALL:
@@ -772,13 +761,8 @@ def test_huge_weights_are_refused_before_anything_is_saved(tmp_path, capsys):
                 for p in net.parameters():
                     p.fill_(1e30)
             save_safetensors(net, weights / f"{kind}.safetensors")
-    img, disp = two_planes(64, 96)
-    write_image(tmp_path / "photo.png", img)
-    np.save(tmp_path / "depth.npy", disp)
-    out = tmp_path / "out"
-    assert main(["make", str(tmp_path / "photo.png"), "--depth", str(tmp_path / "depth.npy"),
-                 "-o", str(out), "--size", "96", "--no-video", "--no-viewer",
-                 "--inpainter", "learned", "--weights", str(weights), "-q"]) != 0
+    out = files / "out"
+    assert make_learned(files, "--weights", str(weights), "-q") != 0
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1
     assert "net gave NaN or infinite values with weights " + str(weights) in err
