@@ -22,7 +22,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from photo3d.camera import Camera, Intrinsics
-from photo3d.errors import ConfigError, require
+from photo3d.errors import ConfigError, InputError, require
 from photo3d.files.stop import check
 from photo3d.holes import fill_holes
 from photo3d.parallel import thread_safe_kernels, threads
@@ -201,6 +201,7 @@ class Renderer:
             antialias = "edges" if texture is not None else "full"
         self._edges = self.backend == "numba" and antialias == "edges" and self.settings.ssaa > 1
         self._overlay = None if overlay is None else self._rasterizer(overlay)
+        self._checked = None  # (width, height, ssaa) whose memory check_camera accepted
 
     def _rasterizer(self, fringe: Mesh):
         """A rasterizer of this renderer's backend for the fringe mesh ``fringe``: its
@@ -327,7 +328,14 @@ class Renderer:
         return 2 if thread_safe_kernels() else 1
 
     def _intrinsics(self, camera: Camera) -> Intrinsics:
-        """``camera``'s intrinsics with the settings' crop (the drawn view)."""
+        """``camera``'s intrinsics with the settings' crop (the drawn view), once
+        :func:`check_camera` accepts it (its memory checked when its size is new)."""
+        check_camera(camera)
+        k = camera.intrinsics
+        view = (k.width, k.height, 1 if self._edges else self.settings.ssaa)
+        if view != self._checked:  # a new size (a video's frames: the first)
+            check_camera(camera, ssaa=view[2])
+            self._checked = view
         crop = self.settings.crop
         return cropped(camera.intrinsics, crop) if any(crop) else camera.intrinsics
 
@@ -345,6 +353,51 @@ class Renderer:
         if left:  # large holes left: smooth pyramid fill
             color = fill_holes(color, np.where(coverage >= 1.0, 1.0, coverage))
         return color
+
+
+def check_camera(camera: Camera, *, ssaa: int | None = None) -> None:
+    """Refuse what :meth:`Renderer.render` cannot draw: no :class:`Camera`, an output
+    size that is not whole pixels > 0, a focal length that is not finite and
+    positive, a principal point that is not finite or, given ``ssaa``, a view whose
+    ``ssaa x ssaa`` supersamples need more memory than is available
+    (:func:`photo3d.resources.render_terms` of a still, the mesh already in memory).
+
+    Raises:
+        InputError: the camera, naming what is wrong.
+        ConfigError: the view does not fit in the available memory.
+
+    Example:
+        >>> check_camera(Camera(Intrinsics.default(64, 48), np.eye(4)), ssaa=2)
+        >>> check_camera(Camera(Intrinsics(0.0, 0.0, 32.0, 24.0, 64, 48), np.eye(4)))
+        ... # doctest: +ELLIPSIS
+        Traceback (most recent call last):
+        ...
+        photo3d.errors.InputError: camera needs finite fx, fy > 0 and a finite principal ...
+    """
+    from photo3d.resources.model import check as check_estimate
+    from photo3d.resources.render import render_terms
+
+    if not isinstance(camera, Camera) or not isinstance(camera.intrinsics, Intrinsics):
+        raise InputError(f"camera must be a photo3d.camera.Camera (Intrinsics and a pose), "
+                         f"got a {type(camera).__name__}")
+    k = camera.intrinsics
+    width, height = k.width, k.height
+    if not all(isinstance(v, int | np.integer) and not isinstance(v, bool) and v > 0
+               for v in (width, height)):
+        raise InputError(f"camera size must be whole pixels > 0, got width={width!r}, "
+                         f"height={height!r}")
+    try:
+        fx, fy, cx, cy = (float(v) for v in (k.fx, k.fy, k.cx, k.cy))
+    except (TypeError, ValueError):
+        raise InputError(f"camera intrinsics must be numbers, got fx={k.fx!r}, fy={k.fy!r}, "
+                         f"cx={k.cx!r}, cy={k.cy!r}") from None
+    if not (fx > 0 and fy > 0 and np.isfinite([fx, fy, cx, cy]).all()):
+        raise InputError(f"camera needs finite fx, fy > 0 and a finite principal point, "
+                         f"got fx={fx:g}, fy={fy:g}, cx={cx:g}, cy={cy:g}")
+    if ssaa is not None:
+        check_estimate(render_terms(0, (int(width), int(height)), ssaa=ssaa),
+                       what=f"rendering a {width}x{height} view with ssaa {ssaa}",
+                       advice="render a smaller camera (Intrinsics.scaled) or ssaa=1")
 
 
 def select_backend(name: str) -> str:

@@ -1,0 +1,49 @@
+"""Mistakes a Python user makes with photo3d's public API (wrong types, shapes, sizes):
+each is one :class:`~photo3d.errors.Photo3DError` naming the parameter, raised before
+the work, never a traceback from deep inside, a huge allocation or a wrong result."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from photo3d.camera import Camera, Intrinsics
+from photo3d.errors import ConfigError, InputError
+from photo3d.mesh.full import build_mesh
+from photo3d.render.renderer import Renderer, RenderSettings
+from photo3d.stages.ldi import from_image
+
+
+@pytest.fixture(scope="module")
+def renderer() -> Renderer:
+    """A CPU renderer of an 8x8 grey plane."""
+    mesh = build_mesh(from_image(np.full((8, 8, 3), 0.5, np.float32),
+                                 np.ones((8, 8), np.float32)))
+    return Renderer(mesh, RenderSettings(backend="numba"))
+
+
+@pytest.mark.parametrize("camera, message", [
+    (None, "camera must be a photo3d.camera.Camera"),
+    (Camera((8, 8, 4, 4), np.eye(4)), "camera must be a photo3d.camera.Camera"),
+    (Camera(Intrinsics.default(0, 0), np.eye(4)), "camera size must be whole pixels > 0"),
+    (Camera(Intrinsics(8.0, 8.0, 4.0, 4.0, -5, 8), np.eye(4)), "width=-5"),
+    (Camera(Intrinsics(8.0, 8.0, 4.0, 4.0, 7.5, 8), np.eye(4)), "width=7.5"),
+    (Camera(Intrinsics(np.nan, 8.0, 4.0, 4.0, 8, 8), np.eye(4)), "fx=nan"),
+    (Camera(Intrinsics(0.0, 0.0, 4.0, 4.0, 8, 8), np.eye(4)), "fx=0, fy=0"),
+    (Camera(Intrinsics(-8.0, -8.0, 4.0, 4.0, 8, 8), np.eye(4)), "fx=-8"),
+])
+def test_render_refuses_what_is_no_camera(renderer, camera, message):
+    # an empty (0, 0, 3) view, a black one (focal 0 or NaN), one upside down (focal < 0),
+    # an AttributeError or numpy's "negative dimensions"
+    with pytest.raises(InputError, match=message):
+        renderer.render(camera)
+    with pytest.raises(InputError, match=message):
+        renderer.render_rgb8(camera)
+
+
+def test_render_refuses_a_view_beyond_the_available_memory(renderer, monkeypatch):
+    # 100000x100000 at ssaa 2 allocated 447 GiB (a MemoryError, or the OOM killer)
+    monkeypatch.setattr("photo3d.resources.available_memory", lambda: 2_000_000_000)
+    with pytest.raises(ConfigError, match="rendering a 100000x100000 view with ssaa 2"):
+        renderer.render(Camera(Intrinsics.default(100000, 100000), np.eye(4)))
+    assert renderer.render(Camera(Intrinsics.default(8, 8), np.eye(4))).color.shape == (8, 8, 3)
