@@ -47,3 +47,24 @@ def test_render_refuses_a_view_beyond_the_available_memory(renderer, monkeypatch
     with pytest.raises(ConfigError, match="rendering a 100000x100000 view with ssaa 2"):
         renderer.render(Camera(Intrinsics.default(100000, 100000), np.eye(4)))
     assert renderer.render(Camera(Intrinsics.default(8, 8), np.eye(4))).color.shape == (8, 8, 3)
+
+
+def _huge(shape: tuple[int, ...], value, dtype) -> np.ndarray:
+    """A read-only array of ``shape`` that takes no memory (one value broadcast)."""
+    return np.broadcast_to(np.array(value, dtype), shape)
+
+
+@pytest.mark.parametrize("image, depth, message", [
+    (_huge((60000, 90000, 3), 128, np.uint8), np.ones((32, 48), np.float32),
+     "the image's 90000x60000 pixels"),
+    (np.zeros((32, 48, 3), np.uint8), _huge((100000, 150000), 1.0, np.float32),
+     "depth's 150000x100000 values"),
+])
+def test_make_refuses_arrays_beyond_the_available_memory(monkeypatch, image, depth, message):
+    # an array is converted to float32 before make's own check: 65 GB (image) or 60 GB
+    # (depth) were allocated (a MemoryError, or the OOM killer)
+    import photo3d
+
+    monkeypatch.setattr("photo3d.io.limits.available_memory", lambda: 2_000_000_000)
+    with pytest.raises(InputError, match=f"{message} needs about"):
+        photo3d.make(image, depth=depth, config=photo3d.Config(size=64))

@@ -18,6 +18,11 @@ import numpy as np
 
 from photo3d.depth.checks import is_flat
 from photo3d.errors import InputError
+from photo3d.io.limits import check_available
+
+_PREPARE_BYTES = 24
+"""Peak bytes per image pixel of :func:`prepare_depth` (the float32 map at the image's
+size, its masks, inverse and filled disparity), besides 4 per pixel of the map."""
 
 
 @dataclass(frozen=True)
@@ -46,6 +51,11 @@ def prepare_depth(depth: np.ndarray, image_shape: tuple[int, int], *, kind: str)
     Returns:
         :class:`DepthInput` at ``image_shape``.
 
+    Raises:
+        InputError: a map that is not ``(h, w)`` real numbers, of another aspect
+            ratio, with no valid value, or beyond the available memory
+            (:func:`photo3d.io.limits.check_available`, before it is converted).
+
     Example:
         >>> d = np.array([[1.0, np.inf], [2.0, 4.0]], np.float32)
         >>> prepare_depth(d, (2, 2), kind="disparity").disparity.tolist()
@@ -58,6 +68,8 @@ def prepare_depth(depth: np.ndarray, image_shape: tuple[int, int], *, kind: str)
         raise InputError(f"depth has shape {depth.shape}; expected a single-channel (H, W) map")
     if depth.dtype.kind not in "iuf":  # not complex (its imaginary part), nor times
         raise InputError(f"depth has dtype {depth.dtype}; expected real numbers")
+    check_available(4 * depth.size + _PREPARE_BYTES * image_shape[0] * image_shape[1],
+                    f"depth's {depth.shape[1]}x{depth.shape[0]} values")
     with np.errstate(over="ignore"):  # beyond float32: inf, unknown as below
         depth = depth.astype(np.float32)
     depth, note = match_shape(depth, image_shape)

@@ -88,8 +88,9 @@ def to_float_image(array: np.ndarray) -> np.ndarray:
         to 3 channels; RGBA is composited over white.
 
     Raises:
-        InputError: wrong shape, unsupported dtype, or float values that are not
-            finite or lie outside [0, 1].
+        InputError: wrong shape, unsupported dtype, float values that are not
+            finite or lie outside [0, 1], or more pixels than the available memory
+            holds as float32 (:func:`photo3d.io.limits.check_available`).
 
     Example:
         >>> import numpy as np
@@ -105,6 +106,8 @@ def to_float_image(array: np.ndarray) -> np.ndarray:
         raise InputError(f"image has shape {array.shape}; expected (H, W), (H, W, 3) or (H, W, 4)")
     if array.shape[0] == 0 or array.shape[1] == 0:
         raise InputError(f"image has shape {array.shape}; it holds no pixels")
+    check_available(_FLOAT_BYTES * array.shape[0] * array.shape[1],
+                    f"the image's {array.shape[1]}x{array.shape[0]} pixels")
     image = _scale_to_unit(array)
     if image.ndim == 2:
         image = np.repeat(image[:, :, None], 3, axis=2)
