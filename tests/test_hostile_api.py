@@ -68,3 +68,13 @@ def test_make_refuses_arrays_beyond_the_available_memory(monkeypatch, image, dep
     monkeypatch.setattr("photo3d.io.limits.available_memory", lambda: 2_000_000_000)
     with pytest.raises(InputError, match=f"{message} needs about"):
         photo3d.make(image, depth=depth, config=photo3d.Config(size=64))
+
+
+@pytest.mark.parametrize("shape", [(0, 0), (0, 48), (32, 0)])
+def test_make_refuses_an_empty_depth_map(shape):
+    # (0, 48): a ZeroDivisionError comparing its aspect ratio with the image's
+    import photo3d
+
+    with pytest.raises(InputError, match=r"depth has shape \(.*\); it holds no values"):
+        photo3d.make(np.zeros((32, 48, 3)), depth=np.zeros(shape, np.float32),
+                     config=photo3d.Config(size=None))

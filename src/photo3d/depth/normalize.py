@@ -66,6 +66,8 @@ def prepare_depth(depth: np.ndarray, image_shape: tuple[int, int], *, kind: str)
         depth = depth[..., 0]
     if depth.ndim != 2:
         raise InputError(f"depth has shape {depth.shape}; expected a single-channel (H, W) map")
+    if depth.size == 0:
+        raise InputError(f"depth has shape {depth.shape}; it holds no values")
     if depth.dtype.kind not in "iuf":  # not complex (its imaginary part), nor times
         raise InputError(f"depth has dtype {depth.dtype}; expected real numbers")
     check_available(4 * depth.size + _PREPARE_BYTES * image_shape[0] * image_shape[1],
