@@ -78,3 +78,26 @@ def test_make_refuses_an_empty_depth_map(shape):
     with pytest.raises(InputError, match=r"depth has shape \(.*\); it holds no values"):
         photo3d.make(np.zeros((32, 48, 3)), depth=np.zeros(shape, np.float32),
                      config=photo3d.Config(size=None))
+
+
+@pytest.mark.parametrize("argument, error, message", [
+    ({"inpainter": "diffusion"}, ConfigError,
+     r"inpainter must be an inpainting backend .*got a str; .*Config\(inpainter='diffusion'\)"),
+    ({"intrinsics": (48.0, 48.0, 24.0, 16.0)}, InputError,
+     "intrinsics must be a photo3d.camera.Intrinsics, got a tuple"),
+    ({"progress": 3}, ConfigError, "progress must be a callable"),
+])
+def test_make_refuses_arguments_of_the_wrong_kind(monkeypatch, argument, error, message):
+    # an AttributeError ('str' object has no attribute 'margin', 'tuple' object has no
+    # attribute 'width') or a TypeError ('int' object is not callable) after the work
+    import photo3d
+    from photo3d import pipeline
+
+    monkeypatch.setattr(pipeline, "preprocess", _no_work)
+    with pytest.raises(error, match=message):
+        photo3d.make(np.zeros((32, 48, 3)), depth=np.ones((32, 48)),
+                     config=photo3d.Config(size=None), **argument)
+
+
+def _no_work(*args, **kwargs):
+    raise AssertionError("the pipeline started")

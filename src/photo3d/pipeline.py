@@ -92,6 +92,7 @@ def make(
     config = Config() if config is None else config
     if not isinstance(config, Config):
         raise ConfigError(f"config must be a photo3d.Config, got a {type(config).__name__}")
+    _check_arguments(inpainter, intrinsics, progress)
     backend = inpainter or get_inpainter(config.inpainter)
     report = progress or (lambda stage, fraction: None)
     adopt()  # the wheel's compiled kernels, if they fit (once per process)
@@ -185,6 +186,26 @@ def _load(image: np.ndarray | str | Path, depth: np.ndarray | str | Path | Depth
         return img, depth  # already prepared (make_folder: by resolve_depth) for this kind
     raw = read_depth(depth) if isinstance(depth, str | Path) else np.asarray(depth)
     return img, prepare_depth(raw, img.shape[:2], kind=config.depth_kind)
+
+
+def _check_arguments(inpainter: object, intrinsics: object, progress: object) -> None:
+    """Refuse an ``inpainter`` that is no backend (a name belongs in ``config``),
+    ``intrinsics`` that are not :class:`Intrinsics` and a ``progress`` that cannot be
+    called, before the work."""
+    if inpainter is not None and not (isinstance(getattr(inpainter, "name", None), str)
+                                      and hasattr(inpainter, "margin")
+                                      and callable(getattr(inpainter, "inpaint", None))):
+        hint = (f"; for a backend by name use config=Config(inpainter={inpainter!r})"
+                if isinstance(inpainter, str) else "")
+        raise ConfigError(f"inpainter must be an inpainting backend "
+                          f"(photo3d.inpaint.get_inpainter), got a "
+                          f"{type(inpainter).__name__}{hint}")
+    if intrinsics is not None and not isinstance(intrinsics, Intrinsics):
+        raise InputError(f"intrinsics must be a photo3d.camera.Intrinsics, got a "
+                         f"{type(intrinsics).__name__}")
+    if progress is not None and not callable(progress):
+        raise ConfigError(f"progress must be a callable progress(stage, fraction), got a "
+                          f"{type(progress).__name__}")
 
 
 def _check_intrinsics(intrinsics: Intrinsics, shape: tuple[int, int]) -> None:
