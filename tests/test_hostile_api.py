@@ -101,3 +101,28 @@ def test_make_refuses_arguments_of_the_wrong_kind(monkeypatch, argument, error, 
 
 def _no_work(*args, **kwargs):
     raise AssertionError("the pipeline started")
+
+
+@pytest.mark.parametrize("changes, message", [
+    ({"glb": "no"}, "glb must be True or False, got 'no'"),
+    ({"full_glb": "false"}, "full_glb must be True or False"),
+    ({"viewer": 0}, "viewer must be True or False, got 0"),
+    ({"light_error": "0.5"}, "light_error must be a number of pixels >= 0 or None"),
+    ({"light_error": float("inf")}, "light_error must be a number of pixels >= 0 or None"),
+    ({"videos": "circle"}, "videos must be a list of photo3d.render.animate.VideoSpec s"),
+    ({"videos": ["circle"]}, "videos must be photo3d.render.animate.VideoSpec s, got 'circle'"),
+    ({"render_settings": {"ssaa": 1}}, "render_settings must be a photo3d.render.renderer"),
+])
+def test_save_options_of_the_wrong_kind_are_refused(tmp_path, changes, message):
+    # glb="no" wrote mesh.glb, full_glb="false" the full mesh, a dict of render
+    # settings was ignored; videos="circle" was a TypeError (asdict) before writing
+    import photo3d
+    from photo3d.save_options import SaveOptions
+
+    with pytest.raises(ConfigError, match=message):
+        SaveOptions(**changes)
+    photo = photo3d.make(np.zeros((16, 16, 3)), depth=np.ones((16, 16)),
+                         config=photo3d.Config(size=None))
+    with pytest.raises(ConfigError, match=message):
+        photo.save(tmp_path / "out", **changes)
+    assert not (tmp_path / "out").exists()

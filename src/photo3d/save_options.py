@@ -87,6 +87,9 @@ class SaveOptions:
     splat_fit: bool = True
 
     def __post_init__(self) -> None:
+        if isinstance(self.videos, str | bytes) or not hasattr(self.videos, "__iter__"):
+            raise ConfigError(f"videos must be a list of photo3d.render.animate.VideoSpec s, "
+                              f"got {self.videos!r}")
         object.__setattr__(self, "videos", tuple(self.videos))
         if self.ply not in PLY_KINDS:
             raise ConfigError(f"ply must be 'binary', 'ascii' or None, got {self.ply!r}")
@@ -103,8 +106,33 @@ class SaveOptions:
                               f"got {self.splats!r}")
         if self.spz_version not in SPZ_VERSIONS or isinstance(self.spz_version, bool):
             raise ConfigError(f"spz_version must be 3 or 4, got {self.spz_version!r}")
-        if not isinstance(self.splat_fit, bool):
-            raise ConfigError(f"splat_fit must be True or False, got {self.splat_fit!r}")
+        for name in ("glb", "full_glb", "viewer", "splat_fit"):  # "false" is true
+            if not isinstance(getattr(self, name), bool):
+                raise ConfigError(f"{name} must be True or False, got {getattr(self, name)!r}")
+        error = self.light_error
+        if error is not None and (isinstance(error, bool) or not isinstance(error, int | float)
+                                  or not 0 <= error < float("inf")):
+            raise ConfigError(f"light_error must be a number of pixels >= 0 or None, "
+                              f"got {error!r}")
+        self._check_rendering()
+
+    def _check_rendering(self) -> None:
+        """``videos`` are VideoSpec s and ``render_settings`` a RenderSettings or None
+        (imported only then: this module stays light)."""
+        if self.videos:
+            from photo3d.render.animate import VideoSpec
+
+            wrong = [v for v in self.videos if not isinstance(v, VideoSpec)]
+            if wrong:
+                raise ConfigError(f"videos must be photo3d.render.animate.VideoSpec s, "
+                                  f"got {wrong[0]!r}")
+        if self.render_settings is not None:
+            from photo3d.render.renderer import RenderSettings
+
+            if not isinstance(self.render_settings, RenderSettings):
+                raise ConfigError(f"render_settings must be a photo3d.render.renderer."
+                                  f"RenderSettings or None, got a "
+                                  f"{type(self.render_settings).__name__}")
 
     def with_(self, **changes) -> SaveOptions:
         """A copy with fields replaced (:func:`dataclasses.replace`)."""
