@@ -126,3 +126,27 @@ def test_save_options_of_the_wrong_kind_are_refused(tmp_path, changes, message):
     with pytest.raises(ConfigError, match=message):
         photo.save(tmp_path / "out", **changes)
     assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("changes, message", [
+    ({"ssaa": "2"}, "ssaa must be a whole number between 1 and 8, got '2'"),
+    ({"ssaa": 2.5}, "ssaa must be a whole number between 1 and 8, got 2.5"),
+    ({"crop": None}, "crop must be 4 fractions in"),
+    ({"crop": (0.1, "0", 0, 0)}, "crop must be 4 fractions in"),
+    ({"background": (1, 2)}, "background must be an RGB triple in"),
+    ({"background": None}, "background must be an RGB triple in"),
+    ({"background": (255, 0, 0)}, r"background must be an RGB triple in \[0, 1\]"),
+    ({"near": "0.1"}, "near must be a finite number > 0, got '0.1'"),
+    ({"near": float("nan")}, "near must be a finite number > 0"),
+    ({"fill_holes": "no"}, "fill_holes must be True or False"),
+])
+def test_render_settings_of_the_wrong_kind_are_refused(changes, message):
+    # a TypeError comparing a string (ssaa, near) or taking len(None) (crop), numpy's
+    # broadcast error (background (1, 2)), or a view of NaN (background None)
+    with pytest.raises(ConfigError, match=message):
+        RenderSettings(**changes)
+
+
+def test_render_settings_take_lists():
+    settings = RenderSettings(crop=[0.1, 0.1, 0.1, 0.1], background=np.zeros(3), ssaa=np.int64(2))
+    assert settings.crop == (0.1, 0.1, 0.1, 0.1) and settings.background == (0, 0, 0)

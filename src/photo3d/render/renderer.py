@@ -89,16 +89,37 @@ class RenderSettings:
     """``auto``, ``numba`` or ``gl``."""
 
     def __post_init__(self) -> None:
-        if not 1 <= self.ssaa <= 8:
-            raise ConfigError(f"ssaa must be between 1 and 8, got {self.ssaa}")
-        if len(self.crop) != 4 or any(not 0 <= c < 0.5 for c in self.crop):
-            raise ConfigError(f"crop must be 4 fractions in [0, 0.5), got {self.crop}")
+        if not (_whole(self.ssaa) and 1 <= self.ssaa <= 8):
+            raise ConfigError(f"ssaa must be a whole number between 1 and 8, got {self.ssaa!r}")
+        if not (_numbers(self.crop, 4) and all(0 <= c < 0.5 for c in self.crop)):
+            raise ConfigError(f"crop must be 4 fractions in [0, 0.5), got {self.crop!r}")
+        if not (_numbers(self.background, 3) and all(0 <= c <= 1 for c in self.background)):
+            raise ConfigError(f"background must be an RGB triple in [0, 1], "
+                              f"got {self.background!r}")
+        if not (_numbers((self.near,), 1) and 0 < self.near < float("inf")):
+            raise ConfigError(f"near must be a finite number > 0, got {self.near!r}")
+        if not isinstance(self.fill_holes, bool):
+            raise ConfigError(f"fill_holes must be True or False, got {self.fill_holes!r}")
+        object.__setattr__(self, "crop", tuple(self.crop))
+        object.__setattr__(self, "background", tuple(self.background))
         if self.antialias not in ("auto", "full", "edges"):
             raise ConfigError(f"antialias must be auto, full or edges, got {self.antialias!r}")
         if self.hole_fill not in ("far", "both"):
             raise ConfigError(f"hole_fill must be far or both, got {self.hole_fill!r}")
         if self.backend not in ("auto", "numba", "gl"):
             raise ConfigError(f"backend must be auto, numba or gl, got {self.backend!r}")
+
+
+def _whole(value: object) -> bool:
+    """``value`` is an integer (not a bool)."""
+    return isinstance(value, int | np.integer) and not isinstance(value, bool)
+
+
+def _numbers(values: object, n: int) -> bool:
+    """``values`` is a sequence of ``n`` real numbers (not bools, not NaN)."""
+    return (isinstance(values, tuple | list | np.ndarray) and len(values) == n
+            and all(isinstance(v, int | float | np.integer | np.floating)
+                    and not isinstance(v, bool) and v == v for v in values))
 
 
 @dataclass(frozen=True)
