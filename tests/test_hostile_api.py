@@ -150,3 +150,14 @@ def test_render_settings_of_the_wrong_kind_are_refused(changes, message):
 def test_render_settings_take_lists():
     settings = RenderSettings(crop=[0.1, 0.1, 0.1, 0.1], background=np.zeros(3), ssaa=np.int64(2))
     assert settings.crop == (0.1, 0.1, 0.1, 0.1) and settings.background == (0, 0, 0)
+
+
+def test_renderer_refuses_what_is_no_mesh_or_settings():
+    # an AttributeError ('NoneType' / 'LDI' object has no attribute 'split_fringe',
+    # 'dict' object has no attribute 'backend')
+    ldi = from_image(np.full((8, 8, 3), 0.5, np.float32), np.ones((8, 8), np.float32))
+    for mesh in (None, ldi):
+        with pytest.raises(InputError, match="mesh must be a photo3d Mesh or TexturedMesh"):
+            Renderer(mesh)
+    with pytest.raises(ConfigError, match="settings must be a RenderSettings or None, got a dict"):
+        Renderer(build_mesh(ldi), {"ssaa": 1})

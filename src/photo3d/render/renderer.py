@@ -186,6 +186,12 @@ class Renderer:
                  ) -> None:
         """``mesh``: a vertex-coloured :class:`~photo3d.structures.mesh.Mesh` or a
         :class:`~photo3d.structures.mesh.TexturedMesh` (drawn with its texture)."""
+        if not isinstance(mesh, Mesh | TexturedMesh):
+            raise InputError(f"mesh must be a photo3d Mesh or TexturedMesh "
+                             f"(Photo3D.mesh(), .light_mesh()), got a {type(mesh).__name__}")
+        if settings is not None and not isinstance(settings, RenderSettings):
+            raise ConfigError(f"settings must be a RenderSettings or None, got a "
+                              f"{type(settings).__name__}")
         self.settings = settings or RenderSettings()
         self.mesh = mesh
         texture = None
