@@ -161,3 +161,35 @@ def test_renderer_refuses_what_is_no_mesh_or_settings():
             Renderer(mesh)
     with pytest.raises(ConfigError, match="settings must be a RenderSettings or None, got a dict"):
         Renderer(build_mesh(ldi), {"ssaa": 1})
+
+
+_A = np.random.default_rng(0).random((32, 32, 3)).astype(np.float32)
+
+
+@pytest.mark.parametrize("a, b, message", [
+    ((_A * 255).astype(np.uint8), _A, "a has dtype uint8; expected floats in"),
+    (_A, (_A * 255).astype(np.uint8), "b has dtype uint8; expected floats in"),
+    (_A * 255, _A * 255, r"a has values outside \[0, 1\]"),
+    (np.full_like(_A, np.nan), _A, r"a has values outside \[0, 1\] \(or NaN"),
+    (_A[..., 0], _A[..., 0], r"a has shape \(32, 32\); expected \(H, W, 3\)"),
+])
+@pytest.mark.parametrize("metric", ["psnr", "ssim"])
+def test_metrics_refuse_images_they_are_not_defined_on(metric, a, b, message):
+    # psnr of a uint8 image against its float copy was -43.6 dB, of two uint8 images
+    # 1/255 apart 0 dB; ssim of 0..255 floats used the constants of [0, 1]; NaN gave
+    # NaN; (H, W) said "images differ in shape: (32, 32) vs (32, 32)"
+    from photo3d.eval import metrics
+
+    with pytest.raises(InputError, match=message):
+        getattr(metrics, metric)(a, b)
+
+
+def test_metrics_take_lists():
+    # an AttributeError ('list' object has no attribute 'shape')
+    from photo3d.eval.metrics import psnr, ssim
+
+    mask = np.zeros((32, 32), bool)
+    mask[:8] = True
+    assert psnr(_A.tolist(), (_A * 0.5).tolist(), mask=mask.tolist()) == psnr(
+        _A, _A * 0.5, mask=mask)
+    assert ssim(_A.tolist(), _A.tolist()) == 1.0

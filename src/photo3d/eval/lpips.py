@@ -102,10 +102,14 @@ def lpips(a: np.ndarray, b: np.ndarray, mask: np.ndarray | None = None, *,
         >>> lpips(a, a)  # doctest: +SKIP
         0.0
     """
-    if a.shape != b.shape or a.ndim != 3 or min(a.shape[:2]) < 32:
+    from photo3d.eval.metrics import _check
+
+    given = mask is not None
+    a, b, mask = _check(a, b, mask)  # (H, W, 3) floats in [0, 1] of one shape
+    if min(a.shape[:2]) < 32:
         raise InputError(f"LPIPS needs two (H, W, 3) images of at least 32x32, got "
                          f"{a.shape} and {b.shape}")
     distance, dmap = _lpips(a, b, device=device)
-    if mask is None:
+    if not given:
         return distance
     return float(dmap[mask].mean()) if mask.any() else float("nan")

@@ -13,14 +13,30 @@ from scipy import ndimage
 from photo3d.errors import InputError
 
 
-def _check(a: np.ndarray, b: np.ndarray, mask: np.ndarray | None) -> np.ndarray:
-    if a.shape != b.shape or a.ndim != 3:
+def _check(a: np.ndarray, b: np.ndarray, mask: np.ndarray | None
+           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(a, b, mask)`` as arrays once they are images the metrics are defined on:
+    ``(H, W, 3)`` floats in [0, 1] of one shape (uint8 images, or floats of 0..255,
+    gave scores with no meaning), ``mask`` ``(H, W)`` (default: every pixel)."""
+    a, b = np.asarray(a), np.asarray(b)
+    for name, image in (("a", a), ("b", b)):
+        if image.ndim != 3 or image.shape[2] != 3:
+            raise InputError(f"{name} has shape {image.shape}; expected (H, W, 3)")
+        if not np.issubdtype(image.dtype, np.floating):
+            raise InputError(f"{name} has dtype {image.dtype}; expected floats in [0, 1] "
+                             f"(photo3d.io.images.to_float_image converts uint8 / uint16)")
+        if image.size and not (np.isfinite(image).all() and 0 <= image.min()
+                               and image.max() <= 1):
+            raise InputError(f"{name} has values outside [0, 1] (or NaN / inf): span "
+                             f"[{image.min():g}, {image.max():g}]")
+    if a.shape != b.shape:
         raise InputError(f"images differ in shape: {a.shape} vs {b.shape}")
     if mask is None:
-        return np.ones(a.shape[:2], bool)
+        return a, b, np.ones(a.shape[:2], bool)
+    mask = np.asarray(mask)
     if mask.shape != a.shape[:2]:
         raise InputError(f"mask has shape {mask.shape} but images are {a.shape[:2]}")
-    return mask.astype(bool)
+    return a, b, mask.astype(bool)
 
 
 def psnr(a: np.ndarray, b: np.ndarray, mask: np.ndarray | None = None) -> float:
@@ -31,7 +47,7 @@ def psnr(a: np.ndarray, b: np.ndarray, mask: np.ndarray | None = None) -> float:
         >>> round(psnr(a, b), 2)
         20.0
     """
-    m = _check(a, b, mask)
+    a, b, m = _check(a, b, mask)
     if not m.any():
         return float("nan")
     mse = float(np.mean((a[m].astype(np.float64) - b[m]) ** 2))
@@ -63,7 +79,7 @@ def ssim(a: np.ndarray, b: np.ndarray, mask: np.ndarray | None = None) -> float:
         >>> ssim(a, a), ssim(a, 1 - a) < 0
         (1.0, True)
     """
-    m = _check(a, b, mask)
+    a, b, m = _check(a, b, mask)
     if not m.any():
         return float("nan")
     return float(np.mean(ssim_map(a, b)[m]))
