@@ -375,6 +375,32 @@ def test_a_budget_beyond_any_machine_is_one_line_before_the_work(tmp_path, capsy
         parallel.set_threads(2000)
 
 
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="RLIMIT_AS")
+def test_threads_that_cannot_start_are_one_line(tmp_path):
+    """``ulimit -v 2500000`` and ``--threads 1024``: numba's pool fits, a thread pool's
+    stacks do not; it was a traceback (``RuntimeError: can't start new thread``)."""
+    import resource
+
+    import numpy as np
+    from PIL import Image
+
+    Image.fromarray(np.full((48, 64, 3), 128, np.uint8)).save(tmp_path / "a.png")
+    np.save(tmp_path / "a.npy", np.linspace(1, 2, 48 * 64, dtype=np.float32).reshape(48, 64))
+
+    def limit():
+        resource.setrlimit(resource.RLIMIT_AS, (2_500_000_000, 2_500_000_000))
+
+    run = subprocess.run([sys.executable, "-m", "photo3d", "make", str(tmp_path / "a.png"),
+                          "--depth", str(tmp_path / "a.npy"), "-o", str(tmp_path / "o"),
+                          "--size", "64", "--no-video", "-q", "--threads", "1024"],
+                         capture_output=True, text=True, preexec_fn=limit)
+    err = [line for line in run.stderr.splitlines() if not line.startswith("depth: ")]
+    assert run.returncode == 1 and err == [
+        "photo3d: error: cannot start a thread (out of memory or threads): use a smaller "
+        "--threads"], run.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.npy", "a.png"]
+
+
 def test_threads_on_the_command_line_set_the_budget(monkeypatch, tmp_path):
     """``--threads`` is the command's budget while it runs, and only its: the next
     command in the same process (``main`` called from Python) has the process's."""

@@ -348,3 +348,22 @@ def test_a_batch_never_removes_what_a_live_make_is_writing_into_out(folders, cap
     discard_partial(out / "c")
     assert live.path.is_dir()
     live.discard()
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="RLIMIT_NOFILE, /proc")
+def test_too_few_file_descriptors_for_the_workers_is_one_line(folders):
+    """``ulimit -n 16``: the pool's pipes could not open; it was a traceback."""
+    import resource
+
+    src, depth, out = folders
+
+    def limit():
+        resource.setrlimit(resource.RLIMIT_NOFILE, (16, 16))
+
+    run = subprocess.run([sys.executable, "-m", "photo3d", *batch(src, depth, out),
+                          "--workers", "2"], capture_output=True, text=True, preexec_fn=limit)
+    err = run.stderr.strip().splitlines()
+    assert run.returncode == 1 and len(err) == 1, run.stderr
+    assert err[0] == ("photo3d: error: too many open files (the limit, ulimit -n, is 16): "
+                      "raise it or use fewer --workers"), err
+    assert not [p.name for p in out.iterdir()] if out.exists() else True
