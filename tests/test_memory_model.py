@@ -389,3 +389,24 @@ def test_make_refuses_a_video_larger_than_the_memory_before_the_work(square, no_
     run(capsys, "make", photo, "--depth", depth, "-o", "out", "--size", "64",
         "--video-size", "9000x9000", "--frames", "2", "-q", status=2,
         message="rendering 9000x9000 with --ssaa 2 needs about ")
+
+
+def test_batch_counts_only_the_workers_its_photos_keep_busy(square, no_work, capsys,
+                                                            monkeypatch):
+    """A batch of one photo runs one worker, whatever --workers or the thread budget
+    say: it was refused for 8 (``PHOTO3D_THREADS=10000`` and 6 photos: 3057 GB)."""
+    from photo3d.batch.run import BatchSummary
+    from photo3d.resources.make import batch_estimate
+
+    made = []
+    monkeypatch.setattr("photo3d.batch.run_batch", lambda jobs, out, *a, **k: made.append(
+        len(jobs)) or BatchSummary(1, 0, 0, 0.1, Path(out) / "batch.jsonl"))
+    room = int(1.5 * batch_estimate(Config(size=512), workers=1).bytes)
+    monkeypatch.setattr("photo3d.resources.available_memory", lambda: room)
+    photo, _ = square
+    run(capsys, "batch", photo.parent, "-o", "out", "--size", "512", "--workers", "8",
+        "--no-video", "-q", status=0)
+    assert made == [1]
+    Image.open(photo).save(photo.parent / "sq2.png")  # two photos: two workers don't fit
+    run(capsys, "batch", photo.parent, "-o", "out2", "--size", "512", "--workers", "8",
+        "--no-video", "-q", status=2, message="2 workers at --size 512 needs at least")

@@ -344,13 +344,61 @@ def test_the_command_line_takes_threads_and_refuses_a_bad_budget(tmp_path, capsy
         assert "--threads" in build_parser()._subparsers._group_actions[0].choices[
             command].format_help()
     assert main(["demo", "--threads", "0", "-o", str(tmp_path / "o")]) == 2
-    assert "--threads must be a whole number of at least 1, got 0" in capsys.readouterr().err
+    assert "--threads must be a whole number from 1 to 1024, got 0" in capsys.readouterr().err
     monkeypatch.setenv(parallel.ENV, "two")
     assert main(["demo", "-o", str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err
-    assert err.splitlines() == ["photo3d: error: PHOTO3D_THREADS must be a whole number of "
-                                "at least 1, got 'two'"]
+    assert err.splitlines() == ["photo3d: error: PHOTO3D_THREADS must be a whole number "
+                                "from 1 to 1024, got 'two'"]
     assert not (tmp_path / "o").exists()
+
+
+def test_a_budget_beyond_any_machine_is_one_line_before_the_work(tmp_path, capsys,
+                                                                 monkeypatch):
+    """``--threads 99999999999999999999`` was a traceback from numpy (a work split of
+    that many parts) after libgomp's own complaint; 10000 started 10006 threads for a
+    64 px photo."""
+    from photo3d.cli import main
+
+    for value in ("99999999999999999999", "1025"):
+        assert main(["demo", "--threads", value, "-o", str(tmp_path / "o")]) == 2
+        assert capsys.readouterr().err.splitlines() == [
+            f"photo3d: error: --threads must be a whole number from 1 to 1024, got {value}"]
+        monkeypatch.setenv(parallel.ENV, value)
+        assert main(["demo", "-o", str(tmp_path / "o")]) == 2
+        assert capsys.readouterr().err.splitlines() == [
+            f"photo3d: error: PHOTO3D_THREADS must be a whole number from 1 to 1024, "
+            f"got '{value}'"]
+        monkeypatch.delenv(parallel.ENV)
+    assert not (tmp_path / "o").exists()
+    with pytest.raises(ConfigError, match="from 1 to 1024"):
+        parallel.set_threads(2000)
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="RLIMIT_AS")
+def test_threads_that_cannot_start_are_one_line(tmp_path):
+    """``ulimit -v 2500000`` and ``--threads 1024``: numba's pool fits, a thread pool's
+    stacks do not; it was a traceback (``RuntimeError: can't start new thread``)."""
+    import resource
+
+    import numpy as np
+    from PIL import Image
+
+    Image.fromarray(np.full((48, 64, 3), 128, np.uint8)).save(tmp_path / "a.png")
+    np.save(tmp_path / "a.npy", np.linspace(1, 2, 48 * 64, dtype=np.float32).reshape(48, 64))
+
+    def limit():
+        resource.setrlimit(resource.RLIMIT_AS, (2_500_000_000, 2_500_000_000))
+
+    run = subprocess.run([sys.executable, "-m", "photo3d", "make", str(tmp_path / "a.png"),
+                          "--depth", str(tmp_path / "a.npy"), "-o", str(tmp_path / "o"),
+                          "--size", "64", "--no-video", "-q", "--threads", "1024"],
+                         capture_output=True, text=True, preexec_fn=limit)
+    err = [line for line in run.stderr.splitlines() if not line.startswith("depth: ")]
+    assert run.returncode == 1 and err == [
+        "photo3d: error: cannot start a thread (out of memory or threads): use a smaller "
+        "--threads"], run.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.npy", "a.png"]
 
 
 def test_threads_on_the_command_line_set_the_budget(monkeypatch, tmp_path):

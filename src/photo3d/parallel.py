@@ -59,14 +59,18 @@ if TYPE_CHECKING:  # loaded when used: `import photo3d` stays light
     import subprocess
     from concurrent.futures import Executor, Future, ProcessPoolExecutor
 
-__all__ = ["ENV", "Inline", "active_children", "affinity", "ahead", "cores", "idle_cores",
-           "later", "library_defaults", "map_completed", "map_ordered", "overlap", "process_pool",
-           "process_threads", "quota", "set_threads", "share", "shared_steps", "spawn_python",
-           "start_thread", "thread_pool", "thread_safe_kernels", "threads", "width",
-           "worker_share"]
+__all__ = ["ENV", "MAX_THREADS", "Inline", "active_children", "affinity", "ahead", "cores",
+           "idle_cores", "later", "library_defaults", "map_completed", "map_ordered", "overlap",
+           "process_pool", "process_threads", "quota", "set_threads", "share", "shared_steps",
+           "spawn_python", "start_thread", "thread_pool", "thread_safe_kernels", "threads",
+           "width", "worker_share"]
 
 ENV = "PHOTO3D_THREADS"
 """The environment variable that sets the process's budget (as ``--threads``)."""
+MAX_THREADS = 1024
+"""The largest budget ``--threads`` and ``PHOTO3D_THREADS`` take: numba and OpenMP start
+a thread per unit of it (``10000`` started 10006 for a 64 px photo; ``10**20`` was a
+traceback)."""
 
 T = TypeVar("T")
 R = TypeVar("R")
@@ -191,7 +195,7 @@ def process_threads() -> int:
     else :func:`cores`.
 
     Raises:
-        ConfigError: ``PHOTO3D_THREADS`` is not a whole number of at least 1.
+        ConfigError: ``PHOTO3D_THREADS`` is not a whole number from 1 to :data:`MAX_THREADS`.
 
     Example:
         >>> process_threads() >= 1
@@ -233,7 +237,7 @@ def set_threads(count: int) -> None:
     ``OMP_NUM_THREADS``, which they read when they load) and torch's, if loaded.
 
     Raises:
-        ConfigError: ``count`` is below 1.
+        ConfigError: ``count`` is not from 1 to :data:`MAX_THREADS`.
 
     Example:
         >>> before = process_threads()
@@ -272,7 +276,8 @@ def command_threads(count: int | None) -> Iterator[int]:
     its own); ``None``: the process's budget, ``PHOTO3D_THREADS`` checked first.
 
     Raises:
-        ConfigError: ``count`` or ``PHOTO3D_THREADS`` is not a whole number of at least 1.
+        ConfigError: ``count`` or ``PHOTO3D_THREADS`` is not a whole number from 1 to
+            :data:`MAX_THREADS`.
 
     Example:
         >>> before = process_threads()
@@ -364,13 +369,15 @@ def shared_steps(items: Iterator[T], count: int) -> Iterator[T]:
 
 
 def _count(value: object, name: str) -> int:
-    """``value`` as a thread count of at least 1, else ConfigError naming ``name``."""
+    """``value`` as a thread count from 1 to :data:`MAX_THREADS`, else ConfigError
+    naming ``name``."""
     try:
         count = int(str(value))
     except ValueError:
         count = 0
-    if count < 1:
-        raise ConfigError(f"{name} must be a whole number of at least 1, got {value!r}")
+    if not 1 <= count <= MAX_THREADS:
+        raise ConfigError(f"{name} must be a whole number from 1 to {MAX_THREADS}, "
+                          f"got {value!r}")
     return count
 
 

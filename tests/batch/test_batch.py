@@ -18,6 +18,7 @@ from photo3d.batch.worker import discard_partial, is_complete
 from photo3d.cli import main
 from photo3d.config import Config
 from photo3d.errors import InputError
+from photo3d.files.temps import release
 from photo3d.io.images import write_image
 from photo3d.io.npz import load_npz
 from photo3d.output import stage_photo
@@ -175,6 +176,7 @@ def test_out_dir_that_is_a_file_or_bad_options_are_refused_before_any_work(photo
 def test_discard_partial_removes_only_what_a_killed_writer_staged(tmp_path):
     out = tmp_path / "a"
     staged = stage_photo(out, overwrite=False).path  # a writer killed before its commit
+    release(staged, keep=True)  # (its lock went with it)
     assert staged.parent == tmp_path and staged.is_dir()
     for name in (".a.old", ".ab.1a2b3c4d.tmp", ".a.1a2b3c4d", ".a.notahex!.tmp", "a"):
         (tmp_path / name).mkdir()

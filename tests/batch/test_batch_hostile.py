@@ -17,7 +17,10 @@ from conftest import two_planes, wait_for
 from photo3d.batch import find_photos, local, read_manifest
 from photo3d.batch.lock import batch_lock
 from photo3d.batch.manifest import record_problem
+from photo3d.batch.worker import discard_partial
 from photo3d.cli import main
+from photo3d.errors import OutputError
+from photo3d.files.temps import release
 from photo3d.io.images import write_image
 from photo3d.output import is_complete, stage_photo
 
@@ -213,6 +216,7 @@ def test_a_killed_worker_is_retried_once_then_its_photo_fails(folders, capsys, m
         add_photo(src, name, depth, seed=i + 2)
     out.mkdir()
     leftover = stage_photo(out / "a", overwrite=False).path  # a worker killed last run
+    release(leftover, keep=True)  # (its lock went with it)
     (out / ".a.notes").mkdir()  # not the batch's: kept
     monkeypatch.setenv("PHOTO3D_TEST_MARKERS", str(tmp_path_factory.mktemp("markers")))
     monkeypatch.setattr(local, "_run", _run_or_die)
@@ -322,3 +326,44 @@ def test_the_lock_is_released_when_the_batch_ends(folders, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "cannot create the lock file" in err[0], err
     assert victim.read_text() == "not yours" and (out / "batch.lock").is_symlink()
+
+
+def test_a_batch_never_removes_what_a_live_make_is_writing_into_out(folders, capsys):
+    """A ``make -o OUT/a`` running when a batch of OUT starts (or loses a worker) keeps
+    its temporary folder: only those whose writer is gone are removed. The two race as
+    two makes do: the first to finish wins, the other fails in one line."""
+    src, depth, out = folders
+    out.mkdir()
+    live = stage_photo(out / "a", overwrite=False)  # this process is the live `make`
+    killed = stage_photo(out / "b", overwrite=False).path
+    release(killed, keep=True)  # its writer was killed: nobody holds its lock
+    assert main(batch(src, depth, out)) == 0
+    assert live.path.is_dir() and not killed.exists()
+    with pytest.raises(OutputError, match="changed while photo3d was working"):
+        live.commit()
+    live.discard()
+    assert sorted(p.name for p in out.iterdir()) == ["a", "b", "batch.jsonl"]
+    # a worker that dies: what it staged goes, the live make's stays
+    live = stage_photo(out / "c", overwrite=False)
+    discard_partial(out / "c")
+    assert live.path.is_dir()
+    live.discard()
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="RLIMIT_NOFILE, /proc")
+def test_too_few_file_descriptors_for_the_workers_is_one_line(folders):
+    """``ulimit -n 16``: the pool's pipes could not open; it was a traceback."""
+    import resource
+
+    src, depth, out = folders
+
+    def limit():
+        resource.setrlimit(resource.RLIMIT_NOFILE, (16, 16))
+
+    run = subprocess.run([sys.executable, "-m", "photo3d", *batch(src, depth, out),
+                          "--workers", "2"], capture_output=True, text=True, preexec_fn=limit)
+    err = run.stderr.strip().splitlines()
+    assert run.returncode == 1 and len(err) == 1, run.stderr
+    assert err[0] == ("photo3d: error: too many open files (the limit, ulimit -n, is 16): "
+                      "raise it or use fewer --workers"), err
+    assert not [p.name for p in out.iterdir()] if out.exists() else True

@@ -151,7 +151,7 @@ def run_batch(jobs: Sequence[PhotoJob], out: str | Path, options: MakeOptions | 
             else:
                 record(PhotoResult(job.name, "failed", f"{job.image.name}: {problem} "
                                    "(rename the photo)", 0.0, ""))
-        for job in good:  # what workers killed in an earlier run left (the lock: none run)
+        for job in good:  # what killed workers of an earlier run left (not a live make's)
             if _inside(out / job.name, out):
                 discard_partial(out / job.name)
         bad = manifest.previous.bad

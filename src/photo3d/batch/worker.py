@@ -32,14 +32,15 @@ __all__ = ["PhotoMaker", "discard_partial", "is_complete", "one_line"]
 
 
 def discard_partial(out: Path) -> None:
-    """Remove what an interrupted writer of the output folder ``out`` may have left.
-
-    (The temporary sibling folders ``.NAME.XXXXXXXX.tmp`` of a writer that was
-    killed; only call this when no other process is writing ``out``.)
+    """Remove what killed writers of the output folder ``out`` left: its temporary
+    sibling folders ``.NAME.XXXXXXXX.tmp`` that no process holds any more, at any
+    age (a batch calls this once the workers that made ``out`` are gone). A live
+    writer's folder (a ``photo3d make -o OUT/NAME`` running beside the batch) is
+    kept: it holds its lock (:func:`photo3d.files.temps.hold`).
     """
-    from photo3d.files.staging import remove_leftovers
+    from photo3d.files.temps import remove_orphans
 
-    remove_leftovers(out)
+    remove_orphans(out, age=0.0)
 
 
 def one_line(err: BaseException) -> str:

@@ -71,6 +71,7 @@ def main(argv: list[str] | None = None) -> int:
     after = _late if argv is None else None
     try:
         with handle_signals(after=after) as guard:  # from the start: the parser imports a lot
+            args = None
             try:
                 args = build_parser().parse_args(argv)
                 # --threads before numba or torch load; a bad PHOTO3D_THREADS is told
@@ -85,9 +86,9 @@ def main(argv: list[str] | None = None) -> int:
             except BaseException as err:  # noqa: B036 - only interruptions become a line
                 signum = guard.signum or (signal.SIGINT if _interrupted(err) else None)
                 if signum is None:
-                    if isinstance(err, MemoryError):
-                        print("photo3d: error: out of memory (try a smaller --size)",
-                              file=sys.stderr)
+                    short = _out_of_resources(err, getattr(args, "command", None))
+                    if short is not None:
+                        print(f"photo3d: error: {short}", file=sys.stderr)
                         return 1
                     raise
                 return _say_interrupted(signum)
@@ -101,6 +102,35 @@ def main(argv: list[str] | None = None) -> int:
                     gc.freeze()
     except KeyboardInterrupt as err:  # also Interrupted: it landed as the command ended
         return _say_interrupted(getattr(err, "signum", signal.SIGINT))
+
+
+def _out_of_resources(err: BaseException, command: str | None) -> str | None:
+    """The one line for an error that says the process ran out of something (memory,
+    file descriptors, threads) rather than a fault of photo3d's; None for any other.
+
+    Example:
+        >>> _out_of_resources(OSError(24, "Too many open files"), "make")[:20]
+        'too many open files '
+        >>> _out_of_resources(ValueError("a bug"), "make") is None
+        True
+    """
+    import errno
+
+    fewer = " or use fewer --workers" if command == "batch" else ""
+    if isinstance(err, MemoryError):
+        return "out of memory (try a smaller --size)"
+    if isinstance(err, OSError) and err.errno in (errno.EMFILE, errno.ENFILE):
+        try:
+            import resource
+
+            limit = f" (the limit, ulimit -n, is {resource.getrlimit(resource.RLIMIT_NOFILE)[0]})"
+        except (ImportError, OSError, ValueError):
+            limit = ""
+        return f"too many open files{limit}: raise it{fewer}"
+    if isinstance(err, RuntimeError) and "can't start new thread" in str(err):
+        return ("cannot start a thread (out of memory or threads): use a smaller --threads"
+                f"{fewer}")
+    return None
 
 
 def _say_interrupted(signum: int) -> int:

@@ -94,13 +94,14 @@ def run_batch_command(args: argparse.Namespace) -> int:
         require_ray()  # without Ray: one line, before OUT is created
     options = make_options(args)  # the same options as make, read in the same place
     prepare(options)  # bad names, weights, memory or OpenGL: refused before any work
-    if args.engine == "local":  # every worker makes a photo at once
-        from photo3d.parallel import threads
+    jobs = find_photos(args.input, depth=args.depth, recursive=args.recursive, skip=args.out)
+    if args.engine == "local":  # every worker makes a photo at once; no more workers
+        from photo3d.parallel import threads  # than photos start (run_batch)
         from photo3d.resources.make import check_batch_memory
 
-        check_batch_memory(options.config, workers=args.workers or threads(),
+        workers = max(1, min(args.workers or threads(), len(jobs)))
+        check_batch_memory(options.config, workers=workers,
                            exports=options.save.exports, splat_fit=options.save.splat_fit)
-    jobs = find_photos(args.input, depth=args.depth, recursive=args.recursive, skip=args.out)
     model = _model_to_fetch(jobs, args.out, options)  # a bad name: before creating --out
     check_out_dir(args.out)
     _prefetch(model, args.quiet)

@@ -159,9 +159,13 @@ def hold(path: Path) -> None:
     except ImportError:  # no flock (Windows): orphans are not recognised
         return
     path = Path(path)
+    folder = path.is_dir() and not path.is_symlink()
+    # a folder's mark is locked under another name, then renamed to its own: it is
+    # never seen unlocked while its writer lives (orphaned(age=0) can trust the lock)
+    target = path / f"{WRITER_MARK}.{secrets.token_hex(4)}" if folder else path
     try:
-        if path.is_dir() and not path.is_symlink():
-            fd = os.open(path / WRITER_MARK, os.O_RDWR | os.O_CREAT | os.O_EXCL
+        if folder:
+            fd = os.open(target, os.O_RDWR | os.O_CREAT | os.O_EXCL
                          | getattr(os, "O_NOFOLLOW", 0), 0o600)
         else:
             fd = os.open(path, os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0))
@@ -169,7 +173,12 @@ def hold(path: Path) -> None:
         return
     try:
         fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        if folder:
+            os.rename(target, path / WRITER_MARK)
     except OSError:
+        if folder:
+            with contextlib.suppress(OSError):
+                os.unlink(target)
         os.close(fd)
         return
     _HELD[path] = fd
@@ -239,10 +248,11 @@ def remove_orphan_files(path: PathLike) -> list[Path]:
     return removed
 
 
-def remove_orphans(out: PathLike) -> list[Path]:
+def remove_orphans(out: PathLike, *, age: float | None = None) -> list[Path]:
     """Remove the temporary folders of ``out`` whose writer is gone: named as
-    :func:`~photo3d.files.staging.stage_output` names them, made more than
-    :data:`~photo3d.files.temps.ORPHAN_AGE_S` ago and
+    :func:`~photo3d.files.staging.stage_output` names them, made more than ``age``
+    seconds ago (default :data:`~photo3d.files.temps.ORPHAN_AGE_S`; ``0``: any, for a
+    caller that knows the writers it started are dead) and
     locked by no process (a live writer holds its folder's lock; the kernel drops it
     when the writer dies, even of SIGKILL). Safe while other processes write ``out``.
     Returns what was removed.
@@ -258,7 +268,7 @@ def remove_orphans(out: PathLike) -> list[Path]:
     """
     removed = []
     for tmp in temp_entries(out, suffixed=False):
-        if tmp.is_dir() and not tmp.is_symlink() and orphaned(tmp):
+        if tmp.is_dir() and not tmp.is_symlink() and orphaned(tmp, age=age):
             shutil.rmtree(tmp, ignore_errors=True)
             removed.append(tmp)
     return removed
