@@ -41,12 +41,16 @@ def test_render_refuses_what_is_no_camera(renderer, camera, message):
         renderer.render_rgb8(camera)
 
 
-def test_render_refuses_a_view_beyond_the_available_memory(renderer, monkeypatch):
+def test_render_refuses_a_view_beyond_the_available_memory(monkeypatch):
     # 100000x100000 at ssaa 2 allocated 447 GiB (a MemoryError, or the OOM killer)
-    monkeypatch.setattr("photo3d.resources.available_memory", lambda: 2_000_000_000)
-    with pytest.raises(ConfigError, match="rendering a 100000x100000 view with ssaa 2"):
-        renderer.render(Camera(Intrinsics.default(100000, 100000), np.eye(4)))
-    assert renderer.render(Camera(Intrinsics.default(8, 8), np.eye(4))).color.shape == (8, 8, 3)
+    import photo3d
+
+    photo = photo3d.make(np.full((16, 16, 3), 0.5), depth=np.ones((16, 16)),
+                         config=photo3d.Config(size=None))
+    monkeypatch.setattr("photo3d.resources.model.available_memory", lambda: 2_000_000_000)
+    with pytest.raises(ConfigError, match="100000x100000"):
+        photo.render(Camera(Intrinsics.default(100000, 100000), np.eye(4)))
+    assert photo.render(Camera(Intrinsics.default(8, 8), np.eye(4))).color.shape == (8, 8, 3)
 
 
 def _huge(shape: tuple[int, ...], value, dtype) -> np.ndarray:

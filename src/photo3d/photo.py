@@ -76,6 +76,12 @@ class Photo3D:
             :class:`~photo3d.render.renderer.View` with ``color (H, W, 3)``,
             ``depth (H, W)`` and the coverage ``mask (H, W)``.
 
+        Raises:
+            InputError: ``camera`` is no camera
+                (:func:`~photo3d.render.renderer.check_camera`).
+            ConfigError: the view needs more memory than is available
+                (:func:`photo3d.resources.check_render_memory`), or bad ``settings``.
+
         For many views of one photo use :class:`~photo3d.render.renderer.Renderer`
         directly: it prepares the mesh once.
 
@@ -87,8 +93,13 @@ class Photo3D:
             >>> photo.render(cam).color.shape
             (16, 16, 3)
         """
-        from photo3d.render.renderer import Renderer
+        from photo3d.render.renderer import Renderer, RenderSettings, check_camera
+        from photo3d.resources import check_render_memory
 
+        check_camera(camera)  # then the view's memory, before the mesh is built
+        k = camera.intrinsics
+        ssaa = (settings if isinstance(settings, RenderSettings) else RenderSettings()).ssaa
+        check_render_memory(self.ldi.size, (int(k.width), int(k.height)), ssaa=ssaa)
         with Renderer(self.mesh(), settings) as renderer:
             return renderer.render(camera)
 

@@ -189,6 +189,21 @@ def test_discard_partial_removes_only_what_a_killed_writer_staged(tmp_path):
         ".ab.1a2b3c4d.tmp", "a"]
 
 
+def test_discard_partial_waits_for_a_worker_letting_go_of_its_folder(tmp_path):
+    """A worker the batch killed may hold its staged folder a moment longer (a Ray
+    actor dying of the Ctrl-C itself): with ``wait`` it is removed once let go,
+    without it a held folder stays (a live make's)."""
+    import threading
+
+    out = tmp_path / "a"
+    staged = stage_photo(out, overwrite=False).path  # held by this process: alive
+    discard_partial(out)
+    assert staged.is_dir()
+    threading.Timer(0.2, release, (staged,), {"keep": True}).start()  # its process ends
+    discard_partial(out, wait=5.0)
+    assert not staged.exists()
+
+
 def test_ctrl_c_stops_cleanly_and_a_rerun_resumes(tmp_path):
     src, depth, out = tmp_path / "photos", tmp_path / "depth", tmp_path / "out"
     src.mkdir()

@@ -61,7 +61,7 @@ def test_errors_are_one_line(folder, tmp_path, capsys):
           "--size", "60"], "multiple of 8"),
         (["--images", "builtin", "--depth", str(folder / "depth")], "brings its own depth"),
         (["--images", str(folder / "images"), "--device", "tpu9"], "unknown torch device"),
-        (["--images", str(folder / "images"), "--threads", "0"], "at least 1"),
+        (["--images", str(folder / "images"), "--threads", "0"], "from 1 to 1024"),
     ]
     for extra, message in cases:
         assert main([*base, *extra]) == 2

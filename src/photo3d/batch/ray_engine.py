@@ -341,8 +341,11 @@ class _Pool:
             started = dict(self.started)
             self._kill(list(started))
             self._wait_gone(started.values(), deadline=time.monotonic() + _GONE_S)
+            # an actor that died of the signal itself was not waited for above: its
+            # process may hold its staged folder a moment longer
+            held = time.monotonic() + _HELD_S
             for job in [*(job for _, job in running.values()), *sending]:
-                discard_partial(out / job.name)
+                discard_partial(out / job.name, wait=max(0.0, held - time.monotonic()))
 
     def _kill(self, actors: list) -> None:
         for actor in actors:
@@ -372,6 +375,9 @@ class _Pool:
 
 _GONE_S = 30.0
 """Longest wait for killed actors' processes to end before cleaning up."""
+_HELD_S = 1.0
+"""Longest wait, when stopping, for killed actors' staged folders to be let go (all of
+them: a Ctrl-C stops a command within 2 s)."""
 _REMOTE_S = 1.0
 """Wait after killing actors on other hosts (their processes cannot be watched)."""
 _CHECK_S = 10.0

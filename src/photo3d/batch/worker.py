@@ -31,16 +31,27 @@ from photo3d.output import is_complete
 __all__ = ["PhotoMaker", "discard_partial", "is_complete", "one_line"]
 
 
-def discard_partial(out: Path) -> None:
+def discard_partial(out: Path, *, wait: float = 0.0) -> None:
     """Remove what killed writers of the output folder ``out`` left: its temporary
     sibling folders ``.NAME.XXXXXXXX.tmp`` that no process holds any more, at any
     age (a batch calls this once the workers that made ``out`` are gone). A live
     writer's folder (a ``photo3d make -o OUT/NAME`` running beside the batch) is
     kept: it holds its lock (:func:`photo3d.files.temps.hold`).
-    """
-    from photo3d.files.temps import remove_orphans
 
-    remove_orphans(out, age=0.0)
+    ``wait``: seconds to keep trying while a folder is still held (a worker the batch
+    killed may hold it a moment longer: its process is ending), checked every 50 ms.
+    """
+    import time
+
+    from photo3d.files.temps import remove_orphans, temp_entries
+
+    deadline = time.monotonic() + wait
+    while True:
+        remove_orphans(out, age=0.0)
+        held = [p for p in temp_entries(out, suffixed=False) if p.is_dir() and not p.is_symlink()]
+        if not held or time.monotonic() >= deadline:
+            return
+        time.sleep(0.05)
 
 
 def one_line(err: BaseException) -> str:

@@ -102,10 +102,10 @@ def lpips(a: np.ndarray, b: np.ndarray, mask: np.ndarray | None = None, *,
         >>> lpips(a, a)  # doctest: +SKIP
         0.0
     """
-    from photo3d.eval.metrics import _check
+    from photo3d.eval.metrics import check_images
 
     given = mask is not None
-    a, b, mask = _check(a, b, mask)  # (H, W, 3) floats in [0, 1] of one shape
+    a, b, mask = check_images(a, b, mask)  # (H, W, 3) floats in [0, 1] of one shape
     if min(a.shape[:2]) < 32:
         raise InputError(f"LPIPS needs two (H, W, 3) images of at least 32x32, got "
                          f"{a.shape} and {b.shape}")

@@ -12,12 +12,30 @@ from scipy import ndimage
 
 from photo3d.errors import InputError
 
+RANGE_SLACK = 1e-3
+"""How far outside [0, 1] an image's values may lie (float rounding of resampled or
+blended colours); 0..255 images are far beyond it."""
 
-def _check(a: np.ndarray, b: np.ndarray, mask: np.ndarray | None
-           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+
+def check_images(a: np.ndarray, b: np.ndarray, mask: np.ndarray | None = None
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(a, b, mask)`` as arrays once they are images the metrics are defined on:
-    ``(H, W, 3)`` floats in [0, 1] of one shape (uint8 images, or floats of 0..255,
-    gave scores with no meaning), ``mask`` ``(H, W)`` (default: every pixel)."""
+    ``(H, W, 3)`` floats in [0, 1] (within :data:`RANGE_SLACK`) of one shape
+    (uint8 images, or floats of 0..255, gave scores with no meaning), ``mask``
+    ``(H, W)`` bool (default: every pixel). Lists are taken.
+
+    Raises:
+        InputError: one line naming the image and what is wrong with it.
+
+    Example:
+        >>> a = np.zeros((4, 4, 3), np.float32)
+        >>> check_images(a, a)[2].sum()
+        np.int64(16)
+        >>> check_images(a, (a * 255).astype(np.uint8))  # doctest: +ELLIPSIS
+        Traceback (most recent call last):
+        ...
+        photo3d.errors.InputError: b has dtype uint8; expected floats in [0, 1] ...
+    """
     a, b = np.asarray(a), np.asarray(b)
     for name, image in (("a", a), ("b", b)):
         if image.ndim != 3 or image.shape[2] != 3:
@@ -25,8 +43,8 @@ def _check(a: np.ndarray, b: np.ndarray, mask: np.ndarray | None
         if not np.issubdtype(image.dtype, np.floating):
             raise InputError(f"{name} has dtype {image.dtype}; expected floats in [0, 1] "
                              f"(photo3d.io.images.to_float_image converts uint8 / uint16)")
-        if image.size and not (np.isfinite(image).all() and 0 <= image.min()
-                               and image.max() <= 1):
+        if image.size and not (np.isfinite(image).all() and -RANGE_SLACK <= image.min()
+                               and image.max() <= 1 + RANGE_SLACK):
             raise InputError(f"{name} has values outside [0, 1] (or NaN / inf): span "
                              f"[{image.min():g}, {image.max():g}]")
     if a.shape != b.shape:
@@ -47,7 +65,7 @@ def psnr(a: np.ndarray, b: np.ndarray, mask: np.ndarray | None = None) -> float:
         >>> round(psnr(a, b), 2)
         20.0
     """
-    a, b, m = _check(a, b, mask)
+    a, b, m = check_images(a, b, mask)
     if not m.any():
         return float("nan")
     mse = float(np.mean((a[m].astype(np.float64) - b[m]) ** 2))
@@ -79,7 +97,7 @@ def ssim(a: np.ndarray, b: np.ndarray, mask: np.ndarray | None = None) -> float:
         >>> ssim(a, a), ssim(a, 1 - a) < 0
         (1.0, True)
     """
-    a, b, m = _check(a, b, mask)
+    a, b, m = check_images(a, b, mask)
     if not m.any():
         return float("nan")
     return float(np.mean(ssim_map(a, b)[m]))

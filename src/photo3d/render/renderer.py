@@ -228,7 +228,6 @@ class Renderer:
             antialias = "edges" if texture is not None else "full"
         self._edges = self.backend == "numba" and antialias == "edges" and self.settings.ssaa > 1
         self._overlay = None if overlay is None else self._rasterizer(overlay)
-        self._checked = None  # (width, height, ssaa) whose memory check_camera accepted
 
     def _rasterizer(self, fringe: Mesh):
         """A rasterizer of this renderer's backend for the fringe mesh ``fringe``: its
@@ -356,13 +355,8 @@ class Renderer:
 
     def _intrinsics(self, camera: Camera) -> Intrinsics:
         """``camera``'s intrinsics with the settings' crop (the drawn view), once
-        :func:`check_camera` accepts it (its memory checked when its size is new)."""
+        :func:`check_camera` accepts it."""
         check_camera(camera)
-        k = camera.intrinsics
-        view = (k.width, k.height, 1 if self._edges else self.settings.ssaa)
-        if view != self._checked:  # a new size (a video's frames: the first)
-            check_camera(camera, ssaa=view[2])
-            self._checked = view
         crop = self.settings.crop
         return cropped(camera.intrinsics, crop) if any(crop) else camera.intrinsics
 
@@ -382,28 +376,24 @@ class Renderer:
         return color
 
 
-def check_camera(camera: Camera, *, ssaa: int | None = None) -> None:
+def check_camera(camera: Camera) -> None:
     """Refuse what :meth:`Renderer.render` cannot draw: no :class:`Camera`, an output
     size that is not whole pixels > 0, a focal length that is not finite and
-    positive, a principal point that is not finite or, given ``ssaa``, a view whose
-    ``ssaa x ssaa`` supersamples need more memory than is available
-    (:func:`photo3d.resources.render_terms` of a still, the mesh already in memory).
+    positive, or a principal point that is not finite. (The memory a view needs is
+    the 3D photo's to check, :meth:`photo3d.Photo3D.render`, with the one memory
+    model of :mod:`photo3d.resources`, a layer above this one.)
 
     Raises:
         InputError: the camera, naming what is wrong.
-        ConfigError: the view does not fit in the available memory.
 
     Example:
-        >>> check_camera(Camera(Intrinsics.default(64, 48), np.eye(4)), ssaa=2)
+        >>> check_camera(Camera(Intrinsics.default(64, 48), np.eye(4)))
         >>> check_camera(Camera(Intrinsics(0.0, 0.0, 32.0, 24.0, 64, 48), np.eye(4)))
         ... # doctest: +ELLIPSIS
         Traceback (most recent call last):
         ...
         photo3d.errors.InputError: camera needs finite fx, fy > 0 and a finite principal ...
     """
-    from photo3d.resources.model import check as check_estimate
-    from photo3d.resources.render import render_terms
-
     if not isinstance(camera, Camera) or not isinstance(camera.intrinsics, Intrinsics):
         raise InputError(f"camera must be a photo3d.camera.Camera (Intrinsics and a pose), "
                          f"got a {type(camera).__name__}")
@@ -421,10 +411,6 @@ def check_camera(camera: Camera, *, ssaa: int | None = None) -> None:
     if not (fx > 0 and fy > 0 and np.isfinite([fx, fy, cx, cy]).all()):
         raise InputError(f"camera needs finite fx, fy > 0 and a finite principal point, "
                          f"got fx={fx:g}, fy={fy:g}, cx={cx:g}, cy={cy:g}")
-    if ssaa is not None:
-        check_estimate(render_terms(0, (int(width), int(height)), ssaa=ssaa),
-                       what=f"rendering a {width}x{height} view with ssaa {ssaa}",
-                       advice="render a smaller camera (Intrinsics.scaled) or ssaa=1")
 
 
 def select_backend(name: str) -> str:
