@@ -197,3 +197,46 @@ def test_metrics_take_lists():
     assert psnr(_A.tolist(), (_A * 0.5).tolist(), mask=mask.tolist()) == psnr(
         _A, _A * 0.5, mask=mask)
     assert ssim(_A.tolist(), _A.tolist()) == 1.0
+
+
+@pytest.mark.parametrize("position, target, up, message", [
+    ((0, 0, 0), (0, 0, 0), (0, -1, 0), "target is at the camera's position"),
+    ((0, 0, 0), (0, 5, 0), (0, -1, 0), "up is parallel to the viewing direction"),
+    ((0, 0), (0, 0, 5), (0, -1, 0), "position must be 3 finite numbers"),
+    ((0, 0, 0), (0, 0, np.nan), (0, -1, 0), "target must be 3 finite numbers"),
+    ((0, 0, 0), (0, 0, 5), "up", "up must be 3 finite numbers"),
+])
+def test_look_at_refuses_what_gives_no_camera(position, target, up, message):
+    # target at the position gave a NaN pose; up parallel a bare ValueError; a 2-vector
+    # numpy's broadcast error
+    with pytest.raises(InputError, match=message):
+        Camera.look_at(Intrinsics.default(8, 8), position, target, up)
+
+
+@pytest.mark.parametrize("mesh", [None, "mesh.glb"])
+def test_write_viewer_refuses_what_is_no_mesh(tmp_path, mesh):
+    # an AttributeError from the payload's encoder
+    from photo3d.viewer import write_viewer
+
+    with pytest.raises(InputError, match="mesh must be a photo3d Mesh or TexturedMesh"):
+        write_viewer(mesh, tmp_path / "viewer.html")
+    assert not (tmp_path / "viewer.html").exists()
+
+
+def test_save_and_load_refuse_what_is_no_path_or_no_option(tmp_path):
+    # photo.save(None) / save(5) / load(None): Python's TypeError; save(out, {"glb":
+    # False}): an AttributeError; save(out, bogus=1): dataclasses' TypeError
+    import photo3d
+
+    photo = photo3d.make(np.full((16, 16, 3), 0.5), depth=np.ones((16, 16)),
+                         config=photo3d.Config(size=None))
+    for out in (None, 5, ""):
+        with pytest.raises(InputError, match="out must be a folder path"):
+            photo.save(out)
+    with pytest.raises(InputError, match="path must be a folder path"):
+        photo3d.load(None)
+    with pytest.raises(ConfigError, match="options must be a SaveOptions"):
+        photo.save(tmp_path / "a", {"glb": False})
+    with pytest.raises(ConfigError, match="unknown save option 'bogus'; the options are"):
+        photo.save(tmp_path / "b", bogus=1)
+    assert list(tmp_path.iterdir()) == []

@@ -22,6 +22,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from photo3d.errors import InputError
+
 
 @dataclass(frozen=True)
 class Intrinsics:
@@ -161,17 +163,24 @@ class Camera:
     def look_at(cls, intrinsics: Intrinsics, position, target, up=(0.0, -1.0, 0.0)) -> Camera:
         """Camera at ``position`` looking at ``target``; ``up`` is world up (OpenCV: -y).
 
+        Raises:
+            InputError: a point or ``up`` that is not 3 finite numbers, ``target`` at
+                ``position``, or ``up`` parallel to the viewing direction.
+
         Example:
             >>> cam = Camera.look_at(Intrinsics.default(8, 8), (0, 0, 0), (0, 0, 5))
             >>> np.allclose(cam.pose, np.eye(4))
             True
         """
-        position = np.asarray(position, float)
-        forward = np.asarray(target, float) - position
+        position, target, up = (_point(v, name) for v, name in
+                                ((position, "position"), (target, "target"), (up, "up")))
+        forward = target - position
+        if np.linalg.norm(forward) == 0:
+            raise InputError("look_at: target is at the camera's position")
         forward /= np.linalg.norm(forward)
-        right = np.cross(-np.asarray(up, float), forward)
+        right = np.cross(-up, forward)
         if np.linalg.norm(right) < 1e-9:
-            raise ValueError("look_at: up is parallel to the viewing direction")
+            raise InputError("look_at: up is parallel to the viewing direction")
         right /= np.linalg.norm(right)
         down = np.cross(forward, right)
         rot = np.stack([right, down, forward])  # rows: camera axes in world coordinates
@@ -184,3 +193,14 @@ class Camera:
     def position(self) -> np.ndarray:
         """``(3,)`` camera centre in world coordinates."""
         return -self.pose[:3, :3].T @ self.pose[:3, 3]
+
+
+def _point(value, name: str) -> np.ndarray:
+    """``value`` as 3 finite numbers ``(3,) float64``, or :class:`InputError` naming it."""
+    try:
+        point = np.asarray(value, float)
+    except (TypeError, ValueError):
+        point = None
+    if point is None or point.shape != (3,) or not np.isfinite(point).all():
+        raise InputError(f"look_at: {name} must be 3 finite numbers, got {value!r}")
+    return point

@@ -4,13 +4,15 @@ disk (:mod:`photo3d.output`)."""
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 from photo3d.camera import Camera
 from photo3d.config import Config
-from photo3d.errors import InputError
+from photo3d.errors import ConfigError, InputError
+from photo3d.files.staging import Staging
 from photo3d.mesh.full import build_mesh
 from photo3d.save_options import SaveOptions
 from photo3d.structures.ldi import LDI
@@ -116,6 +118,11 @@ class Photo3D:
             progress: ``progress(stage, fraction)``.
             changes: fields of ``options`` to replace, e.g. ``glb=False``.
 
+        Raises:
+            InputError: ``out`` is no path. ConfigError: ``options`` is no
+            :class:`~photo3d.save_options.SaveOptions`, or a change names no field.
+            OutputError: see :func:`photo3d.output.save_photo`.
+
         See :func:`photo3d.output.save_photo`.
 
         Example:
@@ -128,6 +135,12 @@ class Photo3D:
         """
         from photo3d.output import save_photo
 
+        if not isinstance(out, Staging):  # (make's own: its staged folder)
+            _check_path(out, "out")
+        if options is not None and not isinstance(options, SaveOptions):
+            raise ConfigError(f"options must be a SaveOptions or None, got a "
+                              f"{type(options).__name__} (fields go as keywords: "
+                              f"save(out, glb=False))")
         options = (options or SaveOptions()).with_(**changes)
         return save_photo(self, out, options, overwrite=overwrite, progress=progress)
 
@@ -160,6 +173,7 @@ def load(path: str | Path) -> Photo3D:
     """
     from photo3d.output import read_folder
 
+    _check_path(path, "path")
     ldi, meta = read_folder(path)
     config = meta.get("config", {})
     if not isinstance(config, dict):
@@ -178,3 +192,9 @@ def load(path: str | Path) -> Photo3D:
     return Photo3D(ldi=ldi, config=config, timings=table("timings"), stats=table("stats"),
                    inpainter=table("inpainter"),
                    depth_source=source if isinstance(source, str) else None)
+
+
+def _check_path(value, name: str) -> None:
+    """Refuse a ``value`` that is no path (``str`` or ``os.PathLike``), naming it."""
+    if not isinstance(value, str | os.PathLike) or not os.fspath(value):
+        raise InputError(f"{name} must be a folder path (str or pathlib.Path), got {value!r}")

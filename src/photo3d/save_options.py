@@ -135,5 +135,16 @@ class SaveOptions:
                                   f"{type(self.render_settings).__name__}")
 
     def with_(self, **changes) -> SaveOptions:
-        """A copy with fields replaced (:func:`dataclasses.replace`)."""
+        """A copy with fields replaced (:func:`dataclasses.replace`); an unknown field
+        is a :class:`~photo3d.errors.ConfigError` naming the known ones.
+
+        Example:
+            >>> SaveOptions().with_(glb=False).glb
+            False
+        """
+        known = {f.name for f in dataclasses.fields(self)}
+        unknown = sorted(set(changes) - known)
+        if unknown:
+            raise ConfigError(f"unknown save option {unknown[0]!r}; the options are "
+                              f"{', '.join(sorted(known))}")
         return dataclasses.replace(self, **changes)

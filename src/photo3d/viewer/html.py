@@ -67,7 +67,8 @@ def write_viewer(mesh: Mesh | TexturedMesh, path: PathLike, *, title: str = "pho
         ``path`` as a :class:`~pathlib.Path`.
 
     Raises:
-        InputError: empty mesh, wrong shapes, non-finite vertices or ``z <= 0``.
+        InputError: not a mesh, empty mesh, wrong shapes, non-finite vertices or
+            ``z <= 0``.
         OutputError: ``path`` cannot be written.
 
     Example:
@@ -79,6 +80,9 @@ def write_viewer(mesh: Mesh | TexturedMesh, path: PathLike, *, title: str = "pho
         >>> read_viewer(path).faces.shape
         (1, 3)
     """
+    if not isinstance(mesh, Mesh | TexturedMesh):
+        raise InputError(f"mesh must be a photo3d Mesh or TexturedMesh (Photo3D.mesh(), "
+                         f".light_mesh()), got a {type(mesh).__name__}")
     header, payload = encode_mesh(mesh)
     header["animate"] = bool(animate)
     before, after = _template().split("{{DATA}}")
