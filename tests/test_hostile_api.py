@@ -240,3 +240,21 @@ def test_save_and_load_refuse_what_is_no_path_or_no_option(tmp_path):
     with pytest.raises(ConfigError, match="unknown save option 'bogus'; the options are"):
         photo.save(tmp_path / "b", bogus=1)
     assert list(tmp_path.iterdir()) == []
+
+
+def test_export_and_light_mesh_take_what_a_user_means_or_refuse_it(tmp_path):
+    # export_folder(out, "splats.ply") said "unknown export format 's'"; splat_fit="no"
+    # was taken as true; light_mesh(max_error="1") was a TypeError inside the simplifier
+    import photo3d
+    from photo3d.export import export_folder
+
+    photo = photo3d.make(np.full((16, 16, 3), 0.5), depth=np.ones((16, 16)),
+                         config=photo3d.Config(size=None))
+    out = photo.save(tmp_path / "out", viewer=False, ply=None)
+    assert [p.name for p in export_folder(out, "splats.ply")] == ["splats.ply"]
+    with pytest.raises(ConfigError, match="splat_fit must be True or False, got 'no'"):
+        export_folder(out, ["splats.spz"], splat_fit="no")
+    assert not (out / "splats.spz").exists()
+    for bad in ("1", np.nan, -1.0, np.inf):
+        with pytest.raises(InputError, match="need max_error >= 0"):
+            photo.light_mesh(max_error=bad)

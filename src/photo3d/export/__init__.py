@@ -112,6 +112,8 @@ def export_folder(folder: str | Path, formats: Sequence[str], *,
     from photo3d.kernel_cache import adopt
 
     chosen = check_formats(formats, output=output)
+    if not isinstance(splat_fit, bool):  # "no" would be true
+        raise ConfigError(f"splat_fit must be True or False, got {splat_fit!r}")
     from photo3d.save_options import SaveOptions
 
     SaveOptions(splats=density, spz_version=spz_version)  # checks both
@@ -247,7 +249,8 @@ def _light_error(meta: dict) -> float | None:
 
 def check_formats(formats: Sequence[str], *, output: str | Path | None = None
                   ) -> list[Format]:
-    """The :class:`Format` of each name in ``formats``, repeats dropped.
+    """The :class:`Format` of each name in ``formats`` (or of the one name given as a
+    string), repeats dropped.
 
     Raises:
         ConfigError: an unknown name (one line listing the known ones), no name,
@@ -260,6 +263,8 @@ def check_formats(formats: Sequence[str], *, output: str | Path | None = None
         Traceback (most recent call last):
         photo3d.errors.ConfigError: unknown export format 'splats.obj'; choose from splats.ply, ...
     """
+    if isinstance(formats, str):  # one name, not its letters
+        formats = [formats]
     unknown = [name for name in formats if name not in FORMATS]
     if unknown:
         raise ConfigError(f"unknown export format {unknown[0]!r}; choose from "

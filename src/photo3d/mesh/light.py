@@ -121,8 +121,11 @@ def build_light_mesh(ldi: LDI, *, max_error: float = LIGHT_ERROR, parallax: floa
         >>> len(light.faces) < len(build_mesh(ldi).faces) // 10
         True
     """
-    if not max_error >= 0 or not parallax > 0:
-        raise InputError(f"need max_error >= 0 and parallax > 0, got {max_error}, {parallax}")
+    if not all(isinstance(v, int | float | np.integer | np.floating) and not isinstance(v, bool)
+               for v in (max_error, parallax)) or not (0 <= max_error < np.inf
+                                                      and 0 < parallax < np.inf):
+        raise InputError(f"need max_error >= 0 and parallax > 0 (finite numbers), got "
+                         f"{max_error!r}, {parallax!r}")
     if block < 2:
         raise InputError(f"block must be >= 2, got {block}")
     full = build_mesh(ldi) if full is None else full
