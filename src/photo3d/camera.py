@@ -204,3 +204,28 @@ def _point(value, name: str) -> np.ndarray:
     if point is None or point.shape != (3,) or not np.isfinite(point).all():
         raise InputError(f"look_at: {name} must be 3 finite numbers, got {value!r}")
     return point
+
+
+def check_intrinsics(k: Intrinsics, what: str = "intrinsics") -> None:
+    """Refuse intrinsics that are no camera: focal lengths that are not finite numbers
+    > 0, or a principal point that is not finite (``make``'s input camera, a rendered
+    view's); ``what`` names them in the message.
+
+    Raises:
+        InputError: one line with the four values.
+
+    Example:
+        >>> check_intrinsics(Intrinsics.default(64, 48))
+        >>> check_intrinsics(Intrinsics(0.0, 0.0, 32.0, 24.0, 64, 48))  # doctest: +ELLIPSIS
+        Traceback (most recent call last):
+        ...
+        photo3d.errors.InputError: intrinsics need finite fx, fy > 0 and a ... fx=0, fy=0, ...
+    """
+    try:
+        fx, fy, cx, cy = (float(v) for v in (k.fx, k.fy, k.cx, k.cy))
+    except (TypeError, ValueError):
+        raise InputError(f"{what} must be numbers, got fx={k.fx!r}, "
+                         f"fy={k.fy!r}, cx={k.cx!r}, cy={k.cy!r}") from None
+    if not (fx > 0 and fy > 0 and np.isfinite([fx, fy, cx, cy]).all()):
+        raise InputError(f"{what} need finite fx, fy > 0 and a finite principal point, "
+                         f"got fx={fx:g}, fy={fy:g}, cx={cx:g}, cy={cy:g}")

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from photo3d.camera import DepthMapping, Intrinsics
+from photo3d.camera import DepthMapping, Intrinsics, check_intrinsics
 from photo3d.config import Config
 from photo3d.depth.normalize import DepthInput, prepare_depth
 from photo3d.depth.sources import describe_depth, read_photo
@@ -214,11 +214,7 @@ def _check_intrinsics(intrinsics: Intrinsics, shape: tuple[int, int]) -> None:
     if (intrinsics.width, intrinsics.height) != (shape[1], shape[0]):
         raise InputError(f"intrinsics are for {intrinsics.width}x{intrinsics.height} but "
                          f"the image is {shape[1]}x{shape[0]}")
-    fx, fy, cx, cy = (float(v) for v in (intrinsics.fx, intrinsics.fy, intrinsics.cx,
-                                         intrinsics.cy))
-    if not (fx > 0 and fy > 0 and np.isfinite([fx, fy, cx, cy]).all()):
-        raise InputError(f"intrinsics need finite fx, fy > 0 and a finite principal point, "
-                         f"got fx={fx:g}, fy={fy:g}, cx={cx:g}, cy={cy:g}")
+    check_intrinsics(intrinsics)
 
 
 def _first_pass_input(pre: Preprocessed, shape: tuple[int, int], config: Config,

@@ -112,11 +112,9 @@ def export_folder(folder: str | Path, formats: Sequence[str], *,
     from photo3d.kernel_cache import adopt
 
     chosen = check_formats(formats, output=output)
-    if not isinstance(splat_fit, bool):  # "no" would be true
-        raise ConfigError(f"splat_fit must be True or False, got {splat_fit!r}")
     from photo3d.save_options import SaveOptions
 
-    SaveOptions(splats=density, spz_version=spz_version)  # checks both
+    SaveOptions(splats=density, spz_version=spz_version, splat_fit=splat_fit)  # checks them
     require_extras([f.name for f in chosen], spz_version=spz_version)
     adopt()  # the wheel's compiled kernels, if they fit (once per process)
     folder = Path(folder)

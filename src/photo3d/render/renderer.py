@@ -21,7 +21,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from photo3d.camera import Camera, Intrinsics
+from photo3d.camera import Camera, Intrinsics, check_intrinsics
 from photo3d.errors import ConfigError, InputError, require
 from photo3d.files.stop import check
 from photo3d.holes import fill_holes
@@ -392,7 +392,7 @@ def check_camera(camera: Camera) -> None:
         ... # doctest: +ELLIPSIS
         Traceback (most recent call last):
         ...
-        photo3d.errors.InputError: camera needs finite fx, fy > 0 and a finite principal ...
+        photo3d.errors.InputError: camera intrinsics need finite fx, fy > 0 and a finite ...
     """
     if not isinstance(camera, Camera) or not isinstance(camera.intrinsics, Intrinsics):
         raise InputError(f"camera must be a photo3d.camera.Camera (Intrinsics and a pose), "
@@ -403,14 +403,7 @@ def check_camera(camera: Camera) -> None:
                for v in (width, height)):
         raise InputError(f"camera size must be whole pixels > 0, got width={width!r}, "
                          f"height={height!r}")
-    try:
-        fx, fy, cx, cy = (float(v) for v in (k.fx, k.fy, k.cx, k.cy))
-    except (TypeError, ValueError):
-        raise InputError(f"camera intrinsics must be numbers, got fx={k.fx!r}, fy={k.fy!r}, "
-                         f"cx={k.cx!r}, cy={k.cy!r}") from None
-    if not (fx > 0 and fy > 0 and np.isfinite([fx, fy, cx, cy]).all()):
-        raise InputError(f"camera needs finite fx, fy > 0 and a finite principal point, "
-                         f"got fx={fx:g}, fy={fy:g}, cx={cx:g}, cy={cy:g}")
+    check_intrinsics(k, "camera intrinsics")
 
 
 def select_backend(name: str) -> str:
